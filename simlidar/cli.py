@@ -1,0 +1,243 @@
+"""The ``simlidar`` command line. The only module that imports click.
+
+User mistakes end in one line on stderr: exit code 2 for a bad option value (usage), 1 for
+anything else (a bad recipe, a path that is not a dataset, an existing dataset, ...). ``--debug``
+shows the traceback instead.
+"""
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import click
+
+from simlidar import __version__
+from simlidar.errors import ConfigError, SimlidarError
+
+
+class _Group(click.Group):
+    """Turns library errors into one-line messages with the right exit code."""
+
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except ConfigError as exc:
+            if ctx.meta.get("debug"):
+                raise
+            raise click.UsageError(str(exc), ctx) from None
+        except SimlidarError as exc:
+            if ctx.meta.get("debug"):
+                raise
+            click.echo(f"Error: {exc}", err=True)
+            ctx.exit(1)
+
+
+class NoiseLevels(click.ParamType):
+    """A comma-separated list of noise levels in [0, 1], e.g. ``0.1,0.2,0.33,0.5``."""
+
+    name = "LEVELS"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, list):
+            return value
+        levels = []
+        for part in str(value).split(","):
+            try:
+                level = float(part)
+            except ValueError:
+                self.fail(f"{part!r} is not a number; expected levels like 0.1,0.2", param, ctx)
+            if not 0.0 <= level <= 1.0:
+                self.fail(f"{level:g} is outside [0, 1]; expected noise levels in [0, 1]",
+                          param, ctx)  # fmt: skip
+            levels.append(level)
+        if len(set(levels)) != len(levels):
+            self.fail(f"{value!r} repeats a level; expected distinct levels", param, ctx)
+        return levels
+
+
+def _load_catalog(scenes):
+    from simlidar.scene.recipe import load_catalog
+
+    return load_catalog(scenes)
+
+
+@click.group(cls=_Group)
+@click.version_option(__version__, prog_name="simlidar")
+@click.option("--debug", is_flag=True, help="Show tracebacks instead of one-line errors.")
+@click.pass_context
+def main(ctx: click.Context, debug: bool) -> None:
+    """simlidar: synthetic VLP-16 temporal-pulse datasets (Sim LiDAR) and benchmarks."""
+    ctx.meta["debug"] = debug
+
+
+@main.command()
+@click.option(
+    "--classes",
+    type=int,
+    default=32,
+    show_default=True,
+    help="32: layout x object, 8: layout alone, 4: object alone.",
+)
+@click.option(
+    "--noise",
+    "noise",
+    type=NoiseLevels(),
+    default="0.2",
+    show_default=True,
+    help="Noise level(s) a of U(0, a); a comma-separated list writes one dataset "
+    "per level, with the same scenes.",
+)
+@click.option("--train-size", type=int, default=3000, show_default=True)
+@click.option("--test-size", type=int, default=600, show_default=True)
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("data"),
+    show_default=True,
+    help="Folder that receives the dataset directories.",
+)
+@click.option(
+    "--width",
+    type=click.IntRange(1, 1024),
+    default=16,
+    show_default=True,
+    help="Azimuth columns per sample.",
+)
+@click.option(
+    "--scenes",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Scene catalog folder (default: the one shipped with simlidar).",
+)
+@click.option(
+    "--batch-size",
+    type=click.IntRange(1, 4096),
+    default=1024,
+    show_default=True,
+    help="Samples ray-cast together (does not change the data).",
+)
+@click.option("--force", is_flag=True, help="Overwrite existing datasets.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+def generate(classes, noise, train_size, test_size, seed, out, width, scenes, batch_size,
+             force, as_json):  # fmt: skip
+    """Generate Sim LiDAR train/test splits (HDF5) and a preview picture per noise level."""
+    from simlidar.dataset.config import GeneratorConfig
+    from simlidar.dataset.generate import generate as run
+    from simlidar.simulate import class_plan
+
+    catalog = _load_catalog(scenes)
+    try:
+        class_plan(catalog, classes)
+    except ConfigError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--classes'") from None
+    config = GeneratorConfig(classes=classes, noise=noise[0], train_size=train_size,
+                             test_size=test_size, seed=seed, width=width)  # fmt: skip
+    start = time.perf_counter()
+    written = run(config, noise, catalog, out, batch_size=batch_size, force=force)
+    seconds = time.perf_counter() - start
+    if as_json:
+        record = {
+            "datasets": [
+                {"path": str(w.path), "noise": w.noise, "classes": w.classes, "splits": w.splits}
+                for w in written
+            ],
+            "seconds": round(seconds, 3),
+        }
+        click.echo(json.dumps(record))
+    else:
+        for w in written:
+            click.echo(f"wrote {w.path} (train {w.splits['train']}, test {w.splits['test']}, "
+                       f"noise {w.noise:g}) and its preview.png")  # fmt: skip
+        click.echo(f"done in {seconds:.1f} s")
+
+
+@main.command()
+@click.argument("path", type=click.Path(path_type=Path))
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+def info(path, as_json):
+    """Show a dataset's versions, classes, counts per split and class, noise and config."""
+    from simlidar.dataset.info import dataset_info
+
+    summary = dataset_info(path)
+    if as_json:
+        click.echo(json.dumps(summary))
+        return
+    click.echo(f"{summary['path']}")
+    click.echo(f"  dataset version {summary['dataset_version']}, "
+               f"simlidar {summary['simlidar_version']}")  # fmt: skip
+    click.echo(
+        f"  {summary['classes']} classes ({summary['class_mode']}), noise "
+        f"{summary['noise']:g}, seed {summary['seed']}, 16 x {summary['width']} pulses"
+    )
+    for split, size in summary["splits"].items():
+        counts = summary["counts"][split].values()
+        click.echo(f"  {split}: {size} samples, {min(counts)}..{max(counts)} per class")
+    width = max(len(n) for n in summary["counts"]["train"])
+    for name in summary["counts"]["train"]:
+        per = "  ".join(f"{s} {summary['counts'][s][name]:5d}" for s in summary["counts"])
+        click.echo(f"    {name:<{width}}  {per}")
+    click.echo(f"  config: {json.dumps(summary['config'], sort_keys=True)}")
+
+
+@main.command()
+@click.argument("path", type=click.Path(path_type=Path))
+@click.option(
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    required=True,
+    help="PNG file to write.",
+)
+@click.option("--split", type=click.Choice(["train", "test"]), default="test", show_default=True)
+def preview(path, out, split):
+    """Draw one example per class (delays as grey levels) into a PNG file."""
+    from simlidar.dataset.preview import write_preview
+    from simlidar.errors import DatasetError
+
+    if out.suffix.lower() != ".png":
+        raise click.BadParameter(f"{out}: expected a file name ending in .png",
+                                 param_hint="'--out'")  # fmt: skip
+    if not out.parent.is_dir():
+        raise DatasetError(f"--out {out}: folder {out.parent} does not exist")
+    click.echo(f"wrote {write_preview(path, out, split)}")
+
+
+@main.command()
+@click.option(
+    "--scenes",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Scene catalog folder (default: the one shipped with simlidar).",
+)
+@click.option(
+    "--export",
+    "export_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="Write one sampled scene per layout x object into this folder.",
+)
+@click.option(
+    "--format", "fmt", type=click.Choice(["glb", "ply"]), default="glb", show_default=True
+)
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
+def scenes(scenes, export_dir, fmt, seed):
+    """List the scene catalog, or export sampled scenes as mesh files."""
+    catalog = _load_catalog(scenes)
+    click.echo(f"scene catalog {catalog.root} (sha256 {catalog.fingerprint()[:12]})")
+    click.echo(f"layouts ({len(catalog.layouts)}):")
+    for k, r in enumerate(catalog.layouts):
+        click.echo(f"  {k}  {r.name:<18} {len(r.params):2d} params  {r.description}")
+    click.echo(f"objects ({len(catalog.objects)}):")
+    for k, r in enumerate(catalog.objects):
+        click.echo(f"  {k}  {r.name:<18} {len(r.params):2d} params  {r.description}")
+    click.echo(f"surfaces: {', '.join(catalog.surfaces)}")
+    if export_dir is not None:
+        from simlidar.scene.export import export_scenes
+
+        paths = export_scenes(catalog, export_dir, seed=seed, fmt=fmt)
+        click.echo(f"wrote {len(paths)} scenes to {export_dir}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,73 @@
+"""The generator's configuration: one frozen dataclass, stored as JSON in every split file."""
+
+import json
+import math
+from dataclasses import asdict, dataclass, field, replace
+
+from simlidar.errors import ConfigError
+from simlidar.sensor.vlp16 import VLP16
+
+CLASS_CHOICES = (4, 8, 32)
+
+
+@dataclass(frozen=True)
+class GeneratorConfig:
+    """Everything that decides a dataset's bytes (with the scene catalog and the version)."""
+
+    classes: int = 32  # 32: layout x object; 8: layout alone; 4: object alone
+    noise: float = 0.2  # a in U(0, a), added to every normalised delay
+    train_size: int = 3000  # samples in train.h5 (the paper's size)
+    test_size: int = 600  # samples in test.h5
+    seed: int = 0  # root of every random stream (numpy SeedSequence)
+    width: int = 16  # azimuth columns W of a sample
+    fov_deg: float = 48.0  # horizontal field of view of the W columns, centred ahead
+    min_object_hits: int = 4  # k: a labelled object is hit by at least k pulses
+    max_attempts: int = 200  # redraws allowed per sample before giving up
+    shift_max: float = 0.0  # delay-shift augmentation: each sample's returns move U(-s, s)
+    sensor: VLP16 = field(default_factory=VLP16)
+
+    def __post_init__(self) -> None:
+        if self.classes not in CLASS_CHOICES:
+            raise ConfigError(f"classes={self.classes!r}: expected one of {CLASS_CHOICES}")
+        if not (isinstance(self.noise, float | int) and 0.0 <= self.noise <= 1.0):
+            raise ConfigError(f"noise={self.noise!r}: expected a level in [0, 1]")
+        for name in ("train_size", "test_size"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < self.classes:
+                raise ConfigError(
+                    f"{name}={value!r}: expected an integer >= {self.classes} so that every "
+                    "class has a sample (classes are balanced)"
+                )
+        if not isinstance(self.seed, int) or self.seed < 0:
+            raise ConfigError(f"seed={self.seed!r}: expected a non-negative integer")
+        if not isinstance(self.width, int) or not 1 <= self.width <= 1024:
+            raise ConfigError(f"width={self.width!r}: expected an integer in [1, 1024]")
+        if not (math.isfinite(self.fov_deg) and 0.0 < self.fov_deg < 180.0):
+            raise ConfigError(f"fov_deg={self.fov_deg!r}: expected degrees in (0, 180)")
+        if not isinstance(self.min_object_hits, int) or self.min_object_hits < 1:
+            raise ConfigError(f"min_object_hits={self.min_object_hits!r}: expected >= 1")
+        if not isinstance(self.max_attempts, int) or self.max_attempts < 1:
+            raise ConfigError(f"max_attempts={self.max_attempts!r}: expected >= 1")
+        if not 0.0 <= self.shift_max < 1.0:
+            raise ConfigError(f"shift_max={self.shift_max!r}: expected a value in [0, 1)")
+
+    @property
+    def split_sizes(self) -> dict[str, int]:
+        return {"train": self.train_size, "test": self.test_size}
+
+    def with_noise(self, noise: float) -> "GeneratorConfig":
+        return replace(self, noise=noise)
+
+    def to_dict(self) -> dict:
+        values = asdict(self)
+        values["sensor"] = self.sensor.to_dict()
+        return values
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "GeneratorConfig":
+        values = dict(values)
+        values["sensor"] = VLP16.from_dict(values.get("sensor", {}))
+        return cls(**values)

@@ -1,0 +1,148 @@
+"""Writing dataset directories: splits for every noise level, atomically.
+
+The scenes are simulated once per batch and written to every noise level's files, so
+``--noise 0.1,0.2`` gives datasets with the same scenes and different noise. Each dataset is
+built under a hidden temporary name beside its final one and renamed into place when complete;
+on any failure the temporary folders are removed and nothing appears under a final name.
+"""
+
+import json
+import os
+import shutil
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from simlidar import __version__
+from simlidar.dataset.config import GeneratorConfig
+from simlidar.dataset.h5 import SPLITS, SplitWriter
+from simlidar.dataset.preview import write_preview
+from simlidar.dataset.version import DATASET_VERSION
+from simlidar.errors import DatasetError
+from simlidar.scene.recipe import Catalog
+from simlidar.sensor.raycast import MAX_BATCH
+from simlidar.sensor.rays import column_centres_deg
+from simlidar.sensor.vlp16 import row_order
+from simlidar.simulate import class_plan, simulate
+
+
+@dataclass(frozen=True)
+class Written:
+    path: Path
+    noise: float
+    classes: int
+    splits: dict[str, int]
+
+
+def dataset_name(config: GeneratorConfig) -> str:
+    """``simlidar-<classes>c-noise<level>-v<version>``."""
+    return f"simlidar-{config.classes}c-noise{config.noise:g}-v{DATASET_VERSION}"
+
+
+def split_attrs(config: GeneratorConfig, catalog: Catalog, split: str) -> dict:
+    """The attributes of one split file (documented in docs/dataset-format.md)."""
+    plan = class_plan(catalog, config.classes)
+    sensor = config.sensor
+    rows = row_order(sensor)
+    strings = h5py.string_dtype()
+    return {
+        "dataset_version": DATASET_VERSION,
+        "simlidar_version": __version__,
+        "split": split,
+        "config": config.to_json(),
+        "seed": config.seed,
+        "noise": float(config.noise),
+        "classes": plan.classes,
+        "class_mode": plan.mode,
+        "class_names": np.array(plan.names, dtype=strings),
+        "layout_names": np.array(catalog.layout_names, dtype=strings),
+        "object_names": np.array(catalog.object_names, dtype=strings),
+        "surface_names": np.array(catalog.surfaces, dtype=strings),
+        "sensor": json.dumps(sensor.to_dict(), sort_keys=True),
+        "catalog": json.dumps(catalog.to_dict(), sort_keys=True),
+        "catalog_sha256": catalog.fingerprint(),
+        "row_laser_ids": np.array(rows, dtype=np.int32),
+        "row_elevation_deg": np.array([sensor.elevations_deg[r] for r in rows]),
+        "column_azimuth_deg": column_centres_deg(config.width, config.fov_deg),
+        "tof_max_ns": sensor.tof_max_ns,
+        "no_return_delay": 1.0,
+        "min_object_hits": config.min_object_hits,
+    }
+
+
+def _check_out(out: Path) -> None:
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DatasetError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
+    if not out.is_dir() or not os.access(out, os.W_OK | os.X_OK):
+        raise DatasetError(f"--out {out}: expected a writable folder")
+
+
+def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalog,
+             out: str | Path, batch_size: int = 1024, force: bool = False,
+             progress: bool = True, preview: bool = True) -> list[Written]:  # fmt: skip
+    """Generate one dataset directory per noise level under ``out``; return what was written."""
+    from tqdm import tqdm
+
+    if not 1 <= batch_size <= MAX_BATCH:
+        raise DatasetError(f"batch_size={batch_size}: expected 1..{MAX_BATCH}")
+    configs = [config.with_noise(level) for level in noise_levels]
+    class_plan(catalog, config.classes)  # fail before touching the disk
+    out = Path(out)
+    _check_out(out)
+    finals = [out / dataset_name(c) for c in configs]
+    if len(set(finals)) != len(finals):
+        raise DatasetError(f"noise levels {noise_levels}: expected distinct levels")
+    existing = [str(f) for f in finals if f.exists()]
+    if existing and not force:
+        raise DatasetError(f"{existing[0]} already exists: pass --force to overwrite it")
+    temps = [out / f".{f.name}.partial-{os.getpid()}" for f in finals]
+    writers: list[SplitWriter] = []
+    try:
+        total = sum(config.split_sizes.values())
+        bar = tqdm(total=total, unit="sample", disable=not progress, desc="generate",
+                   dynamic_ncols=True)  # fmt: skip
+        for split in SPLITS:
+            size = config.split_sizes[split]
+            writers = []
+            for cfg, temp in zip(configs, temps):
+                temp.mkdir(exist_ok=True)
+                attrs = split_attrs(cfg, catalog, split)
+                writers.append(SplitWriter(temp / f"{split}.h5", size, cfg.width, cfg.noise,
+                                           attrs))  # fmt: skip
+            for start in range(0, size, batch_size):
+                stop = min(start + batch_size, size)
+                samples = simulate(config, catalog, split, start, stop)
+                for writer in writers:
+                    writer.write(start, samples)
+                bar.update(stop - start)
+            for writer in writers:
+                writer.close()
+        bar.close()
+        if preview:
+            for temp, final in zip(temps, finals):
+                write_preview(temp, temp / "preview.png", title=final.name)
+        for temp, final in zip(temps, finals):
+            _move_into_place(temp, final)
+    except BaseException:
+        for writer in writers:
+            writer.file.close()
+        for temp in temps:
+            shutil.rmtree(temp, ignore_errors=True)
+        raise
+    return [Written(f, c.noise, c.classes, dict(c.split_sizes)) for f, c in zip(finals, configs)]
+
+
+def _move_into_place(temp: Path, final: Path) -> None:
+    """Rename ``temp`` to ``final``; an old ``final`` (``--force``) is removed only after."""
+    old = None
+    if final.exists():
+        old = final.with_name(f".{final.name}.old-{os.getpid()}-{time.monotonic_ns()}")
+        final.rename(old)
+    temp.rename(final)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)

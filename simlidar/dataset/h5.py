@@ -1,0 +1,120 @@
+"""HDF5 split files: the schema, a streaming writer, and a checked reader.
+
+Every dataset and attribute is described in ``docs/dataset-format.md``; keep the two in step.
+Files are written deterministically: no timestamps, fixed chunking, gzip + shuffle.
+"""
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from simlidar.errors import DatasetError
+from simlidar.pulses import add_noise
+from simlidar.simulate import Samples
+
+CHUNK_SAMPLES = 256
+SPLITS = ("train", "test")
+
+# name -> (dtype, trailing shape given W, Samples field or None for the noisy delays)
+SCHEMA: dict[str, tuple[str, object, str | None]] = {
+    "delays": ("float32", lambda w: (16, w), None),
+    "clean_delays": ("float32", lambda w: (16, w), "clean_delays"),
+    "tof_ns": ("float32", lambda w: (16, w), "tof_ns"),
+    "surface": ("uint8", lambda w: (16, w), "surface"),
+    "labels": ("int64", lambda w: (), "labels"),
+    "layout": ("uint8", lambda w: (), "layout"),
+    "object": ("uint8", lambda w: (), "object"),
+    "object_pose": ("float32", lambda w: (3,), "object_pose"),
+    "object_hits": ("int32", lambda w: (), "object_hits"),
+    "attempts": ("int32", lambda w: (), "attempts"),
+    "phase": ("float32", lambda w: (), "phase"),
+    "shift": ("float32", lambda w: (), "shift"),
+}
+REQUIRED_ATTRS = ("dataset_version", "simlidar_version", "config", "seed", "noise", "split",
+                  "class_names", "sensor")  # fmt: skip
+
+
+class SplitWriter:
+    """Writes one split file block by block; peak memory is one block, not the split."""
+
+    def __init__(self, path: Path, size: int, width: int, noise: float, attrs: dict):
+        self.noise = noise
+        self.file = h5py.File(path, "w", libver=("earliest", "v110"), track_order=False)
+        for name, (dtype, tail, _) in SCHEMA.items():
+            shape = (size, *tail(width))
+            self.file.create_dataset(
+                name, shape=shape, dtype=dtype, chunks=(min(CHUNK_SAMPLES, size), *shape[1:]),
+                compression="gzip", compression_opts=4, shuffle=True, track_times=False,
+            )  # fmt: skip
+        for key, value in attrs.items():
+            self.file.attrs[key] = value
+
+    def write(self, start: int, samples: Samples) -> None:
+        stop = start + len(samples.labels)
+        for name, (_, _, source) in SCHEMA.items():
+            if source is None:
+                value = add_noise(samples.clean_delays, self.noise, samples.noise_u)
+            else:
+                value = getattr(samples, source)
+            self.file[name][start:stop] = value
+
+    def close(self) -> None:
+        self.file.close()
+
+
+@dataclass(frozen=True)
+class SplitInfo:
+    path: Path
+    size: int
+    width: int
+    attrs: dict  # JSON attributes decoded
+
+
+def _decode(value):
+    if isinstance(value, bytes):
+        value = value.decode()
+    if isinstance(value, str) and value[:1] in "{[":
+        return json.loads(value)
+    if isinstance(value, np.ndarray):
+        return [_decode(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value  # str, int, float
+
+
+def read_split_info(path: Path) -> SplitInfo:
+    """Open a split file and check it carries the simlidar schema."""
+    try:
+        with h5py.File(path, "r") as f:
+            missing = [k for k in REQUIRED_ATTRS if k not in f.attrs]
+            missing += [k for k in ("delays", "labels") if k not in f]
+            if missing:
+                raise DatasetError(f"{path}: not a simlidar split (missing {', '.join(missing)})")
+            attrs = {k: _decode(v) for k, v in f.attrs.items()}
+            return SplitInfo(path, f["delays"].shape[0], f["delays"].shape[2], attrs)
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot read as HDF5 ({exc})") from None
+
+
+def dataset_splits(path: str | Path) -> dict[str, SplitInfo]:
+    """The splits of a dataset directory; raises DatasetError if it is not one."""
+    path = Path(path)
+    if not path.is_dir():
+        raise DatasetError(f"{path}: expected a dataset directory with train.h5 and test.h5")
+    files = {s: path / f"{s}.h5" for s in SPLITS}
+    absent = [f.name for f in files.values() if not f.is_file()]
+    if absent:
+        raise DatasetError(
+            f"{path}: not a simlidar dataset (missing {', '.join(absent)}; expected train.h5 "
+            "and test.h5)"
+        )
+    return {s: read_split_info(f) for s, f in files.items()}
+
+
+def load_arrays(path: Path, names: tuple[str, ...], rows=slice(None)) -> dict[str, np.ndarray]:
+    """Read some datasets (all rows by default) of one split file."""
+    with h5py.File(path, "r") as f:
+        return {n: f[n][rows] for n in names}

@@ -1,0 +1,31 @@
+"""A dataset's summary: versions, classes, counts per split and class, noise, config."""
+
+from pathlib import Path
+
+import numpy as np
+
+from simlidar.dataset.h5 import dataset_splits, load_arrays
+
+
+def dataset_info(path: str | Path) -> dict:
+    """Summarise the dataset directory ``path`` (raises DatasetError if it is not one)."""
+    splits = dataset_splits(path)
+    first = splits["train"].attrs
+    names = first["class_names"]
+    counts = {}
+    for split, info in splits.items():
+        labels = load_arrays(info.path, ("labels",))["labels"]
+        counts[split] = dict(zip(names, np.bincount(labels, minlength=len(names)).tolist()))
+    return {
+        "path": str(Path(path)),
+        "dataset_version": first["dataset_version"],
+        "simlidar_version": first["simlidar_version"],
+        "classes": len(names),
+        "class_mode": first["class_mode"],
+        "noise": first["noise"],
+        "seed": first["seed"],
+        "width": splits["train"].width,
+        "splits": {s: info.size for s, info in splits.items()},
+        "counts": counts,
+        "config": first["config"],
+    }

@@ -1,0 +1,49 @@
+"""The preview picture: one example per class, delays as grey levels."""
+
+from pathlib import Path
+
+import numpy as np
+
+from simlidar.dataset.h5 import dataset_splits, load_arrays
+
+
+def first_of_each_class(labels: np.ndarray, classes: int) -> np.ndarray:
+    """Row index of the first sample of every class (-1 where a class has none)."""
+    rows = np.full(classes, -1)
+    for c in range(classes):
+        hit = np.nonzero(labels == c)[0]
+        if len(hit):
+            rows[c] = hit[0]
+    return rows
+
+
+def write_preview(dataset: str | Path, out: str | Path, split: str = "test",
+                  title: str | None = None) -> Path:  # fmt: skip
+    """Draw the first ``split`` sample of every class into the PNG file ``out``."""
+    from matplotlib.figure import Figure
+
+    info = dataset_splits(dataset)[split]
+    names = info.attrs["class_names"]
+    labels = load_arrays(info.path, ("labels",))["labels"]
+    rows = first_of_each_class(labels, len(names))
+    delays = load_arrays(info.path, ("delays",))["delays"]
+    n_cols = 4 if len(names) % 4 == 0 else min(len(names), 6)
+    n_rows = -(-len(names) // n_cols)
+    fig = Figure(figsize=(2.2 * n_cols, 2.0 * n_rows + 0.6), layout="constrained")
+    axes = fig.subplots(n_rows, n_cols, squeeze=False)
+    for ax in axes.flat[len(names) :]:
+        ax.set_axis_off()
+    for c, (ax, name) in enumerate(zip(axes.flat, names)):
+        ax.set_xticks([])
+        ax.set_yticks([])
+        if rows[c] >= 0:
+            ax.imshow(delays[rows[c]], cmap="gray", vmin=0.0, vmax=1.0, interpolation="nearest")
+        ax.set_title(name.replace("_", " "), fontsize=8)
+    fig.suptitle(
+        f"{title or Path(dataset).name}: {split} split, noisy delays "
+        f"(black = 0, white = 1 = no return), noise {info.attrs['noise']}",
+        fontsize=9,
+    )
+    out = Path(out)
+    fig.savefig(out, dpi=80, metadata={"Software": None})
+    return out

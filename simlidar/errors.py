@@ -1,0 +1,21 @@
+"""The one exception family of the library.
+
+Every error a user can cause is a :class:`SimlidarError` whose message names the bad value and
+what was expected; the CLI prints it on one line and exits with code 1.
+"""
+
+
+class SimlidarError(Exception):
+    """Base class of every error the library raises on purpose."""
+
+
+class ConfigError(SimlidarError):
+    """A configuration value is out of range or of the wrong kind."""
+
+
+class RecipeError(SimlidarError):
+    """A scene recipe file is malformed: the message names the file and the key."""
+
+
+class DatasetError(SimlidarError):
+    """A path is not a simlidar dataset, or a dataset cannot be written where asked."""

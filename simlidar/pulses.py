@@ -1,0 +1,52 @@
+"""Hits -> pulses: range quantisation, range limits, time of flight, delays, noise.
+
+Conventions (``docs/sensor-model.md`` explains them):
+
+* A return exists where a surface is hit within ``[min_range_m, max_range_m]``; its range is
+  rounded to the sensor's 2 mm resolution and its round-trip time of flight is ``2 r / c``.
+* Normalised delay ``d = tof / tof(max_range)``, in (0, 1) for a return. **No return is 1.0**:
+  the end of the listening window, where a pulse that never comes back is still unseen.
+* Noise: ``noisy = min(d + a * u, 1)`` with ``u ~ U(0, 1)`` drawn for every pulse of every
+  sample (so noise is ``U(0, a)``). Noise only delays; clipping at 1.0 happens here and only
+  here, so a pulse pushed past the window reads exactly like no return, and a no-return pulse
+  stays 1.0.
+* Optional delay-shift augmentation (the paper's): every return of a sample moves by the same
+  ``s``; a return shifted out of (0, 1) becomes no return. Applied before noise.
+"""
+
+import numpy as np
+
+from simlidar.sensor.vlp16 import VLP16, tof_ns
+
+NO_RETURN = 1.0
+
+
+def quantise_range(range_m: np.ndarray, sensor: VLP16) -> np.ndarray:
+    """Round ranges to the sensor's resolution; NaN (no return) outside the range limits."""
+    r = np.round(range_m / sensor.range_resolution_m) * sensor.range_resolution_m
+    inside = (r >= sensor.min_range_m) & (r <= sensor.max_range_m)  # NaN compares False
+    return np.where(inside, r, np.nan)
+
+
+def delays_from_range(range_m: np.ndarray, sensor: VLP16):
+    """Quantised range -> (tof_ns float64 with NaN for no return, clean delay float32)."""
+    tof = tof_ns(range_m)
+    delay = np.where(np.isnan(tof), NO_RETURN, tof / sensor.tof_max_ns)
+    return tof, delay.astype(np.float32)
+
+
+def shift_delays(delay: np.ndarray, shift: np.ndarray) -> np.ndarray:
+    """Move every return of each sample by ``shift`` (B,); out-of-window returns vanish.
+
+    delay : (B, ...) float32 clean delays
+    """
+    s = np.asarray(shift, dtype=np.float32).reshape((-1,) + (1,) * (delay.ndim - 1))
+    moved = delay + s
+    keep = (delay < NO_RETURN) & (moved > 0.0) & (moved < NO_RETURN)
+    return np.where(keep, moved, np.float32(NO_RETURN)).astype(np.float32)
+
+
+def add_noise(delay: np.ndarray, level: float, u: np.ndarray) -> np.ndarray:
+    """Uniform noise U(0, level) on every pulse, clipped at 1.0 (the only clipping)."""
+    noisy = delay + np.float32(level) * u.astype(np.float32)
+    return np.minimum(noisy, np.float32(NO_RETURN)).astype(np.float32)

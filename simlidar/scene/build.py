@@ -1,0 +1,143 @@
+"""Sampled parameters -> the triangles of a whole batch of scenes, with numpy.
+
+No per-sample mesh object is made: for each recipe present in the batch, each primitive is
+expanded for all of its samples at once (expressions evaluated on arrays), and its unit template
+is scaled, turned and moved with broadcasting. Each sample lives in its own local frame: the
+road surface is z = 0 and the sensor's rotation axis stands at x = y = 0.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from simlidar.errors import RecipeError
+from simlidar.scene import expr
+from simlidar.scene.primitives import template
+from simlidar.scene.recipe import Catalog, Primitive, Recipe
+
+# Every vertex of a scene must lie within this distance of the sensor along each axis; the ray
+# caster relies on it to pack many scenes into one Embree scene without them seeing each other.
+CELL_HALF_EXTENT_M = 150.0
+
+
+@dataclass(frozen=True)
+class SceneBatch:
+    """The triangles of B scenes, each in its own local frame."""
+
+    triangles: np.ndarray  # (T, 3, 3) float64
+    surface: np.ndarray  # (T,) uint8, index into Catalog.surfaces
+    sample: np.ndarray  # (T,) int64, which scene of the batch
+    closed: np.ndarray  # (T,) bool, part of a closed solid with outward winding
+    is_object: np.ndarray  # (T,) bool, part of the labelled object
+    object_pose: np.ndarray  # (B, 3) float64: x_m, y_m, yaw_deg; NaN where there is no object
+
+    @property
+    def size(self) -> int:
+        return len(self.object_pose)
+
+
+def sample_params(recipe: Recipe, uniforms: np.ndarray) -> dict[str, np.ndarray]:
+    """Parameter values of n samples of ``recipe`` from their uniform variates (n, >= P)."""
+    return {p.name: p.sample(uniforms[:, k]) for k, p in enumerate(recipe.params)}
+
+
+def _rotate_z(xyz: np.ndarray, yaw_deg: np.ndarray) -> np.ndarray:
+    """Turn (..., 3) points counter-clockwise by yaw_deg, broadcast over the leading axes."""
+    c, s = np.cos(np.deg2rad(yaw_deg)), np.sin(np.deg2rad(yaw_deg))
+    x, y = xyz[..., 0], xyz[..., 1]
+    return np.stack([c * x - s * y, s * x + c * y, xyz[..., 2]], axis=-1)
+
+
+def _instances(prim: Primitive, values: dict[str, np.ndarray], n: int):
+    """Expand a primitive for n samples: at (n, R, 3), size (n, R, 3), yaw (n, R), mask (n, R)."""
+    shape = (n, prim.repeat_max)
+    env = {k: v[:, None] for k, v in values.items()}
+    env["i"] = np.arange(prim.repeat_max, dtype=np.float64)[None, :]
+
+    def field(tree) -> np.ndarray:
+        return np.broadcast_to(np.asarray(expr.evaluate(tree, env), dtype=np.float64), shape)
+
+    at = np.stack([field(t) for t in prim.at], axis=-1)
+    size = np.stack([field(t) for t in prim.size], axis=-1)
+    yaw = field(prim.yaw_deg)
+    if prim.repeat_param is None:
+        mask = np.ones(shape, dtype=bool)
+    else:
+        mask = env["i"] < values[prim.repeat_param][:, None]
+    bad = mask[..., None] & ~(size > 0)
+    if bad.any():
+        raise RecipeError(
+            f"{prim.where}: key 'size' evaluated to {size[bad.any(axis=-1)][0].tolist()}: "
+            "expected positive sizes for every sampled value"
+        )
+    return at, size, yaw, mask
+
+
+def _recipe_triangles(recipe: Recipe, rows: np.ndarray, values, pose):
+    """Triangles of one recipe for the batch rows ``rows``; ``pose`` (n, 3) or None."""
+    parts = []
+    for prim in recipe.primitives:
+        at, size, yaw, mask = _instances(prim, values, len(rows))
+        if pose is not None:  # object frame -> scene frame
+            at = (
+                _rotate_z(at, pose[:, None, 2])
+                + np.stack([pose[:, 0], pose[:, 1], np.zeros(len(rows))], axis=-1)[:, None, :]
+            )
+            yaw = yaw + pose[:, None, 2]
+        at, size, yaw = at[mask], size[mask], yaw[mask]  # (M, 3), (M, 3), (M,)
+        tmpl = template(prim.kind, prim.segments)
+        tris = tmpl.triangles[None] * size[:, None, None, :]  # (M, T, 3, 3)
+        tris = _rotate_z(tris, yaw[:, None, None]) + at[:, None, None, :]
+        if np.abs(tris).max(initial=0.0) > CELL_HALF_EXTENT_M:
+            raise RecipeError(
+                f"{prim.where}: geometry reaches {np.abs(tris).max():.1f} m from the sensor: "
+                f"expected every vertex within {CELL_HALF_EXTENT_M:.0f} m along each axis"
+            )
+        count = tris.shape[1]
+        sample = np.repeat(rows[np.nonzero(mask)[0]], count)
+        parts.append((tris.reshape(-1, 3, 3), prim.surface, sample, tmpl.closed))
+    return parts
+
+
+def build_batch(
+    catalog: Catalog,
+    layout_ids: np.ndarray,
+    object_ids: np.ndarray,
+    layout_uniforms: np.ndarray,
+    object_uniforms: np.ndarray,
+) -> SceneBatch:
+    """Build the triangles of B scenes.
+
+    layout_ids, object_ids : (B,) int, indices into catalog.layouts / catalog.objects
+    layout_uniforms : (B, catalog.layout_columns) float in [0, 1)
+    object_uniforms : (B, catalog.object_columns) float in [0, 1)
+    """
+    size = len(layout_ids)
+    pose = np.full((size, 3), np.nan)
+    parts, is_object = [], []
+    for group, uniforms, recipes in (
+        (layout_ids, layout_uniforms, catalog.layouts),
+        (object_ids, object_uniforms, catalog.objects),
+    ):
+        objects = recipes is catalog.objects
+        for rid in np.unique(group):
+            rows = np.nonzero(group == rid)[0]
+            recipe = recipes[rid]
+            values = sample_params(recipe, uniforms[rows])
+            placement = None
+            if objects and recipe.primitives:
+                placement = np.stack(
+                    [values["distance_m"], values["lateral_m"], values["yaw_deg"]], axis=-1
+                )
+                pose[rows] = placement
+            new = _recipe_triangles(recipe, rows, values, placement)
+            parts += new
+            is_object += [objects] * len(new)
+    return SceneBatch(
+        triangles=np.concatenate([p[0] for p in parts]),
+        surface=np.concatenate([np.full(len(p[0]), p[1], np.uint8) for p in parts]),
+        sample=np.concatenate([p[2] for p in parts]),
+        closed=np.concatenate([np.full(len(p[0]), p[3]) for p in parts]),
+        is_object=np.concatenate([np.full(len(p[0]), o) for p, o in zip(parts, is_object)]),
+        object_pose=pose,
+    )

@@ -1,0 +1,301 @@
+"""Reading and checking the scene catalog: road layouts and objects as TOML recipes.
+
+A catalog is a folder with ``catalog.toml`` (surface labels, the layouts and objects in class
+order) and one recipe per layout in ``layouts/`` and per object in ``objects/``. The format is
+described in ``docs/scenes.md``. Every mistake is reported as a :class:`RecipeError` naming the
+file, the key and what was expected.
+"""
+
+import hashlib
+import json
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from simlidar.content import content_dir
+from simlidar.errors import RecipeError
+from simlidar.scene import expr
+from simlidar.scene.primitives import DEFAULT_SEGMENTS, KINDS
+
+NO_OBJECT = "none"
+PLACEMENT_KEYS = ("distance_m", "lateral_m", "yaw_deg")
+
+
+@dataclass(frozen=True)
+class Param:
+    """A per-sample parameter: fixed, uniform in a range, a uniform integer, or a choice."""
+
+    name: str
+    kind: str  # "fixed" | "uniform" | "int" | "choice"
+    values: tuple[float, ...]  # (v,) | (lo, hi) | (lo, hi) | (v1, v2, ...)
+
+    def sample(self, u: np.ndarray) -> np.ndarray:
+        """Map uniform variates ``u`` in [0, 1) to parameter values (same shape, float64)."""
+        v = self.values
+        if self.kind == "fixed":
+            return np.full(u.shape, v[0])
+        if self.kind == "uniform":
+            return v[0] + u * (v[1] - v[0])
+        if self.kind == "int":
+            return v[0] + np.minimum(np.floor(u * (v[1] - v[0] + 1)), v[1] - v[0])
+        choices = np.asarray(v)
+        return choices[np.minimum((u * len(v)).astype(np.int64), len(v) - 1)]
+
+    @property
+    def upper(self) -> float:
+        return max(self.values)
+
+
+@dataclass(frozen=True)
+class Primitive:
+    """One primitive of a recipe, its fields parsed into expressions."""
+
+    where: str  # "file.toml: primitive[k]", for error messages
+    kind: str  # a key of primitives.KINDS
+    surface: int  # index into Catalog.surfaces
+    at: tuple  # 3 expression trees: bottom centre, metres
+    size: tuple  # 3 expression trees: extent along x, y, z before yaw, metres
+    yaw_deg: object  # expression tree, counter-clockwise seen from above
+    repeat_max: int  # number of copies to build (1 when not repeated)
+    repeat_param: str | None  # parameter that says how many of them exist
+    segments: int  # resolution of round primitives
+
+
+@dataclass(frozen=True)
+class Recipe:
+    name: str
+    description: str
+    path: str
+    params: tuple[Param, ...]  # for objects, the placement params come first
+    primitives: tuple[Primitive, ...]
+    source: dict  # the parsed TOML, stored in every dataset
+    visible_surface: int = 0  # a surface the sensor must see for the label to hold (0: none)
+    visible_hits: int = 0  # ... by at least this many pulses
+
+
+@dataclass(frozen=True)
+class Catalog:
+    root: str
+    surfaces: tuple[str, ...]  # index 0 is "none" (no return)
+    layouts: tuple[Recipe, ...]
+    objects: tuple[Recipe, ...]  # index 0 is the empty "none" object
+
+    @property
+    def layout_names(self) -> list[str]:
+        return [r.name for r in self.layouts]
+
+    @property
+    def object_names(self) -> list[str]:
+        return [r.name for r in self.objects]
+
+    @property
+    def layout_columns(self) -> int:
+        """Uniform variates a sample spends on its layout's parameters."""
+        return max(len(r.params) for r in self.layouts)
+
+    @property
+    def object_columns(self) -> int:
+        return max(len(r.params) for r in self.objects)
+
+    def to_dict(self) -> dict:
+        """Plain-JSON form of the whole catalog, as stored in every dataset file."""
+        return {
+            "surfaces": list(self.surfaces),
+            "layouts": {r.name: r.source for r in self.layouts},
+            "objects": {r.name: r.source for r in self.objects[1:]},
+        }
+
+    def fingerprint(self) -> str:
+        """sha256 of the catalog's content (independent of where it lives on disk)."""
+        text = json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _fail(where: str, key: str, expected: str, got) -> RecipeError:
+    return RecipeError(f"{where}: key '{key}': expected {expected}, got {got!r}")
+
+
+def _read_toml(path: Path) -> dict:
+    try:
+        with path.open("rb") as f:
+            return tomllib.load(f)
+    except FileNotFoundError:
+        raise RecipeError(f"{path}: file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise RecipeError(f"{path}: not valid TOML ({exc})") from None
+
+
+def _check_keys(where: str, table: dict, allowed: set[str], required: set[str]) -> None:
+    for key in table:
+        if key not in allowed:
+            raise _fail(where, key, f"one of {sorted(allowed)}", key)
+    for key in required - set(table):
+        raise RecipeError(f"{where}: key '{key}' is missing")
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v)
+
+
+def _param(where: str, key: str, name: str, spec) -> Param:
+    if _is_number(spec):
+        return Param(name, "fixed", (float(spec),))
+    if isinstance(spec, list) and len(spec) == 2 and all(map(_is_number, spec)):
+        if spec[0] > spec[1]:
+            raise _fail(where, key, "a range [low, high] with low <= high", spec)
+        return Param(name, "uniform", (float(spec[0]), float(spec[1])))
+    if isinstance(spec, dict) and set(spec) == {"int"}:
+        v = spec["int"]
+        if not (isinstance(v, list) and len(v) == 2 and all(isinstance(x, int) for x in v)
+                and 0 <= v[0] <= v[1]):  # fmt: skip
+            raise _fail(where, key + ".int", "[low, high], integers with 0 <= low <= high", v)
+        return Param(name, "int", (float(v[0]), float(v[1])))
+    if isinstance(spec, dict) and set(spec) == {"choice"}:
+        v = spec["choice"]
+        if not (isinstance(v, list) and v and all(map(_is_number, v))):
+            raise _fail(where, key + ".choice", "a non-empty list of numbers", v)
+        return Param(name, "choice", tuple(float(x) for x in v))
+    raise _fail(where, key, "a number, [low, high], {int = [low, high]} or {choice = [...]}", spec)
+
+
+def _expression(where: str, key: str, value, known: set[str]):
+    if _is_number(value):
+        return expr.parse(repr(float(value)))
+    if not isinstance(value, str):
+        raise _fail(where, key, "a number or an expression string", value)
+    try:
+        tree = expr.parse(value)
+    except expr.ExpressionError as exc:
+        raise RecipeError(f"{where}: key '{key}': {exc}") from None
+    unknown = expr.names(tree) - known
+    if unknown:
+        raise _fail(where, key, f"an expression over {sorted(known)}", value)
+    return tree
+
+
+def _vector(where: str, key: str, value, known: set[str]) -> tuple:
+    if not (isinstance(value, list) and len(value) == 3):
+        raise _fail(where, key, "a list of 3 numbers or expressions", value)
+    return tuple(_expression(where, f"{key}[{k}]", v, known) for k, v in enumerate(value))
+
+
+def _primitive(where: str, table: dict, params: dict[str, Param], surfaces: list[str],
+               default_surface: str | None) -> Primitive:  # fmt: skip
+    allowed = {"kind", "surface", "at", "size", "yaw_deg", "repeat", "segments"}
+    required = {"kind", "at", "size"} | ({"surface"} if default_surface is None else set())
+    _check_keys(where, table, allowed, required)
+    kind = table["kind"]
+    if kind not in KINDS:
+        raise _fail(where, "kind", f"one of {sorted(KINDS)}", kind)
+    surface = table.get("surface", default_surface)
+    if surface not in surfaces:
+        raise _fail(where, "surface", f"a surface of catalog.toml {surfaces[1:]}", surface)
+    repeat = table.get("repeat", 1)
+    if isinstance(repeat, str):
+        if repeat not in params or params[repeat].kind not in ("int", "fixed"):
+            raise _fail(where, "repeat", "the name of an integer parameter", repeat)
+        repeat_max, repeat_param = int(params[repeat].upper), repeat
+    elif isinstance(repeat, int) and not isinstance(repeat, bool) and repeat >= 1:
+        repeat_max, repeat_param = repeat, None
+    else:
+        raise _fail(where, "repeat", "a positive integer or an integer parameter's name", repeat)
+    segments = table.get("segments", DEFAULT_SEGMENTS[kind])
+    if kind != "box" and not (isinstance(segments, int) and 3 <= segments <= 64):
+        raise _fail(where, "segments", "an integer in [3, 64]", segments)
+    known = set(params) | ({"i"} if "repeat" in table else set())
+    return Primitive(
+        where=where,
+        kind=kind,
+        surface=surfaces.index(surface),
+        at=_vector(where, "at", table["at"], known),
+        size=_vector(where, "size", table["size"], known),
+        yaw_deg=_expression(where, "yaw_deg", table.get("yaw_deg", 0.0), known),
+        repeat_max=repeat_max,
+        repeat_param=repeat_param,
+        segments=segments,
+    )
+
+
+def load_recipe(path: Path, surfaces: list[str], is_object: bool) -> Recipe:
+    """Read and check one layout or object recipe."""
+    data = _read_toml(path)
+    where = str(path)
+    allowed = {"description", "params", "primitive"} | ({"placement"} if is_object else {"visible"})
+    _check_keys(where, data, allowed, {"description", "primitive"} | (
+        {"placement"} if is_object else set()))  # fmt: skip
+    if not isinstance(data["description"], str):
+        raise _fail(where, "description", "a string", data["description"])
+    params: dict[str, Param] = {}
+    if is_object:
+        placement = data["placement"]
+        if not isinstance(placement, dict):
+            raise _fail(where, "placement", "a table", placement)
+        _check_keys(where + " [placement]", placement, set(PLACEMENT_KEYS), set(PLACEMENT_KEYS))
+        for key in PLACEMENT_KEYS:
+            params[key] = _param(where, f"placement.{key}", key, placement[key])
+    table = data.get("params", {})
+    if not isinstance(table, dict):
+        raise _fail(where, "params", "a table of parameters", table)
+    for name, spec in table.items():
+        if name in params or name == "i" or not name.isidentifier() or name in expr.FUNCTIONS:
+            raise _fail(where, f"params.{name}", "a new identifier (not i or a function)", name)
+        params[name] = _param(where, f"params.{name}", name, spec)
+    prims = data["primitive"]
+    if not (isinstance(prims, list) and prims and all(isinstance(p, dict) for p in prims)):
+        raise _fail(where, "primitive", "one or more [[primitive]] tables", prims)
+    default_surface = path.stem if is_object else None
+    primitives = tuple(
+        _primitive(f"{where}: primitive[{k}]", p, params, surfaces, default_surface)
+        for k, p in enumerate(prims)
+    )
+    visible = data.get("visible", {"surface": surfaces[0], "min_hits": 0})
+    if not (isinstance(visible, dict) and set(visible) == {"surface", "min_hits"}):
+        raise _fail(where, "visible", "a table {surface = NAME, min_hits = N}", visible)
+    if visible["surface"] not in surfaces:
+        raise _fail(where, "visible.surface", f"a surface of catalog.toml {surfaces[1:]}",
+                    visible["surface"])  # fmt: skip
+    if not (isinstance(visible["min_hits"], int) and visible["min_hits"] >= 0):
+        raise _fail(where, "visible.min_hits", "a non-negative integer", visible["min_hits"])
+    return Recipe(
+        path.stem,
+        data["description"],
+        where,
+        tuple(params.values()),
+        primitives,
+        data,
+        surfaces.index(visible["surface"]),
+        visible["min_hits"],
+    )
+
+
+def _name_list(where: str, data: dict, key: str) -> list[str]:
+    value = data.get(key)
+    if not (isinstance(value, list) and value and all(isinstance(v, str) for v in value)):
+        raise _fail(where, key, "a non-empty list of names", value)
+    if len(set(value)) != len(value):
+        raise _fail(where, key, "names without repeats", value)
+    return value
+
+
+def load_catalog(root: str | Path | None = None) -> Catalog:
+    """Load the scene catalog at ``root`` (default: the catalog shipped with simlidar)."""
+    root = Path(root) if root is not None else content_dir("scenes")
+    if not root.is_dir():
+        raise RecipeError(f"{root}: expected a scene catalog folder with catalog.toml")
+    index = root / "catalog.toml"
+    data = _read_toml(index)
+    where = str(index)
+    _check_keys(where, data, {"surfaces", "layouts", "objects"}, {"surfaces", "layouts",
+                                                                   "objects"})  # fmt: skip
+    surfaces = [NO_OBJECT] + _name_list(where, data, "surfaces")
+    layouts = tuple(load_recipe(root / "layouts" / f"{n}.toml", surfaces, False)
+                    for n in _name_list(where, data, "layouts"))  # fmt: skip
+    objects = tuple(load_recipe(root / "objects" / f"{n}.toml", surfaces, True)
+                    for n in _name_list(where, data, "objects"))  # fmt: skip
+    if NO_OBJECT in data["objects"]:
+        raise _fail(where, "objects", f"object names other than '{NO_OBJECT}' (it is implicit)",
+                    data["objects"])  # fmt: skip
+    empty = Recipe(NO_OBJECT, "No object on the road.", "", (), (), {})
+    return Catalog(str(root), tuple(surfaces), layouts, (empty,) + objects)

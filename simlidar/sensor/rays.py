@@ -1,0 +1,68 @@
+"""Ray origins and directions of a sample window.
+
+A sample is a window of 16 lasers (rows, highest elevation first) x ``width`` azimuth columns
+spread evenly over ``fov_deg`` degrees centred straight ahead. Column ``c`` covers the azimuth
+bin ``[-fov/2 + c * fov/W, -fov/2 + (c + 1) * fov/W)`` and takes the *centre firing*: the
+firing cycle whose start azimuth lies nearest the bin centre, each laser at its own firing time
+inside that cycle (laser id ``j`` fires ``j * 2.304 us`` after the cycle starts). The head's
+rotation phase relative to the scene is a per-sample number ``phase`` in [0, 1) (a fraction of
+one cycle's azimuth step). See ``docs/sensor-model.md`` for why.
+"""
+
+import numpy as np
+
+from simlidar.sensor.vlp16 import VLP16, row_order
+
+
+def column_centres_deg(width: int, fov_deg: float) -> np.ndarray:
+    """Azimuth of each column's bin centre, degrees, left (negative) to right: (W,) float64."""
+    bin_deg = fov_deg / width
+    return -fov_deg / 2.0 + (np.arange(width) + 0.5) * bin_deg
+
+
+def firing_azimuths_deg(sensor: VLP16, width: int, fov_deg: float, phase) -> np.ndarray:
+    """Azimuth of each pulse of a window.
+
+    phase : (B,) float, in [0, 1)
+    returns : (B, 16, W) float64, rows in :func:`row_order`
+    """
+    phase = np.asarray(phase, dtype=np.float64)
+    step = sensor.azimuth_step_deg
+    centres = column_centres_deg(width, fov_deg)  # (W,)
+    cycle = np.round(centres[None, :] / step - phase[:, None])  # (B, W) nearest cycle index
+    cycle_start = (cycle + phase[:, None]) * step  # (B, W)
+    firing = np.asarray(row_order(sensor), dtype=np.float64) * sensor.firing_step_deg  # (16,)
+    return cycle_start[:, None, :] + firing[None, :, None]
+
+
+def _pitch(vectors: np.ndarray, pitch_deg: float) -> np.ndarray:
+    """Tilt (..., 3) vectors forward by ``pitch_deg`` (positive looks down)."""
+    t = np.deg2rad(pitch_deg)
+    x, y, z = vectors[..., 0], vectors[..., 1], vectors[..., 2]
+    return np.stack([x * np.cos(t) + z * np.sin(t), y, z * np.cos(t) - x * np.sin(t)], axis=-1)
+
+
+def window_rays(sensor: VLP16, width: int, fov_deg: float, phase):
+    """Origins and unit directions of every pulse of B sample windows.
+
+    phase : (B,) float in [0, 1)
+    returns : origins (B, 16, W, 3) float64, directions (B, 16, W, 3) float64, in the sample's
+        local frame (road at z = 0, rotation axis at x = y = 0).
+    """
+    azimuth = np.deg2rad(firing_azimuths_deg(sensor, width, fov_deg, phase))  # (B, 16, W)
+    lasers = row_order(sensor)
+    elevation = np.deg2rad(np.asarray(sensor.elevations_deg)[lasers])[None, :, None]  # (1,16,1)
+    directions = np.stack(
+        np.broadcast_arrays(
+            np.cos(elevation) * np.cos(azimuth),
+            -np.cos(elevation) * np.sin(azimuth),  # clockwise azimuth: positive looks right
+            np.sin(elevation),
+        ),
+        axis=-1,
+    )
+    offsets_m = np.asarray(sensor.vertical_offsets_mm)[lasers] * 1e-3  # (16,)
+    origins = np.zeros(directions.shape)
+    origins[..., 2] = offsets_m[None, :, None]
+    origins = _pitch(origins, sensor.pitch_deg)
+    origins[..., 2] += sensor.mount_height_m
+    return origins, _pitch(directions, sensor.pitch_deg)

@@ -1,0 +1,160 @@
+"""The pipeline for one batch: class plan -> random streams -> scenes -> rays -> hits -> pulses.
+
+Randomness: every sample has its own stream, ``SeedSequence(seed, spawn_key=(split, index))``,
+read in a fixed order: 2 variates for the class factor not fixed by the label, the noise
+variates (16 x W), then one block of parameters per attempt. A sample's content therefore
+depends on (seed, split, index, config, catalog) only, never on the batch it was made in.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from simlidar.dataset.config import GeneratorConfig
+from simlidar.errors import ConfigError, SimlidarError
+from simlidar.pulses import delays_from_range, quantise_range, shift_delays
+from simlidar.scene.build import build_batch
+from simlidar.scene.recipe import Catalog
+from simlidar.sensor.raycast import MAX_BATCH, cast
+from simlidar.sensor.rays import window_rays
+
+SPLIT_IDS = {"train": 0, "test": 1}
+_FIXED_COLUMNS = 2  # per attempt: rotation phase, delay shift
+
+
+@dataclass(frozen=True)
+class ClassPlan:
+    """How labels map to (layout, object) for a given ``--classes``."""
+
+    classes: int
+    mode: str  # "layout x object" | "layout" | "object"
+    names: tuple[str, ...]
+
+
+def class_plan(catalog: Catalog, classes: int) -> ClassPlan:
+    layouts, objects = catalog.layout_names, catalog.object_names
+    modes = {
+        len(layouts) * len(objects): ("layout x object",
+                                      tuple(f"{a}/{b}" for a in layouts for b in objects)),
+        len(layouts): ("layout", tuple(layouts)),
+        len(objects): ("object", tuple(objects)),
+    }  # fmt: skip
+    if classes not in modes:
+        raise ConfigError(
+            f"classes={classes}: expected one of {sorted(modes)} for this scene catalog "
+            f"({len(layouts)} layouts x {len(objects)} objects)"
+        )
+    mode, names = modes[classes]
+    return ClassPlan(classes, mode, names)
+
+
+def factors(plan: ClassPlan, labels: np.ndarray, free: np.ndarray, n_layouts: int,
+            n_objects: int):  # fmt: skip
+    """(layout id, object id) of each label; ``free`` (n, 2) uniforms pick the unfixed factor."""
+    pick_layout = np.minimum((free[:, 0] * n_layouts).astype(np.int64), n_layouts - 1)
+    pick_object = np.minimum((free[:, 1] * n_objects).astype(np.int64), n_objects - 1)
+    if plan.mode == "layout x object":
+        return labels // n_objects, labels % n_objects
+    if plan.mode == "layout":
+        return labels, pick_object
+    return pick_layout, labels
+
+
+@dataclass(frozen=True)
+class Samples:
+    """A block of consecutive samples of one split (n samples, W columns)."""
+
+    clean_delays: np.ndarray  # (n, 16, W) float32, after delay shift, before noise
+    noise_u: np.ndarray  # (n, 16, W) float32 in [0, 1): noise = level * noise_u
+    tof_ns: np.ndarray  # (n, 16, W) float32, NaN for no return (unshifted physics)
+    surface: np.ndarray  # (n, 16, W) uint8
+    labels: np.ndarray  # (n,) int64
+    layout: np.ndarray  # (n,) uint8
+    object: np.ndarray  # (n,) uint8
+    object_pose: np.ndarray  # (n, 3) float32: x_m, y_m, yaw_deg; NaN without object
+    object_hits: np.ndarray  # (n,) int32
+    attempts: np.ndarray  # (n,) int32, draws needed until the object was visible
+    phase: np.ndarray  # (n,) float32, head rotation phase in azimuth steps
+    shift: np.ndarray  # (n,) float32, delay shift applied
+
+
+def _stream(seed: int, split: str, index: int) -> np.random.Generator:
+    seq = np.random.SeedSequence(seed, spawn_key=(SPLIT_IDS[split], int(index)))
+    return np.random.Generator(np.random.PCG64(seq))
+
+
+def simulate(config: GeneratorConfig, catalog: Catalog, split: str, start: int,
+             stop: int) -> Samples:  # fmt: skip
+    """Samples ``start .. stop - 1`` of ``split`` (at most MAX_BATCH of them)."""
+    if not 0 < stop - start <= MAX_BATCH:
+        raise ConfigError(f"batch of {stop - start} samples: expected 1..{MAX_BATCH}")
+    sensor, width = config.sensor, config.width
+    plan = class_plan(catalog, config.classes)
+    index = np.arange(start, stop)
+    n = len(index)
+    labels = index % plan.classes
+    streams = [_stream(config.seed, split, i) for i in index]
+    free = np.stack([g.random(2) for g in streams])
+    noise_u = np.stack([g.random((16, width), dtype=np.float32) for g in streams])
+    layout, obj = factors(plan, labels, free, len(catalog.layouts), len(catalog.objects))
+
+    lc, oc = catalog.layout_columns, catalog.object_columns
+    columns = _FIXED_COLUMNS + lc + oc
+    range_m = np.full((n, 16, width), np.nan)
+    surface = np.zeros((n, 16, width), np.uint8)
+    pose = np.full((n, 3), np.nan)
+    hits_out = np.zeros(n, np.int32)
+    attempts = np.zeros(n, np.int32)
+    phase = np.zeros(n)
+    shift = np.zeros(n)
+    pending = np.arange(n)
+    while len(pending):
+        attempts[pending] += 1
+        u = np.stack([streams[r].random(columns) for r in pending])
+        scene = build_batch(catalog, layout[pending], obj[pending],
+                            u[:, _FIXED_COLUMNS:_FIXED_COLUMNS + lc],
+                            u[:, _FIXED_COLUMNS + lc:])  # fmt: skip
+        origins, directions = window_rays(sensor, width, config.fov_deg, u[:, 0])
+        hits = cast(scene, origins, directions, index[pending] % MAX_BATCH, sensor.max_range_m)
+        r = quantise_range(hits.range_m, sensor)
+        on_object = (hits.on_object & ~np.isnan(r)).sum(axis=(1, 2))
+        ok = (obj[pending] == 0) | (on_object >= config.min_object_hits)
+        # Layouts whose defining structure can leave the window must be seen (recipe key
+        # `visible`): a label the sensor cannot see is not a label.
+        need = np.array([(r.visible_surface, r.visible_hits) for r in catalog.layouts])
+        feature = need[layout[pending]]  # (m, 2)
+        seen = (hits.surface == feature[:, 0, None, None]) & ~np.isnan(r)
+        ok &= seen.sum(axis=(1, 2)) >= feature[:, 1]
+        done = pending[ok]
+        range_m[done] = r[ok]
+        surface[done] = np.where(np.isnan(r[ok]), 0, hits.surface[ok])
+        pose[done] = scene.object_pose[ok]
+        hits_out[done] = on_object[ok]
+        phase[done] = u[ok, 0]
+        shift[done] = (2.0 * u[ok, 1] - 1.0) * config.shift_max
+        pending = pending[~ok]
+        if len(pending) and attempts[pending].max() >= config.max_attempts:
+            k = pending[0]
+            raise SimlidarError(
+                f"{split} sample {index[k]} ({plan.names[labels[k]]}): no draw in "
+                f"{config.max_attempts} showed the object (min_object_hits="
+                f"{config.min_object_hits}) and the layout's `visible` surface; expected "
+                "recipes whose object and layout the sensor can see"
+            )
+    tof, clean = delays_from_range(range_m, sensor)
+    if config.shift_max > 0:
+        clean = shift_delays(clean, shift)
+    return Samples(
+        clean_delays=clean,
+        noise_u=noise_u,
+        tof_ns=tof.astype(np.float32),
+        surface=surface,
+        labels=labels.astype(np.int64),
+        layout=layout.astype(np.uint8),
+        object=obj.astype(np.uint8),
+        object_pose=pose.astype(np.float32),
+        object_hits=hits_out,
+        attempts=attempts,
+        phase=phase.astype(np.float32),
+        shift=shift.astype(np.float32),
+    )
