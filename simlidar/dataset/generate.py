@@ -118,7 +118,7 @@ def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalo
                 stop = min(start + batch_size, size)
                 samples = simulate(config, catalog, split, start, stop)
                 for writer in writers:
-                    writer.write(start, samples)
+                    writer.append(samples)
                 bar.update(stop - start)
             for writer in writers:
                 writer.close()

@@ -38,30 +38,50 @@ REQUIRED_ATTRS = ("dataset_version", "simlidar_version", "config", "seed", "nois
 
 
 class SplitWriter:
-    """Writes one split file block by block; peak memory is one block, not the split."""
+    """Appends blocks of samples to one split file; peak memory is a block plus one chunk.
+
+    Rows are written one whole chunk at a time, every dataset in turn, so the file's layout
+    (and therefore its bytes) does not depend on the size of the blocks handed in.
+    """
 
     def __init__(self, path: Path, size: int, width: int, noise: float, attrs: dict):
         self.noise = noise
+        self.size = size
+        self.chunk = min(CHUNK_SAMPLES, size)
+        self.written = 0
+        self.pending: dict[str, list[np.ndarray]] = {name: [] for name in SCHEMA}
         self.file = h5py.File(path, "w", libver=("earliest", "v110"), track_order=False)
         for name, (dtype, tail, _) in SCHEMA.items():
             shape = (size, *tail(width))
             self.file.create_dataset(
-                name, shape=shape, dtype=dtype, chunks=(min(CHUNK_SAMPLES, size), *shape[1:]),
+                name, shape=shape, dtype=dtype, chunks=(self.chunk, *shape[1:]),
                 compression="gzip", compression_opts=4, shuffle=True, track_times=False,
             )  # fmt: skip
         for key, value in attrs.items():
             self.file.attrs[key] = value
 
-    def write(self, start: int, samples: Samples) -> None:
-        stop = start + len(samples.labels)
+    def append(self, samples: Samples) -> None:
+        """Add the next block of samples (in split order)."""
         for name, (_, _, source) in SCHEMA.items():
             if source is None:
                 value = add_noise(samples.clean_delays, self.noise, samples.noise_u)
             else:
                 value = getattr(samples, source)
-            self.file[name][start:stop] = value
+            self.pending[name].append(value)
+        ready = sum(len(v) for v in self.pending["labels"])
+        while ready >= self.chunk or (ready and self.written + ready == self.size):
+            rows = min(self.chunk, ready)
+            for name, parts in self.pending.items():
+                block = np.concatenate(parts)
+                self.file[name][self.written : self.written + rows] = block[:rows]
+                self.pending[name] = [block[rows:]]
+            self.written += rows
+            ready -= rows
 
     def close(self) -> None:
+        if self.written != self.size:
+            self.file.close()
+            raise RuntimeError(f"{self.file.filename}: {self.written} of {self.size} rows")
         self.file.close()
 
 

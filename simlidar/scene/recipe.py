@@ -289,13 +289,14 @@ def load_catalog(root: str | Path | None = None) -> Catalog:
     where = str(index)
     _check_keys(where, data, {"surfaces", "layouts", "objects"}, {"surfaces", "layouts",
                                                                    "objects"})  # fmt: skip
+    for key in ("surfaces", "objects"):
+        if NO_OBJECT in _name_list(where, data, key):
+            raise _fail(where, key, f"names other than '{NO_OBJECT}' (it is implicit)",
+                        data[key])  # fmt: skip
     surfaces = [NO_OBJECT] + _name_list(where, data, "surfaces")
     layouts = tuple(load_recipe(root / "layouts" / f"{n}.toml", surfaces, False)
                     for n in _name_list(where, data, "layouts"))  # fmt: skip
     objects = tuple(load_recipe(root / "objects" / f"{n}.toml", surfaces, True)
                     for n in _name_list(where, data, "objects"))  # fmt: skip
-    if NO_OBJECT in data["objects"]:
-        raise _fail(where, "objects", f"object names other than '{NO_OBJECT}' (it is implicit)",
-                    data["objects"])  # fmt: skip
     empty = Recipe(NO_OBJECT, "No object on the road.", "", (), (), {})
     return Catalog(str(root), tuple(surfaces), layouts, (empty,) + objects)

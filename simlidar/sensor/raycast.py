@@ -68,11 +68,12 @@ def visible_triangles(scene: SceneBatch, origins: np.ndarray, directions: np.nda
 
 
 def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: np.ndarray,
-         max_range_m: float) -> Hits:  # fmt: skip
+         max_range_m: float, cull: bool = True) -> Hits:  # fmt: skip
     """First hit of every pulse.
 
     origins, directions : (B, 16, W, 3) float64 in each sample's local frame, unit directions
     slots : (B,) int, distinct grid cells (use the sample index in its split mod MAX_BATCH)
+    cull : drop triangles no ray can hit first (exact; off only to test that it is)
     """
     import embreex.mesh_construction as mc
     import embreex.rtcore_scene as rtcs
@@ -82,7 +83,10 @@ def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: 
         raise ValueError(f"need {batch} distinct slots below {MAX_BATCH}, got {slots!r}")
     if max_range_m + CELL_HALF_EXTENT_M >= CELL_SPACING_M:
         raise ValueError(f"max range {max_range_m} m would reach the neighbouring cells")
-    keep = np.nonzero(visible_triangles(scene, origins, directions))[0]
+    if cull:
+        keep = np.nonzero(visible_triangles(scene, origins, directions))[0]
+    else:
+        keep = np.arange(len(scene.triangles))
     tris = scene.triangles[keep]
     sample = scene.sample[keep]
     offsets = cell_offsets(np.asarray(slots))  # (B, 3)

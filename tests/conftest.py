@@ -1,0 +1,38 @@
+"""Shared fixtures: the shipped catalog, a small generated dataset, a writable catalog copy."""
+
+import shutil
+
+import pytest
+
+from simlidar.content import content_dir
+from simlidar.dataset.config import GeneratorConfig
+from simlidar.dataset.generate import generate
+from simlidar.scene.recipe import load_catalog
+
+SMALL = dict(train_size=96, test_size=64)
+
+
+@pytest.fixture(scope="session")
+def catalog():
+    return load_catalog()
+
+
+@pytest.fixture(scope="session")
+def small_config():
+    return GeneratorConfig(**SMALL)
+
+
+@pytest.fixture(scope="session")
+def datasets(tmp_path_factory, catalog, small_config):
+    """Two small 32-class datasets (noise 0.1 and 0.5) of the same scenes: {noise: path}."""
+    out = tmp_path_factory.mktemp("data")
+    written = generate(small_config, [0.1, 0.5], catalog, out, batch_size=40, progress=False)
+    return {w.noise: w.path for w in written}
+
+
+@pytest.fixture
+def catalog_copy(tmp_path):
+    """A writable copy of the shipped scene catalog."""
+    root = tmp_path / "scenes"
+    shutil.copytree(content_dir("scenes"), root)
+    return root

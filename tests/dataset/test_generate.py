@@ -1,0 +1,110 @@
+"""Dataset directories on disk: schema, determinism, noise levels, atomic writes."""
+
+import h5py
+import numpy as np
+import pytest
+
+from simlidar.dataset.config import GeneratorConfig
+from simlidar.dataset.generate import dataset_name, generate
+from simlidar.dataset.h5 import SCHEMA, dataset_splits
+from simlidar.dataset.info import dataset_info
+from simlidar.dataset.version import DATASET_VERSION
+from simlidar.errors import DatasetError
+
+
+def test_the_directory_and_its_files(datasets):
+    path = datasets[0.1]
+    assert path.name == f"simlidar-32c-noise0.1-v{DATASET_VERSION}"
+    assert sorted(p.name for p in path.iterdir()) == ["preview.png", "test.h5", "train.h5"]
+    assert not [p for p in path.parent.iterdir() if p.name.startswith(".")]  # no leftovers
+
+
+def test_every_split_holds_the_schema(datasets):
+    for split, size in (("train", 96), ("test", 64)):
+        with h5py.File(datasets[0.1] / f"{split}.h5") as f:
+            for name, (dtype, tail, _) in SCHEMA.items():
+                assert f[name].dtype == np.dtype(dtype), name
+                assert f[name].shape == (size, *tail(16)), name
+                assert f[name].compression == "gzip" and f[name].chunks is not None
+            assert f.attrs["dataset_version"] == DATASET_VERSION
+            assert f.attrs["split"] == split
+            assert list(f.attrs["class_names"])[:2] == [b"tunnel/none", b"tunnel/car"] or list(
+                f.attrs["class_names"]
+            )[:2] == ["tunnel/none", "tunnel/car"]
+            delays = f["delays"][:]
+            assert ((delays >= 0) & (delays <= 1)).all()
+            assert np.bincount(f["labels"][:], minlength=32).min() >= size // 32
+
+
+def test_noise_levels_share_their_scenes(datasets):
+    a, b = (dataset_splits(datasets[n])["train"].path for n in (0.1, 0.5))
+    with h5py.File(a) as fa, h5py.File(b) as fb:
+        for name in ("clean_delays", "tof_ns", "surface", "labels", "object_pose"):
+            np.testing.assert_array_equal(fa[name][:], fb[name][:])
+        noise_a = fa["delays"][:] - fa["clean_delays"][:]
+        noise_b = fb["delays"][:] - fb["clean_delays"][:]
+        assert noise_a.max() <= 0.1 + 1e-6 and noise_b.max() > 0.4
+        assert fa.attrs["noise"] == 0.1 and fb.attrs["noise"] == 0.5
+
+
+def test_same_seed_same_bytes_whatever_the_batch_size(tmp_path, catalog):
+    config = GeneratorConfig(train_size=40, test_size=32, classes=8)
+    one = generate(config, [0.2], catalog, tmp_path / "a", batch_size=7, progress=False)[0]
+    two = generate(config, [0.2], catalog, tmp_path / "b", batch_size=40, progress=False)[0]
+    for name in ("train.h5", "test.h5", "preview.png"):
+        assert (one.path / name).read_bytes() == (two.path / name).read_bytes(), name
+
+
+def test_info_counts_every_class(datasets):
+    info = dataset_info(datasets[0.5])
+    assert info["splits"] == {"train": 96, "test": 64}
+    assert info["noise"] == 0.5 and info["classes"] == 32
+    assert sum(info["counts"]["train"].values()) == 96
+    assert info["config"]["seed"] == 0
+
+
+def test_an_existing_dataset_is_kept_without_force(tmp_path, catalog):
+    config = GeneratorConfig(train_size=8, test_size=8, classes=4)
+    first = generate(config, [0.2], catalog, tmp_path, progress=False, preview=False)[0]
+    before = (first.path / "train.h5").read_bytes()
+    with pytest.raises(DatasetError, match="already exists: pass --force"):
+        generate(config, [0.2], catalog, tmp_path, progress=False)
+    assert (first.path / "train.h5").read_bytes() == before
+    generate(config, [0.2], catalog, tmp_path, progress=False, force=True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [first.path.name]
+
+
+def test_a_failure_leaves_nothing_half_written(tmp_path, catalog, monkeypatch):
+    import simlidar.dataset.generate as gen
+
+    calls = []
+
+    def failing(*args):
+        calls.append(args)
+        if len(calls) == 3:
+            raise RuntimeError("disk on fire")
+        return real(*args)
+
+    real = gen.simulate
+    monkeypatch.setattr(gen, "simulate", failing)
+    config = GeneratorConfig(train_size=16, test_size=8, classes=4)
+    with pytest.raises(RuntimeError, match="disk on fire"):
+        generate(config, [0.1, 0.2], catalog, tmp_path, batch_size=8, progress=False)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_path_that_is_not_a_dataset(tmp_path):
+    with pytest.raises(DatasetError, match="expected a dataset directory"):
+        dataset_splits(tmp_path / "missing")
+    with pytest.raises(DatasetError, match="missing train.h5, test.h5"):
+        dataset_splits(tmp_path)
+    (tmp_path / "train.h5").write_text("not hdf5")
+    (tmp_path / "test.h5").write_text("not hdf5")
+    with pytest.raises(DatasetError, match="cannot read as HDF5"):
+        dataset_splits(tmp_path)
+
+
+def test_names_encode_classes_noise_and_version():
+    assert dataset_name(GeneratorConfig(classes=8, noise=0.33)) == (
+        f"simlidar-8c-noise0.33-v{DATASET_VERSION}"
+    )

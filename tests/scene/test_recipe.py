@@ -1,0 +1,130 @@
+"""The scene catalog: what ships, and every way a recipe can be wrong."""
+
+import numpy as np
+import pytest
+
+from simlidar.errors import RecipeError
+from simlidar.scene import expr
+from simlidar.scene.recipe import Param, load_catalog
+
+PAPER_LAYOUTS = ["tunnel", "open_road", "lower_bridge", "upper_bridge", "two_side_walls",
+                 "one_side_wall", "lamps_both_sides", "lamps_one_side"]  # fmt: skip
+
+
+def test_the_shipped_catalog_has_the_papers_classes(catalog):
+    assert catalog.layout_names == PAPER_LAYOUTS
+    assert catalog.object_names == ["none", "car", "pedestrian", "truck"]
+    assert catalog.surfaces[0] == "none"
+    assert {"road", "wall", "ceiling", "bridge", "lamp", "car", "pedestrian", "truck"} <= set(
+        catalog.surfaces
+    )
+
+
+def test_the_fingerprint_does_not_depend_on_the_folder(catalog, catalog_copy):
+    assert load_catalog(catalog_copy).fingerprint() == catalog.fingerprint()
+
+
+def test_a_new_layout_needs_no_code(catalog_copy):
+    (catalog_copy / "layouts" / "gantry.toml").write_text(
+        'description = "A sign gantry over an open road."\n'
+        "[params]\nat_m = [20.0, 40.0]\n"
+        '[[primitive]]\nkind = "box"\nsurface = "road"\nat = [65, 0, -0.3]\n'
+        "size = [150, 10, 0.3]\n"
+        '[[primitive]]\nkind = "box"\nsurface = "bridge"\nat = ["at_m", 0, 5.5]\n'
+        "size = [1.0, 14, 1.5]\n"
+    )
+    index = catalog_copy / "catalog.toml"
+    index.write_text(index.read_text().replace('"lamps_one_side"]', '"lamps_one_side", "gantry"]'))
+    assert load_catalog(catalog_copy).layout_names[-1] == "gantry"
+
+
+def _edit(root, name, old, new):
+    path = root / name
+    text = path.read_text()
+    assert old in text, f"test setup: {old!r} not in {name}"
+    path.write_text(text.replace(old, new, 1))
+    return path
+
+
+@pytest.mark.parametrize(
+    "name, old, new, key",
+    [
+        ("layouts/tunnel.toml", 'kind = "arch"', 'kind = "dome"', "kind"),
+        (
+            "layouts/tunnel.toml",
+            'surface = "ceiling"\nsegments',
+            'surface = "sky"\nsegments',
+            "surface",
+        ),
+        ("layouts/tunnel.toml", "rise_m = [1.5, 3.0]", "rise_m = [3.0, 1.5]", "params.rise_m"),
+        ("layouts/tunnel.toml", "rise_m = [1.5, 3.0]", 'rise_m = "tall"', "params.rise_m"),
+        ("layouts/tunnel.toml", '"wall_height_m + 0.3"]', '"wall_hieght_m + 0.3"]', "size[2]"),
+        ("layouts/tunnel.toml", "at = [65.0, 0.0, -0.3]", "at = [65.0, 0.0]", "at"),
+        ("layouts/tunnel.toml", "at = [65.0, 0.0, -0.3]", 'at = ["__import__(1)", 0, 0]', "at[0]"),
+        ("layouts/tunnel.toml", "segments = 12", "segments = 2", "segments"),
+        ("layouts/tunnel.toml", "repeat = 2", 'repeat = "half_width_m"', "repeat"),
+        ("layouts/tunnel.toml", 'kind = "arch"', 'kind = "arch"\ncolour = "red"', "colour"),
+        ("layouts/tunnel.toml", "min_hits = 3", "min_hits = -1", "visible.min_hits"),
+        ("objects/car.toml", "distance_m = [6.0, 20.0]", "", "distance_m"),
+        ("objects/car.toml", "[placement]", "[placement]\nheight_m = 1.0", "height_m"),
+        ("catalog.toml", '"truck"]\n', '"truck", "none"]\n', "surfaces"),
+        ("catalog.toml", 'objects = ["car",', 'objects = ["none", "car",', "objects"),
+        ("catalog.toml", 'objects = ["car"', 'objects = ["bus"', None),
+    ],
+)
+def test_a_bad_recipe_names_the_file_and_the_key(catalog_copy, name, old, new, key):
+    _edit(catalog_copy, name, old, new)
+    with pytest.raises(RecipeError) as err:
+        load_catalog(catalog_copy)
+    message = str(err.value)
+    if key is None:  # a recipe listed in the catalog but missing on disk
+        assert "bus.toml" in message and "not found" in message
+    else:
+        assert name.split("/")[-1] in message and key in message
+    assert "\n" not in message
+
+
+def test_broken_toml_names_the_file(catalog_copy):
+    _edit(catalog_copy, "objects/truck.toml", "[params]", "[params")
+    with pytest.raises(RecipeError, match="truck.toml: not valid TOML"):
+        load_catalog(catalog_copy)
+
+
+def test_a_missing_catalog_is_named(tmp_path):
+    with pytest.raises(RecipeError, match="expected a scene catalog folder"):
+        load_catalog(tmp_path / "nowhere")
+
+
+def test_sampled_geometry_is_checked_at_build_time(catalog_copy):
+    from simlidar.scene.build import build_batch
+
+    _edit(catalog_copy, "objects/truck.toml", 'size = [2.2, "width_m"', 'size = [-2.2, "width_m"')
+    catalog = load_catalog(catalog_copy)
+    u = np.full((1, 16), 0.5)
+    with pytest.raises(RecipeError, match=r"truck.toml: primitive\[1\]: key 'size'"):
+        build_batch(catalog, np.array([1]), np.array([3]), u[:, : catalog.layout_columns],
+                    u[:, : catalog.object_columns])  # fmt: skip
+
+
+@pytest.mark.parametrize("text", ["__import__('os')", "a.b", "x[0]", "lambda: 1", "'s'",
+                                  "x if y else z", "exp(1)", "max(a=1)"])  # fmt: skip
+def test_expressions_accept_arithmetic_only(text):
+    with pytest.raises(expr.ExpressionError):
+        expr.parse(text)
+
+
+def test_expressions_evaluate_on_arrays():
+    tree = expr.parse("first_m + i * spacing_m - abs(-2) + cos(0) * 2 ** 2")
+    assert expr.names(tree) == {"first_m", "i", "spacing_m"}
+    value = expr.evaluate(tree, {"first_m": np.array([[1.0], [2.0]]), "i": np.arange(3.0)[None],
+                                 "spacing_m": np.array([[10.0], [20.0]])})  # fmt: skip
+    np.testing.assert_allclose(value, [[3, 13, 23], [4, 24, 44]])
+
+
+def test_parameter_kinds_cover_their_ranges():
+    u = np.linspace(0, 1, 1001, endpoint=False)
+    assert set(Param("n", "int", (4.0, 6.0)).sample(u)) == {4.0, 5.0, 6.0}
+    assert set(Param("s", "choice", (-1.0, 1.0)).sample(u)) == {-1.0, 1.0}
+    values = Param("w", "uniform", (2.0, 3.0)).sample(u)
+    assert values.min() == 2.0 and values.max() < 3.0
+    assert (Param("f", "fixed", (7.0,)).sample(u) == 7.0).all()

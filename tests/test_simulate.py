@@ -1,0 +1,112 @@
+"""One batch through the whole pipeline: classes, visibility and batch-size independence."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from simlidar.dataset.config import GeneratorConfig
+from simlidar.errors import ConfigError, SimlidarError
+from simlidar.simulate import class_plan, simulate
+
+
+@pytest.fixture(scope="module")
+def batch(catalog):
+    return simulate(GeneratorConfig(), catalog, "train", 0, 256)
+
+
+def test_every_class_is_produced_and_balanced(batch):
+    assert np.bincount(batch.labels, minlength=32).tolist() == [8] * 32
+    assert (batch.layout == batch.labels // 4).all() and (batch.object == batch.labels % 4).all()
+
+
+def test_every_labelled_object_is_visible(batch, catalog):
+    k = GeneratorConfig().min_object_hits
+    has_object = batch.object > 0
+    assert (batch.object_hits[has_object] >= k).all()
+    assert (batch.object_hits[~has_object] == 0).all()
+    # the stored count is the number of pulses that show the object's surface
+    names = np.array(catalog.surfaces)[batch.surface]
+    expected = np.array(catalog.object_names)[batch.object]
+    shown = (names == expected[:, None, None]).sum(axis=(1, 2))
+    assert (shown[has_object] == batch.object_hits[has_object]).all()
+
+
+def test_layouts_show_their_defining_surface(batch, catalog):
+    for lid, recipe in enumerate(catalog.layouts):
+        if recipe.visible_hits:
+            rows = batch.layout == lid
+            seen = (batch.surface[rows] == recipe.visible_surface).sum(axis=(1, 2))
+            assert (seen >= recipe.visible_hits).all(), recipe.name
+
+
+def test_objects_cover_several_columns(batch, catalog):
+    # the window is wide enough for the layouts and narrow enough that vehicles span columns
+    vehicle_surfaces = [catalog.surfaces.index("car"), catalog.surfaces.index("truck")]
+    columns = np.isin(batch.surface, vehicle_surfaces).any(axis=1).sum(axis=1)
+    vehicles = np.isin(batch.object, [1, 3])
+    assert np.median(columns[vehicles]) >= 2
+
+
+def test_delays_tof_and_surfaces_agree(batch):
+    returned = ~np.isnan(batch.tof_ns)
+    assert ((batch.surface > 0) == returned).all()
+    np.testing.assert_allclose(
+        batch.clean_delays[returned], batch.tof_ns[returned] / 667.128190396, rtol=1e-5
+    )
+    assert (batch.clean_delays[~returned] == 1.0).all()
+
+
+@settings(max_examples=6, deadline=None)
+@given(start=st.integers(0, 40), sizes=st.lists(st.integers(1, 9), min_size=1, max_size=4))
+def test_a_sample_does_not_depend_on_the_batch_it_is_made_in(catalog, start, sizes):
+    config = GeneratorConfig(classes=8, width=12)
+    stop = start + sum(sizes)
+    whole = simulate(config, catalog, "test", start, stop)
+    offset = start
+    for size in sizes:
+        part = simulate(config, catalog, "test", offset, offset + size)
+        for field in dataclasses.fields(part):
+            a = getattr(part, field.name)
+            b = getattr(whole, field.name)[offset - start : offset - start + size]
+            np.testing.assert_array_equal(a, b, err_msg=field.name)
+        offset += size
+
+
+def test_splits_and_seeds_draw_different_scenes(catalog):
+    a = simulate(GeneratorConfig(), catalog, "train", 0, 32)
+    b = simulate(GeneratorConfig(), catalog, "test", 0, 32)
+    c = simulate(GeneratorConfig(seed=1), catalog, "train", 0, 32)
+    assert not np.array_equal(a.clean_delays, b.clean_delays)
+    assert not np.array_equal(a.clean_delays, c.clean_delays)
+
+
+@pytest.mark.parametrize("classes, mode", [(8, "layout"), (4, "object")])
+def test_fewer_classes_label_one_factor(catalog, classes, mode):
+    plan = class_plan(catalog, classes)
+    assert plan.mode == mode and len(plan.names) == classes
+    s = simulate(GeneratorConfig(classes=classes), catalog, "train", 0, 64)
+    factor = s.layout if mode == "layout" else s.object
+    other = s.object if mode == "layout" else s.layout
+    assert (factor == s.labels).all()
+    assert len(np.unique(other)) > 1  # the other factor varies
+
+
+def test_an_unknown_class_count_is_refused(catalog):
+    with pytest.raises(ConfigError, match=r"classes=5: expected one of \[4, 8, 32\]"):
+        class_plan(catalog, 5)
+
+
+def test_an_invisible_object_is_reported_not_looped_on(catalog_copy):
+    from simlidar.scene.recipe import load_catalog
+
+    path = catalog_copy / "objects" / "pedestrian.toml"
+    path.write_text(
+        path.read_text().replace("distance_m = [4.0, 14.0]", "distance_m = [-14.0, -4.0]")
+    )  # behind the sensor
+    catalog = load_catalog(catalog_copy)
+    config = GeneratorConfig(max_attempts=3)
+    with pytest.raises(SimlidarError, match=r"pedestrian\): no draw in 3"):
+        simulate(config, catalog, "train", 0, 8)
