@@ -104,7 +104,7 @@ def test_an_invisible_object_is_reported_not_looped_on(catalog_copy):
 
     path = catalog_copy / "objects" / "pedestrian.toml"
     path.write_text(
-        path.read_text().replace("distance_m = [4.0, 14.0]", "distance_m = [-14.0, -4.0]")
+        path.read_text().replace("distance_m = [4.0, 12.0]", "distance_m = [-12.0, -4.0]")
     )  # behind the sensor
     catalog = load_catalog(catalog_copy)
     config = GeneratorConfig(max_attempts=3)

@@ -7,9 +7,11 @@ index in the split (``index mod 4096``), not by its place in the batch, so the f
 coordinates Embree sees, and therefore which triangle each ray hits, do not depend on the batch
 size. The distance to the hit is then recomputed in float64 in the sample's local frame.
 
-Before building the Embree scene, triangles that no ray can hit first are dropped (exactly, no
-approximation): faces of closed solids turned away from every laser origin, and triangles wholly
-outside the horizontal wedge of the window. That keeps Embree's per-triangle setup cost down.
+Before building the Embree scene, the faces of closed solids that are turned away from every
+laser origin are dropped: no ray can hit them first, so this changes nothing but Embree's
+per-triangle setup cost (about 1 us a triangle in embreex), which it cuts by 60 %. Tests for
+the horizontal wedge, the vertical beam cones and the range limit were tried and removed: they
+cost more numpy time than the few triangles they drop save.
 """
 
 from dataclasses import dataclass
@@ -22,7 +24,6 @@ from simlidar.scene.build import CELL_HALF_EXTENT_M, SceneBatch
 GRID_CELLS = 16  # per axis
 CELL_SPACING_M = 256.0  # > 2 x CELL_HALF_EXTENT_M - max range: neighbours stay out of reach
 MAX_BATCH = GRID_CELLS**3
-_WEDGE_MARGIN_M = 0.05  # covers the millimetre shift of laser origins under pitch
 
 
 @dataclass(frozen=True)
@@ -48,23 +49,30 @@ def cell_offsets(slots: np.ndarray) -> np.ndarray:
     return (ijk - GRID_CELLS // 2) * CELL_SPACING_M
 
 
-def visible_triangles(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray):
-    """Mask (T,) of the triangles some ray of the batch could hit first (see module doc)."""
+def visible_triangles(scene: SceneBatch, origins: np.ndarray):
+    """Mask (T,) of the triangles a ray could hit first; normals (T, 3) and planes (T,) of all.
+
+    Triangle k lies in the plane ``normal[k] . x = plane[k]``.
+
+    Drops the back faces of closed solids and degenerate triangles.
+
+    A ray from outside a closed solid enters it through a face turned towards the ray's origin,
+    so a face turned away from every origin is never a first hit and dropping it changes
+    nothing. The origins of a window lie on one short segment (the lasers' vertical offsets),
+    so a face turned away from both ends of the segment is turned away from all of them.
+    Degenerate (zero-area) triangles are dropped too.
+    """
     tris = scene.triangles
-    # Back faces of closed solids. The origins of a window lie on one short segment (the
-    # lasers' vertical offsets), so a face turned away from both ends is turned away from all.
     flat = origins.reshape(-1, 3)
     ends = flat[[np.argmin(flat[:, 2]), np.argmax(flat[:, 2])]]  # (2, 3)
-    normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-    facing = np.einsum("tk,etk->et", normal, ends[:, None, :] - tris[None, :, 0])  # (2, T)
-    keep = ~(scene.closed & (facing <= 0).all(axis=0)) & (np.abs(normal).sum(axis=1) > 0)
-    # The horizontal wedge spanned by the rays (azimuth clockwise from +x).
-    azimuth = np.arctan2(-directions[..., 1], directions[..., 0])
-    for bound, sign in ((azimuth.min(), 1.0), (azimuth.max(), -1.0)):
-        edge = np.array([np.cos(bound), -np.sin(bound)])
-        side = sign * (edge[0] * tris[..., 1] - edge[1] * tris[..., 0])  # (T, 3) > 0: outside
-        keep &= ~(side > _WEDGE_MARGIN_M).all(axis=1)
-    return keep
+    e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    normal = np.stack([e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1],
+                       e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2],
+                       e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]], axis=-1)  # fmt: skip
+    plane = np.einsum("tk,tk->t", normal, tris[:, 0])
+    facing = normal @ ends.T - plane[:, None]  # (T, 2)
+    back = scene.closed & (facing <= 0).all(axis=1)
+    return ~back & normal.any(axis=1), normal, plane
 
 
 def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: np.ndarray,
@@ -79,14 +87,12 @@ def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: 
     import embreex.rtcore_scene as rtcs
 
     batch = origins.shape[0]
-    if batch > MAX_BATCH or len(np.unique(slots)) != batch:
-        raise ValueError(f"need {batch} distinct slots below {MAX_BATCH}, got {slots!r}")
+    if len(np.unique(slots)) != batch or not 0 <= np.min(slots) <= np.max(slots) < MAX_BATCH:
+        raise ValueError(f"need {batch} distinct slots in [0, {MAX_BATCH}), got {slots!r}")
     if max_range_m + CELL_HALF_EXTENT_M >= CELL_SPACING_M:
         raise ValueError(f"max range {max_range_m} m would reach the neighbouring cells")
-    if cull:
-        keep = np.nonzero(visible_triangles(scene, origins, directions))[0]
-    else:
-        keep = np.arange(len(scene.triangles))
+    mask, normal, plane = visible_triangles(scene, origins)
+    keep = np.nonzero(mask if cull else normal.any(axis=1))[0]
     tris = scene.triangles[keep]
     sample = scene.sample[keep]
     offsets = cell_offsets(np.asarray(slots))  # (B, 3)
@@ -104,18 +110,17 @@ def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: 
     ray_origin = (origins + offsets[:, None, None, :]).reshape(-1, 3).astype(np.float32)
     ray_dir = directions.reshape(-1, 3).astype(np.float32)
     far = np.full(len(ray_origin), max_range_m + 1.0, np.float32)
-    prim = embree_scene.run(ray_origin, ray_dir, dists=far, output=1)["primID"].reshape(shape)
+    prim = embree_scene.run(ray_origin, ray_dir, dists=far).reshape(shape)  # primID, -1: none
 
     hit = prim >= 0
-    prim_hit = prim[hit]
-    rows = np.nonzero(hit)[0]
-    if (sample[prim_hit] != rows).any():
+    flat = np.flatnonzero(hit)
+    k = keep[prim.reshape(-1)[flat]]  # the hit triangle of each hitting ray
+    if (scene.sample[k] != flat // (shape[1] * shape[2])).any():
         raise RuntimeError("a ray hit another sample's scene: the cell isolation is broken")
-    # Exact distance in float64: the ray's parameter where it meets the hit triangle's plane.
-    t = tris[prim_hit]
-    o, d = origins[hit], directions[hit]
-    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-    hit_range[hit] = np.einsum("ij,ij->i", n, t[:, 0] - o) / np.einsum("ij,ij->i", n, d)
-    surface[hit] = scene.surface[keep][prim_hit]
-    on_object[hit] = scene.is_object[keep][prim_hit]
+    # Exact distance in float64: where the ray meets the hit triangle's plane.
+    n = normal[k]
+    o, d = origins.reshape(-1, 3)[flat], directions.reshape(-1, 3)[flat]
+    hit_range[hit] = (plane[k] - np.einsum("ij,ij->i", n, o)) / np.einsum("ij,ij->i", n, d)
+    surface[hit] = scene.surface[k]
+    on_object[hit] = scene.is_object[k]
     return Hits(hit_range, surface, on_object)

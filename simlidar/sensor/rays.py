@@ -49,20 +49,27 @@ def window_rays(sensor: VLP16, width: int, fov_deg: float, phase):
     returns : origins (B, 16, W, 3) float64, directions (B, 16, W, 3) float64, in the sample's
         local frame (road at z = 0, rotation axis at x = y = 0).
     """
-    azimuth = np.deg2rad(firing_azimuths_deg(sensor, width, fov_deg, phase))  # (B, 16, W)
+    phase = np.asarray(phase, dtype=np.float64)
+    step = sensor.azimuth_step_deg
+    centres = column_centres_deg(width, fov_deg)
+    cycle = np.round(centres[None, :] / step - phase[:, None])
+    cycle_start = np.deg2rad((cycle + phase[:, None]) * step)[:, None, :]  # (B, 1, W)
     lasers = row_order(sensor)
-    elevation = np.deg2rad(np.asarray(sensor.elevations_deg)[lasers])[None, :, None]  # (1,16,1)
-    directions = np.stack(
-        np.broadcast_arrays(
-            np.cos(elevation) * np.cos(azimuth),
-            -np.cos(elevation) * np.sin(azimuth),  # clockwise azimuth: positive looks right
-            np.sin(elevation),
-        ),
-        axis=-1,
-    )
+    firing = np.deg2rad(np.asarray(lasers, dtype=np.float64) * sensor.firing_step_deg)
+    firing = firing[None, :, None]  # (1, 16, 1)
+    elevation = np.deg2rad(np.asarray(sensor.elevations_deg)[lasers])[None, :, None]
+    # azimuth = cycle start + firing offset; expand cos/sin of the sum instead of (B, 16, W) trig
+    cos_a = np.cos(cycle_start) * np.cos(firing) - np.sin(cycle_start) * np.sin(firing)
+    sin_a = np.sin(cycle_start) * np.cos(firing) + np.cos(cycle_start) * np.sin(firing)
+    directions = np.empty(cos_a.shape + (3,))
+    directions[..., 0] = np.cos(elevation) * cos_a
+    directions[..., 1] = -np.cos(elevation) * sin_a  # clockwise azimuth: positive looks right
+    directions[..., 2] = np.sin(elevation)
     offsets_m = np.asarray(sensor.vertical_offsets_mm)[lasers] * 1e-3  # (16,)
     origins = np.zeros(directions.shape)
     origins[..., 2] = offsets_m[None, :, None]
     origins = _pitch(origins, sensor.pitch_deg)
     origins[..., 2] += sensor.mount_height_m
-    return origins, _pitch(directions, sensor.pitch_deg)
+    if sensor.pitch_deg:
+        directions = _pitch(directions, sensor.pitch_deg)
+    return origins, directions

@@ -61,7 +61,7 @@ def _edit(root, name, old, new):
         ("layouts/tunnel.toml", '"wall_height_m + 0.3"]', '"wall_hieght_m + 0.3"]', "size[2]"),
         ("layouts/tunnel.toml", "at = [65.0, 0.0, -0.3]", "at = [65.0, 0.0]", "at"),
         ("layouts/tunnel.toml", "at = [65.0, 0.0, -0.3]", 'at = ["__import__(1)", 0, 0]', "at[0]"),
-        ("layouts/tunnel.toml", "segments = 12", "segments = 2", "segments"),
+        ("layouts/tunnel.toml", "segments = 8", "segments = 2", "segments"),
         ("layouts/tunnel.toml", "repeat = 2", 'repeat = "half_width_m"', "repeat"),
         ("layouts/tunnel.toml", 'kind = "arch"', 'kind = "arch"\ncolour = "red"', "colour"),
         ("layouts/tunnel.toml", "min_hits = 3", "min_hits = -1", "visible.min_hits"),
