@@ -25,7 +25,7 @@ class _Group(click.Group):
         except ConfigError as exc:
             if ctx.meta.get("debug"):
                 raise
-            raise click.UsageError(str(exc), ctx) from None
+            raise click.UsageError(str(exc)) from None  # exit 2, one line
         except SimlidarError as exc:
             if ctx.meta.get("debug"):
                 raise

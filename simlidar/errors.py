@@ -1,7 +1,8 @@
 """The one exception family of the library.
 
 Every error a user can cause is a :class:`SimlidarError` whose message names the bad value and
-what was expected; the CLI prints it on one line and exits with code 1.
+what was expected; the CLI prints it on one line and exits with code 2 for a
+:class:`ConfigError` (a bad option value) and 1 for the others.
 """
 
 

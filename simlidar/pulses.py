@@ -2,8 +2,9 @@
 
 Conventions (``docs/sensor-model.md`` explains them):
 
-* A return exists where a surface is hit within ``[min_range_m, max_range_m]``; its range is
-  rounded to the sensor's 2 mm resolution and its round-trip time of flight is ``2 r / c``.
+* A return exists where a surface is hit within ``[min_range_m, max_range_m)`` after rounding
+  the range to the sensor's 2 mm resolution; its round-trip time of flight is ``2 r / c``. The
+  maximum range itself is excluded so that a return's delay stays below 1.0 (no return).
 * Normalised delay ``d = tof / tof(max_range)``, in (0, 1) for a return. **No return is 1.0**:
   the end of the listening window, where a pulse that never comes back is still unseen.
 * Noise: ``noisy = min(d + a * u, 1)`` with ``u ~ U(0, 1)`` drawn for every pulse of every
@@ -22,9 +23,9 @@ NO_RETURN = 1.0
 
 
 def quantise_range(range_m: np.ndarray, sensor: VLP16) -> np.ndarray:
-    """Round ranges to the sensor's resolution; NaN (no return) outside the range limits."""
+    """Round ranges to the sensor's resolution; NaN (no return) outside [min, max)."""
     r = np.round(range_m / sensor.range_resolution_m) * sensor.range_resolution_m
-    inside = (r >= sensor.min_range_m) & (r <= sensor.max_range_m)  # NaN compares False
+    inside = (r >= sensor.min_range_m) & (r < sensor.max_range_m)  # NaN compares False
     return np.where(inside, r, np.nan)
 
 

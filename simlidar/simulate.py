@@ -32,19 +32,27 @@ class ClassPlan:
 
 
 def class_plan(catalog: Catalog, classes: int) -> ClassPlan:
+    """The labelling that gives ``classes`` classes with this catalog (32 / 8 / 4 by default)."""
     layouts, objects = catalog.layout_names, catalog.object_names
-    modes = {
-        len(layouts) * len(objects): ("layout x object",
-                                      tuple(f"{a}/{b}" for a in layouts for b in objects)),
-        len(layouts): ("layout", tuple(layouts)),
-        len(objects): ("object", tuple(objects)),
-    }  # fmt: skip
-    if classes not in modes:
+    modes = [
+        ("layout x object", tuple(f"{a}/{b}" for a in layouts for b in objects)),
+        ("layout", tuple(layouts)),
+        ("object", tuple(objects)),
+    ]
+    matches = [(mode, names) for mode, names in modes if len(names) == classes]
+    counts = sorted({len(names) for _, names in modes})
+    if not matches:
         raise ConfigError(
-            f"classes={classes}: expected one of {sorted(modes)} for this scene catalog "
+            f"classes={classes}: expected one of {counts} for this scene catalog "
             f"({len(layouts)} layouts x {len(objects)} objects)"
         )
-    mode, names = modes[classes]
+    if len(matches) > 1:
+        raise ConfigError(
+            f"classes={classes} is ambiguous for this scene catalog: it labels "
+            f"{' and '.join(m for m, _ in matches)} alike; expected a catalog whose layout, "
+            "object and layout x object counts differ"
+        )
+    mode, names = matches[0]
     return ClassPlan(classes, mode, names)
 
 
@@ -73,7 +81,7 @@ class Samples:
     object: np.ndarray  # (n,) uint8
     object_pose: np.ndarray  # (n, 3) float32: x_m, y_m, yaw_deg; NaN without object
     object_hits: np.ndarray  # (n,) int32
-    attempts: np.ndarray  # (n,) int32, draws needed until the object was visible
+    attempts: np.ndarray  # (n,) int32, draws until the object and the layout were seen
     phase: np.ndarray  # (n,) float32, head rotation phase in azimuth steps
     shift: np.ndarray  # (n,) float32, delay shift applied
 
@@ -131,7 +139,8 @@ def simulate(config: GeneratorConfig, catalog: Catalog, split: str, start: int,
         pose[done] = scene.object_pose[ok]
         hits_out[done] = on_object[ok]
         phase[done] = u[ok, 0]
-        shift[done] = (2.0 * u[ok, 1] - 1.0) * config.shift_max
+        if config.shift_max > 0:
+            shift[done] = (2.0 * u[ok, 1] - 1.0) * config.shift_max
         pending = pending[~ok]
         if len(pending) and attempts[pending].max() >= config.max_attempts:
             k = pending[0]

@@ -11,10 +11,11 @@ ranges = arrays(np.float64, (4, 16, 16), elements=st.one_of(
 
 
 def test_ranges_are_quantised_to_2_mm_and_limited():
-    r = quantise_range(np.array([0.5, 1.0, 10.0009, 10.0011, 99.999, 100.0, 100.2, np.nan]),
+    r = quantise_range(np.array([0.5, 1.0, 10.0009, 10.0011, 99.9979, 99.999, 100.2, np.nan]),
                        VLP16())  # fmt: skip
-    np.testing.assert_allclose(r[1:6], [1.0, 10.0, 10.002, 100.0, 100.0])
-    assert np.isnan(r[[0, 6, 7]]).all()
+    np.testing.assert_allclose(r[1:5], [1.0, 10.0, 10.002, 99.998])
+    # 99.999 m rounds to the maximum range, which is excluded: a return's delay stays < 1
+    assert np.isnan(r[[0, 5, 6, 7]]).all()
 
 
 @settings(max_examples=40, deadline=None)

@@ -99,6 +99,33 @@ def test_an_unknown_class_count_is_refused(catalog):
         class_plan(catalog, 5)
 
 
+def test_a_catalog_with_more_layouts_has_more_classes(catalog_copy):
+    from simlidar.scene.recipe import load_catalog
+
+    source = (catalog_copy / "layouts" / "open_road.toml").read_text()
+    (catalog_copy / "layouts" / "country_road.toml").write_text(source)
+    index = catalog_copy / "catalog.toml"
+    index.write_text(index.read_text().replace('"lamps_one_side"]', '"lamps_one_side",\n'
+                                               '"country_road"]'))  # fmt: skip
+    catalog = load_catalog(catalog_copy)
+    assert class_plan(catalog, 36).names[-1] == "country_road/truck"
+    assert class_plan(catalog, 9).mode == "layout"
+    s = simulate(GeneratorConfig(classes=36), catalog, "train", 0, 36)
+    assert sorted(s.labels) == list(range(36))
+
+
+def test_an_ambiguous_class_count_is_refused(catalog_copy):
+    from simlidar.scene.recipe import load_catalog
+
+    index = catalog_copy / "catalog.toml"
+    text = index.read_text()
+    start = text.index("layouts = [")
+    index.write_text(text[:start] + 'layouts = ["tunnel", "open_road", "lower_bridge", '
+                     '"upper_bridge"]\nobjects = ["car", "pedestrian", "truck"]\n')  # fmt: skip
+    with pytest.raises(ConfigError, match="classes=4 is ambiguous"):
+        class_plan(load_catalog(catalog_copy), 4)
+
+
 def test_an_invisible_object_is_reported_not_looped_on(catalog_copy):
     from simlidar.scene.recipe import load_catalog
 

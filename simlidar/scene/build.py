@@ -88,10 +88,11 @@ def _recipe_triangles(recipe: Recipe, rows: np.ndarray, values, pose):
         tmpl = template(prim.kind, prim.segments)
         tris = tmpl.triangles[None] * size[:, None, None, :]  # (M, T, 3, 3)
         tris = _rotate_z(tris, yaw[:, None, None]) + at[:, None, None, :]
-        if np.abs(tris).max(initial=0.0) > CELL_HALF_EXTENT_M:
+        reach = np.abs(tris).max(initial=0.0)
+        if not reach <= CELL_HALF_EXTENT_M:  # NaN fails too
             raise RecipeError(
-                f"{prim.where}: geometry reaches {np.abs(tris).max():.1f} m from the sensor: "
-                f"expected every vertex within {CELL_HALF_EXTENT_M:.0f} m along each axis"
+                f"{prim.where}: geometry reaches {reach:.1f} m from the sensor: expected every "
+                f"vertex finite and within {CELL_HALF_EXTENT_M:.0f} m along each axis"
             )
         count = tris.shape[1]
         sample = np.repeat(rows[np.nonzero(mask)[0]], count)

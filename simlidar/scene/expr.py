@@ -19,6 +19,7 @@ FUNCTIONS: dict[str, Callable] = {
     "min": np.minimum,
     "max": np.maximum,
 }
+_ARITY = {"sin": 1, "cos": 1, "sqrt": 1, "abs": 1, "min": 2, "max": 2}
 _BINARY = {
     ast.Add: np.add,
     ast.Sub: np.subtract,
@@ -46,6 +47,10 @@ def parse(text: str) -> ast.expr:
                 )
             if node.keywords:
                 raise ExpressionError(f"{text!r}: keyword arguments are not allowed")
+            if len(node.args) != _ARITY[node.func.id]:
+                raise ExpressionError(
+                    f"{text!r}: {node.func.id}() takes {_ARITY[node.func.id]} argument(s)"
+                )
         elif not isinstance(
             node,
             ast.BinOp
@@ -57,7 +62,9 @@ def parse(text: str) -> ast.expr:
             | ast.unaryop,
         ):
             raise ExpressionError(f"{text!r}: {type(node).__name__} is not allowed")
-        if isinstance(node, ast.Constant) and not isinstance(node.value, int | float):
+        if isinstance(node, ast.Constant) and (
+            isinstance(node.value, bool) or not isinstance(node.value, int | float)
+        ):
             raise ExpressionError(f"{text!r}: only numbers may appear as constants")
         if isinstance(node, ast.BinOp) and type(node.op) not in _BINARY:
             raise ExpressionError(f"{text!r}: operator {type(node.op).__name__} is not allowed")

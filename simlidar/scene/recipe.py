@@ -194,7 +194,8 @@ def _primitive(where: str, table: dict, params: dict[str, Param], surfaces: list
         raise _fail(where, "surface", f"a surface of catalog.toml {surfaces[1:]}", surface)
     repeat = table.get("repeat", 1)
     if isinstance(repeat, str):
-        if repeat not in params or params[repeat].kind not in ("int", "fixed"):
+        spec = params.get(repeat)
+        if spec is None or spec.kind not in ("int", "fixed") or spec.upper != int(spec.upper):
             raise _fail(where, "repeat", "the name of an integer parameter", repeat)
         repeat_max, repeat_param = int(params[repeat].upper), repeat
     elif isinstance(repeat, int) and not isinstance(repeat, bool) and repeat >= 1:
@@ -202,7 +203,11 @@ def _primitive(where: str, table: dict, params: dict[str, Param], surfaces: list
     else:
         raise _fail(where, "repeat", "a positive integer or an integer parameter's name", repeat)
     segments = table.get("segments", DEFAULT_SEGMENTS[kind])
-    if kind != "box" and not (isinstance(segments, int) and 3 <= segments <= 64):
+    if kind == "box" and "segments" in table:
+        raise _fail(where, "segments", "no segments on a box (only cylinder and arch)", segments)
+    if kind != "box" and not (
+        isinstance(segments, int) and not isinstance(segments, bool) and 3 <= segments <= 64
+    ):
         raise _fail(where, "segments", "an integer in [3, 64]", segments)
     known = set(params) | ({"i"} if "repeat" in table else set())
     return Primitive(

@@ -1,6 +1,6 @@
 """Batched ray casting: the scenes of a whole batch in one Embree scene, all rays in one call.
 
-Each scene of the batch is moved into its own cell of a 16 x 16 x 16 grid spaced 256 m apart.
+Each scene of the batch is moved into its own cell of a 16 x 16 x 16 grid spaced 320 m apart.
 Scene geometry stays within 150 m of its sensor (checked by the scene builder) and rays stop at
 the maximum range, so no ray can reach a neighbouring cell. A sample's cell is fixed by its
 index in the split (``index mod 4096``), not by its place in the batch, so the float32
@@ -19,10 +19,13 @@ from functools import cache
 
 import numpy as np
 
+from simlidar.errors import ConfigError
 from simlidar.scene.build import CELL_HALF_EXTENT_M, SceneBatch
 
 GRID_CELLS = 16  # per axis
-CELL_SPACING_M = 256.0  # > 2 x CELL_HALF_EXTENT_M - max range: neighbours stay out of reach
+# A ray reaches at most max range + 1 m from an origin near the cell centre; a neighbour's
+# geometry starts CELL_SPACING_M - CELL_HALF_EXTENT_M away. cast() checks the margin.
+CELL_SPACING_M = 320.0
 MAX_BATCH = GRID_CELLS**3
 
 
@@ -89,8 +92,13 @@ def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: 
     batch = origins.shape[0]
     if len(np.unique(slots)) != batch or not 0 <= np.min(slots) <= np.max(slots) < MAX_BATCH:
         raise ValueError(f"need {batch} distinct slots in [0, {MAX_BATCH}), got {slots!r}")
-    if max_range_m + CELL_HALF_EXTENT_M >= CELL_SPACING_M:
-        raise ValueError(f"max range {max_range_m} m would reach the neighbouring cells")
+    reach = max_range_m + 1.0 + np.abs(origins).max()
+    if reach + CELL_HALF_EXTENT_M >= CELL_SPACING_M:
+        raise ConfigError(
+            f"max range {max_range_m} m from origins up to {np.abs(origins).max():.1f} m off "
+            f"the cell centre: expected rays to stay within "
+            f"{CELL_SPACING_M - CELL_HALF_EXTENT_M:.0f} m of it"
+        )
     mask, normal, plane = visible_triangles(scene, origins)
     keep = np.nonzero(mask if cull else normal.any(axis=1))[0]
     tris = scene.triangles[keep]

@@ -63,6 +63,10 @@ def _edit(root, name, old, new):
         ("layouts/tunnel.toml", "at = [65.0, 0.0, -0.3]", 'at = ["__import__(1)", 0, 0]', "at[0]"),
         ("layouts/tunnel.toml", "segments = 8", "segments = 2", "segments"),
         ("layouts/tunnel.toml", "repeat = 2", 'repeat = "half_width_m"', "repeat"),
+        ("layouts/tunnel.toml", "repeat = 2", "repeat = true", "repeat"),
+        ("layouts/tunnel.toml", 'surface = "road"', 'surface = "road"\nsegments = 4', "segments"),
+        ("layouts/tunnel.toml", '"wall_height_m + 0.3"]', '"min(1, 2, 3)"]', "size[2]"),
+        ("layouts/tunnel.toml", '"wall_height_m + 0.3"]', '"True"]', "size[2]"),
         ("layouts/tunnel.toml", 'kind = "arch"', 'kind = "arch"\ncolour = "red"', "colour"),
         ("layouts/tunnel.toml", "min_hits = 3", "min_hits = -1", "visible.min_hits"),
         ("objects/car.toml", "distance_m = [6.0, 20.0]", "", "distance_m"),
@@ -95,13 +99,25 @@ def test_a_missing_catalog_is_named(tmp_path):
         load_catalog(tmp_path / "nowhere")
 
 
-def test_sampled_geometry_is_checked_at_build_time(catalog_copy):
+@pytest.mark.parametrize(
+    "old, new, words",
+    [
+        ('size = [2.2, "width_m"', 'size = [-2.2, "width_m"', r"primitive\[1\]: key 'size'"),
+        ('at = ["1.1", 0.0, 0.45]', 'at = ["1.1 / 0", 0.0, 0.45]', r"primitive\[2\]: .*finite"),
+        (
+            'at = ["1.1", 0.0, 0.45]',
+            "at = [200.0, 0.0, 0.45]",
+            r"primitive\[2\]: geometry reaches 2\d\d\.\d m",
+        ),
+    ],
+)
+def test_sampled_geometry_is_checked_at_build_time(catalog_copy, old, new, words):
     from simlidar.scene.build import build_batch
 
-    _edit(catalog_copy, "objects/truck.toml", 'size = [2.2, "width_m"', 'size = [-2.2, "width_m"')
+    _edit(catalog_copy, "objects/truck.toml", old, new)
     catalog = load_catalog(catalog_copy)
     u = np.full((1, 16), 0.5)
-    with pytest.raises(RecipeError, match=r"truck.toml: primitive\[1\]: key 'size'"):
+    with pytest.raises(RecipeError, match=r"truck.toml: " + words), np.errstate(all="ignore"):
         build_batch(catalog, np.array([1]), np.array([3]), u[:, : catalog.layout_columns],
                     u[:, : catalog.object_columns])  # fmt: skip
 
