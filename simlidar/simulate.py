@@ -91,9 +91,13 @@ def _stream(seed: int, split: str, index: int) -> np.random.Generator:
     return np.random.Generator(np.random.PCG64(seq))
 
 
-def simulate(config: GeneratorConfig, catalog: Catalog, split: str, start: int,
-             stop: int) -> Samples:  # fmt: skip
-    """Samples ``start .. stop - 1`` of ``split`` (at most MAX_BATCH of them)."""
+def simulate(config: GeneratorConfig, catalog: Catalog, split: str, start: int, stop: int,
+             caster=cast) -> Samples:  # fmt: skip
+    """Samples ``start .. stop - 1`` of ``split`` (at most MAX_BATCH of them).
+
+    ``caster`` has the signature of :func:`simlidar.sensor.raycast.cast`; the benchmark swaps
+    in a per-sample trimesh caster to compare with.
+    """
     if not 0 < stop - start <= MAX_BATCH:
         raise ConfigError(f"batch of {stop - start} samples: expected 1..{MAX_BATCH}")
     sensor, width = config.sensor, config.width
@@ -123,7 +127,7 @@ def simulate(config: GeneratorConfig, catalog: Catalog, split: str, start: int,
                             u[:, _FIXED_COLUMNS:_FIXED_COLUMNS + lc],
                             u[:, _FIXED_COLUMNS + lc:])  # fmt: skip
         origins, directions = window_rays(sensor, width, config.fov_deg, u[:, 0])
-        hits = cast(scene, origins, directions, index[pending] % MAX_BATCH, sensor.max_range_m)
+        hits = caster(scene, origins, directions, index[pending] % MAX_BATCH, sensor.max_range_m)
         r = quantise_range(hits.range_m, sensor)
         on_object = (hits.on_object & ~np.isnan(r)).sum(axis=(1, 2))
         ok = (obj[pending] == 0) | (on_object >= config.min_object_hits)
