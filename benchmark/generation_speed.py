@@ -5,10 +5,14 @@
 
 1. simlidar's way, end to end: ``generate`` with the default catalog, 16 x 16 samples, 32
    classes, HDF5 writing included (the preview picture is not).
-2. The naive way on the same samples: one trimesh mesh per sample and trimesh's ray API
-   (``mesh.ray.intersects_id``, Embree-backed when embreex is installed), each sample then
-   going through the same pulses and the same HDF5 writer. Both ways run in this process, on
-   the same core, one after the other, so their ratio is meaningful on a noisy machine.
+2. The naive way on the same samples (same random streams, same sampled parameters): per
+   sample, every primitive made with ``trimesh.creation`` and placed with a transform, the
+   pieces gathered into one trimesh scene (a mesh), and trimesh's ray API
+   (``mesh.ray.intersects_id``, itself Embree-backed when embreex is installed); then the same
+   pulses and the same HDF5 writer. A second, stronger reference keeps simlidar's numpy builder
+   and only casts one sample at a time through trimesh ("per-sample cast"). All ways run in
+   this process, on the same core, one after the other, so the ratios are meaningful on a noisy
+   machine.
 3. Peak memory (max RSS) of a fresh process generating 10,000 and 100,000 samples, beside the
    peak of a process that generates 1,000 (the reference measured in the same run).
 
@@ -37,45 +41,101 @@ from simlidar import __version__  # noqa: E402
 from simlidar.dataset.config import GeneratorConfig  # noqa: E402
 from simlidar.dataset.generate import generate, split_attrs  # noqa: E402
 from simlidar.dataset.h5 import SplitWriter  # noqa: E402
+from simlidar.scene.build import build_batch, place_instances  # noqa: E402
 from simlidar.scene.recipe import load_catalog  # noqa: E402
 from simlidar.sensor.raycast import Hits  # noqa: E402
 from simlidar.simulate import simulate  # noqa: E402
 
 
-def naive_cast(scene, origins, directions, slots, max_range_m) -> Hits:
-    """One trimesh mesh per sample and trimesh's ray API; same contract as ``cast``."""
+def _trimesh_hits(mesh, face_surface, face_object, origins, directions, max_range_m):
+    """Cast one sample's rays at its mesh with trimesh's ray API: range, surface, on_object."""
+    o, d = origins.reshape(-1, 3), directions.reshape(-1, 3)
+    tri, ray, where = mesh.ray.intersects_id(o, d, multiple_hits=False, return_locations=True)
+    r = np.linalg.norm(where - o[ray], axis=1)
+    near = r <= max_range_m + 1.0
+    range_m = np.full(len(o), np.nan)
+    surface = np.zeros(len(o), np.uint8)
+    on_object = np.zeros(len(o), bool)
+    range_m[ray[near]] = r[near]
+    surface[ray[near]] = face_surface[tri[near]]
+    on_object[ray[near]] = face_object[tri[near]]
+    shape = origins.shape[:-1]
+    return range_m.reshape(shape), surface.reshape(shape), on_object.reshape(shape)
+
+
+def _unit_mesh(kind: str, segments: int):
+    """A trimesh primitive on the recipe's unit template convention (bottom centre at 0)."""
     import trimesh
 
-    shape = origins.shape[:-1]
-    range_m = np.full(shape, np.nan)
-    surface = np.zeros(shape, np.uint8)
-    on_object = np.zeros(shape, bool)
-    for k in range(shape[0]):
+    if kind == "box":
+        mesh = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    elif kind == "cylinder":
+        mesh = trimesh.creation.cylinder(radius=0.5, height=1.0, sections=segments)
+    else:
+        from simlidar.scene.primitives import arch
+
+        return trimesh.Trimesh(**trimesh.triangles.to_kwargs(arch(segments).triangles))
+    mesh.apply_translation((0.0, 0.0, 0.5))
+    return mesh
+
+
+def naive_backend(catalog, layout, obj, layout_uniforms, object_uniforms, origins, directions,
+                  slots, max_range_m):  # fmt: skip
+    """The naive way: per sample, trimesh primitives in one scene and trimesh's ray API."""
+    import trimesh
+
+    results, poses = [], []
+    for k in range(len(layout)):
+        placed, pose = place_instances(
+            catalog,
+            layout[k : k + 1],
+            obj[k : k + 1],
+            layout_uniforms[k : k + 1],
+            object_uniforms[k : k + 1],
+        )
+        meshes, surfaces, objects = [], [], []
+        for inst in placed:
+            for at, size, yaw in zip(inst.at, inst.size, inst.yaw_deg):
+                mesh = _unit_mesh(inst.primitive.kind, inst.primitive.segments)
+                transform = trimesh.transformations.rotation_matrix(np.deg2rad(yaw), (0, 0, 1))
+                transform[:3, 3] = at
+                mesh.apply_transform(transform @ np.diag([*size, 1.0]))
+                meshes.append(mesh)
+                surfaces.append(inst.primitive.surface)
+                objects.append(inst.is_object)
+        counts = [len(m.faces) for m in meshes]
+        results.append(_trimesh_hits(trimesh.util.concatenate(meshes),
+                                     np.repeat(surfaces, counts), np.repeat(objects, counts),
+                                     origins[k], directions[k], max_range_m))  # fmt: skip
+        poses.append(pose[0])
+    hits = Hits(*(np.stack([r[i] for r in results]) for i in range(3)))
+    return hits, np.stack(poses)
+
+
+def per_sample_cast_backend(catalog, layout, obj, layout_uniforms, object_uniforms, origins,
+                            directions, slots, max_range_m):  # fmt: skip
+    """simlidar's numpy builder, but one trimesh mesh and one ray query per sample."""
+    import trimesh
+
+    scene = build_batch(catalog, layout, obj, layout_uniforms, object_uniforms)
+    results = []
+    for k in range(len(layout)):
         mine = np.nonzero(scene.sample == k)[0]
         tris = scene.triangles[mine]
-        mesh = trimesh.Trimesh(
-            tris.reshape(-1, 3), np.arange(3 * len(tris)).reshape(-1, 3), process=False
-        )
-        o, d = origins[k].reshape(-1, 3), directions[k].reshape(-1, 3)
-        tri, ray, where = mesh.ray.intersects_id(o, d, multiple_hits=False, return_locations=True)
-        r = np.linalg.norm(where - o[ray], axis=1)
-        near = r <= max_range_m + 1.0
-        flat_range = range_m[k].reshape(-1)
-        flat_surface = surface[k].reshape(-1)
-        flat_object = on_object[k].reshape(-1)
-        flat_range[ray[near]] = r[near]
-        flat_surface[ray[near]] = scene.surface[mine[tri[near]]]
-        flat_object[ray[near]] = scene.is_object[mine[tri[near]]]
-    return Hits(range_m, surface, on_object)
+        mesh = trimesh.Trimesh(**trimesh.triangles.to_kwargs(tris), process=False)
+        results.append(_trimesh_hits(mesh, scene.surface[mine], scene.is_object[mine],
+                                     origins[k], directions[k], max_range_m))  # fmt: skip
+    hits = Hits(*(np.stack([r[i] for r in results]) for i in range(3)))
+    return hits, scene.object_pose
 
 
-def run_naive(config, catalog, count, out: Path):
-    """The naive way over train samples 0..count-1, written with the same HDF5 writer."""
+def run_one_at_a_time(config, catalog, count, out: Path, backend):
+    """Train samples 0..count-1, one scene at a time, written with the same HDF5 writer."""
     writer = SplitWriter(out / "train.h5", count, config.width, config.noise,
                          split_attrs(config, catalog, "train"))  # fmt: skip
     blocks = []
-    for i in range(count):  # one scene per sample
-        samples = simulate(config, catalog, "train", i, i + 1, caster=naive_cast)
+    for i in range(count):
+        samples = simulate(config, catalog, "train", i, i + 1, backend=backend)
         writer.append(samples)
         blocks.append(samples.clean_delays)
     writer.close()
@@ -125,20 +185,26 @@ def main() -> None:
         start = time.perf_counter()
         generate(config, [0.2], catalog, tmp / "fast", progress=False, preview=False)
         fast = args.samples / (time.perf_counter() - start)
-        print(f"simlidar (batched Embree) : {fast:8.0f} samples/s  ({args.samples} samples)")
+        print(f"{'simlidar (batched Embree)':32s}: {fast:8.0f} samples/s  ({args.samples} samples)")
+        figures["samples_per_s"] = round(fast)
 
-        naive_dir = tmp / "naive"
-        naive_dir.mkdir()
-        start = time.perf_counter()
-        naive_clean = run_naive(config, catalog, args.naive_samples, naive_dir)
-        naive = args.naive_samples / (time.perf_counter() - start)
-        print(f"naive (trimesh per sample): {naive:8.0f} samples/s  ({args.naive_samples} samples)")
-        print(f"ratio                     : {fast / naive:8.1f} x")
         batched = simulate(config, catalog, "train", 0, args.naive_samples).clean_delays
-        same = float(np.mean(batched == naive_clean))
-        print(f"pulses identical in both ways: {100 * same:.3f} %")
-        figures.update(samples_per_s=round(fast), naive_samples_per_s=round(naive, 1),
-                       ratio=round(fast / naive, 1), identical_pulses=same)  # fmt: skip
+        for key, label, backend in (
+            ("naive", "naive (trimesh scene per sample)", naive_backend),
+            ("per_sample_cast", "per-sample cast (numpy builder)", per_sample_cast_backend),
+        ):
+            folder = tmp / key
+            folder.mkdir()
+            start = time.perf_counter()
+            clean = run_one_at_a_time(config, catalog, args.naive_samples, folder, backend)
+            rate = args.naive_samples / (time.perf_counter() - start)
+            same = float(np.mean(clean == batched))
+            print(
+                f"{label:32s}: {rate:8.0f} samples/s  ({args.naive_samples} samples), "
+                f"simlidar is {fast / rate:5.1f} x faster; identical pulses {100 * same:.2f} %"
+            )
+            figures[key] = {"samples_per_s": round(rate, 1), "ratio": round(fast / rate, 1),
+                            "identical_pulses": round(same, 5)}  # fmt: skip
 
         counts = [int(c) for c in args.memory.split(",") if c]
         if counts:

@@ -91,12 +91,22 @@ def _stream(seed: int, split: str, index: int) -> np.random.Generator:
     return np.random.Generator(np.random.PCG64(seq))
 
 
+def batched_backend(catalog: Catalog, layout, obj, layout_uniforms, object_uniforms, origins,
+                    directions, slots, max_range_m):  # fmt: skip
+    """Scenes -> first hits for a whole batch: numpy triangles, one Embree scene, one call.
+
+    returns : Hits, object pose (B, 3)
+    """
+    scene = build_batch(catalog, layout, obj, layout_uniforms, object_uniforms)
+    return cast(scene, origins, directions, slots, max_range_m), scene.object_pose
+
+
 def simulate(config: GeneratorConfig, catalog: Catalog, split: str, start: int, stop: int,
-             caster=cast) -> Samples:  # fmt: skip
+             backend=batched_backend) -> Samples:  # fmt: skip
     """Samples ``start .. stop - 1`` of ``split`` (at most MAX_BATCH of them).
 
-    ``caster`` has the signature of :func:`simlidar.sensor.raycast.cast`; the benchmark swaps
-    in a per-sample trimesh caster to compare with.
+    ``backend`` has the signature of :func:`batched_backend`; the speed benchmark swaps in the
+    naive per-sample trimesh way to compare with on the same samples.
     """
     if not 0 < stop - start <= MAX_BATCH:
         raise ConfigError(f"batch of {stop - start} samples: expected 1..{MAX_BATCH}")
@@ -123,11 +133,12 @@ def simulate(config: GeneratorConfig, catalog: Catalog, split: str, start: int, 
     while len(pending):
         attempts[pending] += 1
         u = np.stack([streams[r].random(columns) for r in pending])
-        scene = build_batch(catalog, layout[pending], obj[pending],
-                            u[:, _FIXED_COLUMNS:_FIXED_COLUMNS + lc],
-                            u[:, _FIXED_COLUMNS + lc:])  # fmt: skip
         origins, directions = window_rays(sensor, width, config.fov_deg, u[:, 0])
-        hits = caster(scene, origins, directions, index[pending] % MAX_BATCH, sensor.max_range_m)
+        hits, object_pose = backend(
+            catalog, layout[pending], obj[pending], u[:, _FIXED_COLUMNS : _FIXED_COLUMNS + lc],
+            u[:, _FIXED_COLUMNS + lc :], origins, directions, index[pending] % MAX_BATCH,
+            sensor.max_range_m,
+        )  # fmt: skip
         r = quantise_range(hits.range_m, sensor)
         on_object = (hits.on_object & ~np.isnan(r)).sum(axis=(1, 2))
         ok = (obj[pending] == 0) | (on_object >= config.min_object_hits)
@@ -140,7 +151,7 @@ def simulate(config: GeneratorConfig, catalog: Catalog, split: str, start: int, 
         done = pending[ok]
         range_m[done] = r[ok]
         surface[done] = np.where(np.isnan(r[ok]), 0, hits.surface[ok])
-        pose[done] = scene.object_pose[ok]
+        pose[done] = object_pose[ok]
         hits_out[done] = on_object[ok]
         phase[done] = u[ok, 0]
         if config.shift_max > 0:

@@ -73,9 +73,21 @@ def _instances(prim: Primitive, values: dict[str, np.ndarray], n: int):
     return at, size, yaw, mask
 
 
-def _recipe_triangles(recipe: Recipe, rows: np.ndarray, values, pose):
-    """Triangles of one recipe for the batch rows ``rows``; ``pose`` (n, 3) or None."""
-    parts = []
+@dataclass(frozen=True)
+class Instances:
+    """Every copy of one primitive in a batch, placed in its scene's frame."""
+
+    primitive: Primitive
+    sample: np.ndarray  # (M,) int64, which scene of the batch
+    at: np.ndarray  # (M, 3) float64, bottom centre
+    size: np.ndarray  # (M, 3) float64, extent along x, y, z before yaw
+    yaw_deg: np.ndarray  # (M,) float64, counter-clockwise
+    is_object: bool  # part of the labelled object
+
+
+def _recipe_instances(recipe: Recipe, rows: np.ndarray, values, pose, is_object: bool):
+    """Instances of every primitive of one recipe for the batch rows ``rows``."""
+    placed = []
     for prim in recipe.primitives:
         at, size, yaw, mask = _instances(prim, values, len(rows))
         if pose is not None:  # object frame -> scene frame
@@ -84,38 +96,22 @@ def _recipe_triangles(recipe: Recipe, rows: np.ndarray, values, pose):
                 + np.stack([pose[:, 0], pose[:, 1], np.zeros(len(rows))], axis=-1)[:, None, :]
             )
             yaw = yaw + pose[:, None, 2]
-        at, size, yaw = at[mask], size[mask], yaw[mask]  # (M, 3), (M, 3), (M,)
-        tmpl = template(prim.kind, prim.segments)
-        tris = tmpl.triangles[None] * size[:, None, None, :]  # (M, T, 3, 3)
-        tris = _rotate_z(tris, yaw[:, None, None]) + at[:, None, None, :]
-        reach = np.abs(tris).max(initial=0.0)
-        if not reach <= CELL_HALF_EXTENT_M:  # NaN fails too
-            raise RecipeError(
-                f"{prim.where}: geometry reaches {reach:.1f} m from the sensor: expected every "
-                f"vertex finite and within {CELL_HALF_EXTENT_M:.0f} m along each axis"
-            )
-        count = tris.shape[1]
-        sample = np.repeat(rows[np.nonzero(mask)[0]], count)
-        parts.append((tris.reshape(-1, 3, 3), prim.surface, sample, tmpl.closed))
-    return parts
+        sample = np.broadcast_to(rows[:, None], mask.shape)[mask]
+        placed.append(Instances(prim, sample, at[mask], size[mask], yaw[mask], is_object))
+    return placed
 
 
-def build_batch(
-    catalog: Catalog,
-    layout_ids: np.ndarray,
-    object_ids: np.ndarray,
-    layout_uniforms: np.ndarray,
-    object_uniforms: np.ndarray,
-) -> SceneBatch:
-    """Build the triangles of B scenes.
+def place_instances(catalog: Catalog, layout_ids: np.ndarray, object_ids: np.ndarray,
+                    layout_uniforms: np.ndarray, object_uniforms: np.ndarray):  # fmt: skip
+    """Sample the parameters of B scenes and place their primitives.
 
     layout_ids, object_ids : (B,) int, indices into catalog.layouts / catalog.objects
     layout_uniforms : (B, catalog.layout_columns) float in [0, 1)
     object_uniforms : (B, catalog.object_columns) float in [0, 1)
+    returns : list of Instances, object pose (B, 3) [x_m, y_m, yaw_deg], NaN without object
     """
-    size = len(layout_ids)
-    pose = np.full((size, 3), np.nan)
-    parts, is_object = [], []
+    pose = np.full((len(layout_ids), 3), np.nan)
+    placed = []
     for group, uniforms, recipes in (
         (layout_ids, layout_uniforms, catalog.layouts),
         (object_ids, object_uniforms, catalog.objects),
@@ -131,14 +127,54 @@ def build_batch(
                     [values["distance_m"], values["lateral_m"], values["yaw_deg"]], axis=-1
                 )
                 pose[rows] = placement
-            new = _recipe_triangles(recipe, rows, values, placement)
-            parts += new
-            is_object += [objects] * len(new)
+            placed += _recipe_instances(recipe, rows, values, placement, objects)
+    return placed, pose
+
+
+def instance_triangles(inst: Instances) -> np.ndarray:
+    """The triangles of every instance: (M, T, 3, 3) float64, T from the primitive's template."""
+    tmpl = template(inst.primitive.kind, inst.primitive.segments).triangles  # (T, 3, 3)
+    c, s = np.cos(np.deg2rad(inst.yaw_deg)), np.sin(np.deg2rad(inst.yaw_deg))
+    # vertex' = Rz(yaw) diag(size) vertex + at, as one batched matrix product
+    m = np.zeros((len(c), 3, 3))
+    m[:, 0, 0], m[:, 0, 1] = c * inst.size[:, 0], -s * inst.size[:, 1]
+    m[:, 1, 0], m[:, 1, 1] = s * inst.size[:, 0], c * inst.size[:, 1]
+    m[:, 2, 2] = inst.size[:, 2]
+    tris = tmpl.reshape(1, -1, 3) @ m.transpose(0, 2, 1) + inst.at[:, None, :]
+    return tris.reshape(len(c), *tmpl.shape)
+
+
+def build_batch(
+    catalog: Catalog,
+    layout_ids: np.ndarray,
+    object_ids: np.ndarray,
+    layout_uniforms: np.ndarray,
+    object_uniforms: np.ndarray,
+) -> SceneBatch:
+    """Build the triangles of B scenes (arguments as :func:`place_instances`)."""
+    placed, pose = place_instances(catalog, layout_ids, object_ids, layout_uniforms,
+                                   object_uniforms)  # fmt: skip
+    tris, surface, sample, closed, is_object = [], [], [], [], []
+    for inst in placed:
+        t = instance_triangles(inst)
+        reach = np.abs(t).max(initial=0.0)
+        if not reach <= CELL_HALF_EXTENT_M:  # NaN fails too
+            raise RecipeError(
+                f"{inst.primitive.where}: geometry reaches {reach:.1f} m from the sensor: "
+                f"expected every vertex finite and within {CELL_HALF_EXTENT_M:.0f} m along "
+                "each axis"
+            )
+        count = t.shape[0] * t.shape[1]
+        tris.append(t.reshape(-1, 3, 3))
+        surface.append(np.full(count, inst.primitive.surface, np.uint8))
+        sample.append(np.repeat(inst.sample, t.shape[1]))
+        closed.append(np.full(count, template(inst.primitive.kind, inst.primitive.segments).closed))
+        is_object.append(np.full(count, inst.is_object))
     return SceneBatch(
-        triangles=np.concatenate([p[0] for p in parts]),
-        surface=np.concatenate([np.full(len(p[0]), p[1], np.uint8) for p in parts]),
-        sample=np.concatenate([p[2] for p in parts]),
-        closed=np.concatenate([np.full(len(p[0]), p[3]) for p in parts]),
-        is_object=np.concatenate([np.full(len(p[0]), o) for p, o in zip(parts, is_object)]),
+        triangles=np.concatenate(tris),
+        surface=np.concatenate(surface),
+        sample=np.concatenate(sample),
+        closed=np.concatenate(closed),
+        is_object=np.concatenate(is_object),
         object_pose=pose,
     )

@@ -65,11 +65,13 @@ def window_rays(sensor: VLP16, width: int, fov_deg: float, phase):
     directions[..., 0] = np.cos(elevation) * cos_a
     directions[..., 1] = -np.cos(elevation) * sin_a  # clockwise azimuth: positive looks right
     directions[..., 2] = np.sin(elevation)
-    offsets_m = np.asarray(sensor.vertical_offsets_mm)[lasers] * 1e-3  # (16,)
-    origins = np.zeros(directions.shape)
-    origins[..., 2] = offsets_m[None, :, None]
-    origins = _pitch(origins, sensor.pitch_deg)
-    origins[..., 2] += sensor.mount_height_m
+    # every window has the same 16 origins: the emitters on the axis, tilted with the sensor
+    row_origins = np.zeros((16, 3))
+    row_origins[:, 2] = np.asarray(sensor.vertical_offsets_mm)[lasers] * 1e-3
+    row_origins = _pitch(row_origins, sensor.pitch_deg)
+    row_origins[:, 2] += sensor.mount_height_m
+    origins = np.empty(directions.shape)
+    origins[...] = row_origins[None, :, None, :]
     if sensor.pitch_deg:
         directions = _pitch(directions, sensor.pitch_deg)
     return origins, directions
