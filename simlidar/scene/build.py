@@ -54,8 +54,12 @@ def _instances(prim: Primitive, values: dict[str, np.ndarray], n: int):
     env = {k: v[:, None] for k, v in values.items()}
     env["i"] = np.arange(prim.repeat_max, dtype=np.float64)[None, :]
 
-    def field(tree) -> np.ndarray:
-        return np.broadcast_to(np.asarray(expr.evaluate(tree, env), dtype=np.float64), shape)
+    def field(code) -> np.ndarray:
+        try:
+            value = expr.evaluate(code, env)
+        except ArithmeticError as exc:  # e.g. a constant divided by zero
+            raise RecipeError(f"{prim.where}: {exc}: expected finite values") from None
+        return np.broadcast_to(np.asarray(value, dtype=np.float64), shape)
 
     at = np.stack([field(t) for t in prim.at], axis=-1)
     size = np.stack([field(t) for t in prim.size], axis=-1)

@@ -55,9 +55,9 @@ class Primitive:
     where: str  # "file.toml: primitive[k]", for error messages
     kind: str  # a key of primitives.KINDS
     surface: int  # index into Catalog.surfaces
-    at: tuple  # 3 expression trees: bottom centre, metres
-    size: tuple  # 3 expression trees: extent along x, y, z before yaw, metres
-    yaw_deg: object  # expression tree, counter-clockwise seen from above
+    at: tuple  # 3 compiled expressions: bottom centre, metres
+    size: tuple  # 3 compiled expressions: extent along x, y, z before yaw, metres
+    yaw_deg: object  # compiled expression, counter-clockwise seen from above
     repeat_max: int  # number of copies to build (1 when not repeated)
     repeat_param: str | None  # parameter that says how many of them exist
     segments: int  # resolution of round primitives
@@ -162,7 +162,7 @@ def _param(where: str, key: str, name: str, spec) -> Param:
 
 def _expression(where: str, key: str, value, known: set[str]):
     if _is_number(value):
-        return expr.parse(repr(float(value)))
+        return expr.compile_tree(expr.parse(repr(float(value))))
     if not isinstance(value, str):
         raise _fail(where, key, "a number or an expression string", value)
     try:
@@ -172,7 +172,7 @@ def _expression(where: str, key: str, value, known: set[str]):
     unknown = expr.names(tree) - known
     if unknown:
         raise _fail(where, key, f"an expression over {sorted(known)}", value)
-    return tree
+    return expr.compile_tree(tree)
 
 
 def _vector(where: str, key: str, value, known: set[str]) -> tuple:

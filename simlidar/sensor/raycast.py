@@ -113,7 +113,9 @@ def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: 
         return Hits(hit_range, surface, on_object)
 
     embree_scene = rtcs.EmbreeScene(_device())
-    world = (tris + offsets[sample][:, None, :]).astype(np.float32)
+    # float64 on purpose: embreex converts element by element, faster from float64, and rounds
+    # to float32 exactly as astype would
+    world = tris + offsets[sample][:, None, :]
     mc.TriangleMesh(embree_scene, world)
     ray_origin = (origins + offsets[:, None, None, :]).reshape(-1, 3).astype(np.float32)
     ray_dir = directions.reshape(-1, 3).astype(np.float32)

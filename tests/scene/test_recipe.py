@@ -132,8 +132,9 @@ def test_expressions_accept_arithmetic_only(text):
 def test_expressions_evaluate_on_arrays():
     tree = expr.parse("first_m + i * spacing_m - abs(-2) + cos(0) * 2 ** 2")
     assert expr.names(tree) == {"first_m", "i", "spacing_m"}
-    value = expr.evaluate(tree, {"first_m": np.array([[1.0], [2.0]]), "i": np.arange(3.0)[None],
-                                 "spacing_m": np.array([[10.0], [20.0]])})  # fmt: skip
+    env = {"first_m": np.array([[1.0], [2.0]]), "i": np.arange(3.0)[None],
+           "spacing_m": np.array([[10.0], [20.0]])}  # fmt: skip
+    value = expr.evaluate(expr.compile_tree(tree), env)
     np.testing.assert_allclose(value, [[3, 13, 23], [4, 24, 44]])
 
 
