@@ -26,7 +26,7 @@ class _Group(click.Group):
             if ctx.meta.get("debug"):
                 raise
             raise click.UsageError(str(exc)) from None  # exit 2, one line
-        except SimlidarError as exc:
+        except (SimlidarError, OSError) as exc:  # OSError: permissions, full disk, ...
             if ctx.meta.get("debug"):
                 raise
             click.echo(f"Error: {exc}", err=True)
@@ -90,7 +90,14 @@ def main(ctx: click.Context, debug: bool) -> None:
 )
 @click.option("--train-size", type=int, default=3000, show_default=True)
 @click.option("--test-size", type=int, default=600, show_default=True)
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
+@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
+@click.option(
+    "--shift",
+    type=click.FloatRange(0.0, 1.0, max_open=True),
+    default=0.0,
+    show_default=True,
+    help="Delay-shift augmentation: every return of a sample moves by U(-s, s).",
+)
 @click.option(
     "--out",
     type=click.Path(file_okay=False, path_type=Path),
@@ -120,7 +127,7 @@ def main(ctx: click.Context, debug: bool) -> None:
 )
 @click.option("--force", is_flag=True, help="Overwrite existing datasets.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-def generate(classes, noise, train_size, test_size, seed, out, width, scenes, batch_size,
+def generate(classes, noise, train_size, test_size, seed, shift, out, width, scenes, batch_size,
              force, as_json):  # fmt: skip
     """Generate Sim LiDAR train/test splits (HDF5) and a preview picture per noise level."""
     from simlidar.dataset.config import GeneratorConfig
@@ -133,7 +140,8 @@ def generate(classes, noise, train_size, test_size, seed, out, width, scenes, ba
     except ConfigError as exc:
         raise click.BadParameter(str(exc), param_hint="'--classes'") from None
     config = GeneratorConfig(classes=classes, noise=noise[0], train_size=train_size,
-                             test_size=test_size, seed=seed, width=width)  # fmt: skip
+                             test_size=test_size, seed=seed, width=width,
+                             shift_max=shift)  # fmt: skip
     start = time.perf_counter()
     written = run(config, noise, catalog, out, batch_size=batch_size, force=force)
     seconds = time.perf_counter() - start
@@ -167,6 +175,7 @@ def info(path, as_json):
     click.echo(f"{summary['path']}")
     click.echo(f"  dataset version {summary['dataset_version']}, "
                f"simlidar {summary['simlidar_version']}")  # fmt: skip
+    click.echo(f"  release notes: {summary['release_notes']}")
     click.echo(
         f"  {summary['classes']} classes ({summary['class_mode']}), noise "
         f"{summary['noise']:g}, seed {summary['seed']}, 16 x {summary['width']} pulses"
@@ -220,7 +229,7 @@ def preview(path, out, split):
 @click.option(
     "--format", "fmt", type=click.Choice(["glb", "ply"]), default="glb", show_default=True
 )
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
+@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
 def scenes(scenes, export_dir, fmt, seed):
     """List the scene catalog, or export sampled scenes as mesh files."""
     catalog = _load_catalog(scenes)

@@ -42,12 +42,13 @@ def test_layouts_show_their_defining_surface(batch, catalog):
             assert (seen >= recipe.visible_hits).all(), recipe.name
 
 
-def test_objects_cover_several_columns(batch, catalog):
-    # the window is wide enough for the layouts and narrow enough that vehicles span columns
-    vehicle_surfaces = [catalog.surfaces.index("car"), catalog.surfaces.index("truck")]
-    columns = np.isin(batch.surface, vehicle_surfaces).any(axis=1).sum(axis=1)
-    vehicles = np.isin(batch.object, [1, 3])
-    assert np.median(columns[vehicles]) >= 2
+@pytest.mark.parametrize("name, median, share", [("car", 4, 0.95), ("truck", 4, 0.95),
+                                                  ("pedestrian", 2, 0.5)])  # fmt: skip
+def test_objects_cover_several_columns(batch, catalog, name, median, share):
+    # the window is wide enough for the layouts and narrow enough that objects span columns
+    columns = (batch.surface == catalog.surfaces.index(name)).any(axis=1).sum(axis=1)
+    mine = columns[batch.object == catalog.object_names.index(name)]
+    assert np.median(mine) >= median and np.mean(mine >= 2) >= share
 
 
 def test_delays_tof_and_surfaces_agree(batch):
@@ -73,6 +74,19 @@ def test_a_sample_does_not_depend_on_the_batch_it_is_made_in(catalog, start, siz
             b = getattr(whole, field.name)[offset - start : offset - start + size]
             np.testing.assert_array_equal(a, b, err_msg=field.name)
         offset += size
+
+
+def test_the_embree_cell_follows_the_sample_index(catalog):
+    from simlidar.simulate import batched_backend
+
+    seen = []
+
+    def spy(*args):
+        seen.append(args[7].copy())  # slots
+        return batched_backend(*args)
+
+    simulate(GeneratorConfig(classes=4), catalog, "train", 4093, 4100, backend=spy)
+    assert seen[0].tolist() == [4093, 4094, 4095, 0, 1, 2, 3]  # index mod 4096
 
 
 def test_splits_and_seeds_draw_different_scenes(catalog):

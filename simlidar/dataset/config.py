@@ -7,6 +7,8 @@ from dataclasses import asdict, dataclass, field, replace
 from simlidar.errors import ConfigError
 from simlidar.sensor.vlp16 import VLP16
 
+MAX_SPLIT_SIZE = 10**9  # samples per split
+
 
 @dataclass(frozen=True)
 class GeneratorConfig:
@@ -18,7 +20,7 @@ class GeneratorConfig:
     test_size: int = 600  # samples in test.h5
     seed: int = 0  # root of every random stream (numpy SeedSequence)
     width: int = 16  # azimuth columns W of a sample
-    fov_deg: float = 48.0  # horizontal field of view of the W columns, centred ahead
+    fov_deg: float = 36.0  # horizontal field of view of the W columns, centred ahead
     min_object_hits: int = 4  # k: a labelled object is hit by at least k pulses
     max_attempts: int = 200  # redraws allowed per sample before giving up
     shift_max: float = 0.0  # delay-shift augmentation: each sample's returns move U(-s, s)
@@ -31,13 +33,14 @@ class GeneratorConfig:
             raise ConfigError(f"noise={self.noise!r}: expected a level in [0, 1]")
         for name in ("train_size", "test_size"):
             value = getattr(self, name)
-            if not isinstance(value, int) or value < self.classes:
+            if not isinstance(value, int) or not self.classes <= value <= MAX_SPLIT_SIZE:
                 raise ConfigError(
-                    f"{name}={value!r}: expected an integer >= {self.classes} so that every "
-                    "class has a sample (classes are balanced)"
+                    f"{name}={value!r}: expected an integer in [{self.classes}, "
+                    f"{MAX_SPLIT_SIZE}] (at least one sample of every class: classes are "
+                    "balanced)"
                 )
-        if not isinstance(self.seed, int) or self.seed < 0:
-            raise ConfigError(f"seed={self.seed!r}: expected a non-negative integer")
+        if not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
+            raise ConfigError(f"seed={self.seed!r}: expected an integer in [0, 2**63)")
         if not isinstance(self.width, int) or not 1 <= self.width <= 1024:
             raise ConfigError(f"width={self.width!r}: expected an integer in [1, 1024]")
         if not (math.isfinite(self.fov_deg) and 0.0 < self.fov_deg < 180.0):

@@ -38,8 +38,8 @@ class Written:
 
 
 def dataset_name(config: GeneratorConfig) -> str:
-    """``simlidar-<classes>c-noise<level>-v<version>``."""
-    return f"simlidar-{config.classes}c-noise{config.noise:g}-v{DATASET_VERSION}"
+    """``simlidar-<classes>c-noise<level>-v<version>``, the level as Python's repr (0.2, 0.33)."""
+    return f"simlidar-{config.classes}c-noise{float(config.noise)!r}-v{DATASET_VERSION}"
 
 
 def split_attrs(config: GeneratorConfig, catalog: Catalog, split: str) -> dict:
@@ -73,13 +73,16 @@ def split_attrs(config: GeneratorConfig, catalog: Catalog, split: str) -> dict:
     }
 
 
-def _check_out(out: Path) -> None:
+def _make_out(out: Path) -> bool:
+    """Create ``out`` if needed (True when this call created it); fail if it is not writable."""
+    created = not out.exists()
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise DatasetError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
     if not out.is_dir() or not os.access(out, os.W_OK | os.X_OK):
         raise DatasetError(f"--out {out}: expected a writable folder")
+    return created
 
 
 def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalog,
@@ -93,13 +96,13 @@ def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalo
     configs = [config.with_noise(level) for level in noise_levels]
     class_plan(catalog, config.classes)  # fail before touching the disk
     out = Path(out)
-    _check_out(out)
     finals = [out / dataset_name(c) for c in configs]
     if len(set(finals)) != len(finals):
         raise DatasetError(f"noise levels {noise_levels}: expected distinct levels")
     existing = [str(f) for f in finals if f.exists()]
     if existing and not force:
         raise DatasetError(f"{existing[0]} already exists: pass --force to overwrite it")
+    created = _make_out(out)
     temps = [out / f".{f.name}.partial-{os.getpid()}" for f in finals]
     writers: list[SplitWriter] = []
     try:
@@ -133,6 +136,8 @@ def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalo
             writer.file.close()
         for temp in temps:
             shutil.rmtree(temp, ignore_errors=True)
+        if created and not any(out.iterdir()):
+            out.rmdir()
         raise
     return [Written(f, c.noise, c.classes, dict(c.split_sizes)) for f, c in zip(finals, configs)]
 

@@ -35,7 +35,7 @@ SCHEMA: dict[str, tuple[str, object, str | None]] = {
     "shift": ("float32", lambda w: (), "shift"),
 }
 REQUIRED_ATTRS = ("dataset_version", "simlidar_version", "config", "seed", "noise", "split",
-                  "class_names", "sensor")  # fmt: skip
+                  "class_names", "class_mode", "sensor")  # fmt: skip
 
 
 class SplitWriter:

@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from simlidar.dataset.h5 import dataset_splits, load_arrays
+from simlidar.dataset.version import RELEASE_NOTES
 
 
 def dataset_info(path: str | Path) -> dict:
@@ -19,6 +20,7 @@ def dataset_info(path: str | Path) -> dict:
     return {
         "path": str(Path(path)),
         "dataset_version": first["dataset_version"],
+        "release_notes": RELEASE_NOTES.get(first["dataset_version"], "unknown to this build"),
         "simlidar_version": first["simlidar_version"],
         "classes": len(names),
         "class_mode": first["class_mode"],

@@ -54,12 +54,12 @@ def _instances(prim: Primitive, values: dict[str, np.ndarray], n: int):
     env = {k: v[:, None] for k, v in values.items()}
     env["i"] = np.arange(prim.repeat_max, dtype=np.float64)[None, :]
 
-    def field(code) -> np.ndarray:
+    def field(compiled) -> np.ndarray:
         try:
-            value = expr.evaluate(code, env)
-        except ArithmeticError as exc:  # e.g. a constant divided by zero
-            raise RecipeError(f"{prim.where}: {exc}: expected finite values") from None
-        return np.broadcast_to(np.asarray(value, dtype=np.float64), shape)
+            value = np.asarray(expr.evaluate(compiled, env), dtype=np.float64)
+        except (ArithmeticError, TypeError, ValueError) as exc:
+            raise RecipeError(f"{prim.where}: {exc}: expected finite real values") from None
+        return np.broadcast_to(value, shape)
 
     at = np.stack([field(t) for t in prim.at], axis=-1)
     size = np.stack([field(t) for t in prim.size], axis=-1)

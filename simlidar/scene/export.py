@@ -20,7 +20,6 @@ def export_scenes(catalog: Catalog, out: str | Path, seed: int = 0, fmt: str = "
     import trimesh
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     pairs = [(a, b) for a in range(len(catalog.layouts)) for b in range(len(catalog.objects))]
     rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(2,))))
     layout = np.array([p[0] for p in pairs])
@@ -30,6 +29,7 @@ def export_scenes(catalog: Catalog, out: str | Path, seed: int = 0, fmt: str = "
         rng.random((len(pairs), catalog.layout_columns)),
         rng.random((len(pairs), catalog.object_columns)),
     )  # fmt: skip
+    out.mkdir(parents=True, exist_ok=True)  # only once every scene has been built
     paths = []
     for k, (a, b) in enumerate(pairs):
         mine = batch.sample == k

@@ -7,6 +7,7 @@ accepted, so a recipe can never run code.
 """
 
 import ast
+import copy
 from collections.abc import Callable, Mapping
 
 import numpy as np
@@ -79,11 +80,32 @@ def names(tree: ast.expr) -> set[str]:
     return {n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and id(n) not in called}
 
 
+class _NumpyConstants(ast.NodeTransformer):
+    """Turn number literals into names bound to numpy float64 values, so that arithmetic on
+    constants follows numpy (inf, nan) instead of raising or, for ``9 ** 9 ** 9``, hanging."""
+
+    def __init__(self) -> None:
+        self.values: dict[str, np.float64] = {}
+
+    def visit_Constant(self, node: ast.Constant) -> ast.Name:
+        name = f"_c{len(self.values)}"
+        self.values[name] = np.float64(node.value)
+        return ast.copy_location(ast.Name(id=name, ctx=ast.Load()), node)
+
+
 def compile_tree(tree: ast.expr):
-    """Compile a tree checked by :func:`parse` to Python bytecode (only what parse allowed)."""
-    return compile(ast.Expression(body=tree), "<recipe expression>", "eval")
+    """Compile a tree checked by :func:`parse`: (bytecode, its constants as numpy floats)."""
+    constants = _NumpyConstants()
+    body = ast.fix_missing_locations(constants.visit(copy.deepcopy(tree)))
+    code = compile(ast.Expression(body=body), "<recipe expression>", "eval")
+    return code, {"__builtins__": {}, **FUNCTIONS, **constants.values}
 
 
-def evaluate(code, env: Mapping[str, np.ndarray]) -> np.ndarray:
-    """Evaluate a compiled expression; ``env`` maps names to broadcastable float arrays."""
-    return eval(code, {"__builtins__": {}, **FUNCTIONS}, dict(env))  # noqa: S307 - checked AST
+def evaluate(compiled, env: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Evaluate a compiled expression; ``env`` maps names to broadcastable float arrays.
+
+    Only what :func:`parse` allowed can appear (numbers, names, arithmetic, FUNCTIONS).
+    """
+    code, namespace = compiled
+    with np.errstate(all="ignore"):  # inf and nan are caught by the caller's checks
+        return eval(code, namespace, dict(env))  # noqa: S307 - checked AST, no builtins

@@ -303,5 +303,12 @@ def load_catalog(root: str | Path | None = None) -> Catalog:
                     for n in _name_list(where, data, "layouts"))  # fmt: skip
     objects = tuple(load_recipe(root / "objects" / f"{n}.toml", surfaces, True)
                     for n in _name_list(where, data, "objects"))  # fmt: skip
+    object_surfaces = {p.surface for r in objects for p in r.primitives}
+    for recipe in layouts:
+        if recipe.visible_hits and (
+            recipe.visible_surface == 0 or recipe.visible_surface in object_surfaces
+        ):
+            raise _fail(recipe.path, "visible.surface", "a surface of the layout itself (not "
+                        "'none' nor an object's)", surfaces[recipe.visible_surface])  # fmt: skip
     empty = Recipe(NO_OBJECT, "No object on the road.", "", (), (), {})
     return Catalog(str(root), tuple(surfaces), layouts, (empty,) + objects)

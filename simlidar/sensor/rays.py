@@ -20,19 +20,25 @@ def column_centres_deg(width: int, fov_deg: float) -> np.ndarray:
     return -fov_deg / 2.0 + (np.arange(width) + 0.5) * bin_deg
 
 
+def _azimuth_parts(sensor: VLP16, width: int, fov_deg: float, phase):
+    """Cycle start of each column (B, 1, W) and firing offset of each row (1, 16, 1), degrees."""
+    phase = np.asarray(phase, dtype=np.float64)
+    step = sensor.azimuth_step_deg
+    centres = column_centres_deg(width, fov_deg)  # (W,)
+    cycle = np.round(centres[None, :] / step - phase[:, None])  # (B, W) nearest cycle index
+    cycle_start = ((cycle + phase[:, None]) * step)[:, None, :]
+    firing = np.asarray(row_order(sensor), dtype=np.float64) * sensor.firing_step_deg
+    return cycle_start, firing[None, :, None]
+
+
 def firing_azimuths_deg(sensor: VLP16, width: int, fov_deg: float, phase) -> np.ndarray:
     """Azimuth of each pulse of a window.
 
     phase : (B,) float, in [0, 1)
     returns : (B, 16, W) float64, rows in :func:`row_order`
     """
-    phase = np.asarray(phase, dtype=np.float64)
-    step = sensor.azimuth_step_deg
-    centres = column_centres_deg(width, fov_deg)  # (W,)
-    cycle = np.round(centres[None, :] / step - phase[:, None])  # (B, W) nearest cycle index
-    cycle_start = (cycle + phase[:, None]) * step  # (B, W)
-    firing = np.asarray(row_order(sensor), dtype=np.float64) * sensor.firing_step_deg  # (16,)
-    return cycle_start[:, None, :] + firing[None, :, None]
+    cycle_start, firing = _azimuth_parts(sensor, width, fov_deg, phase)
+    return cycle_start + firing
 
 
 def _pitch(vectors: np.ndarray, pitch_deg: float) -> np.ndarray:
@@ -49,14 +55,8 @@ def window_rays(sensor: VLP16, width: int, fov_deg: float, phase):
     returns : origins (B, 16, W, 3) float64, directions (B, 16, W, 3) float64, in the sample's
         local frame (road at z = 0, rotation axis at x = y = 0).
     """
-    phase = np.asarray(phase, dtype=np.float64)
-    step = sensor.azimuth_step_deg
-    centres = column_centres_deg(width, fov_deg)
-    cycle = np.round(centres[None, :] / step - phase[:, None])
-    cycle_start = np.deg2rad((cycle + phase[:, None]) * step)[:, None, :]  # (B, 1, W)
+    cycle_start, firing = (np.deg2rad(a) for a in _azimuth_parts(sensor, width, fov_deg, phase))
     lasers = row_order(sensor)
-    firing = np.deg2rad(np.asarray(lasers, dtype=np.float64) * sensor.firing_step_deg)
-    firing = firing[None, :, None]  # (1, 16, 1)
     elevation = np.deg2rad(np.asarray(sensor.elevations_deg)[lasers])[None, :, None]
     # azimuth = cycle start + firing offset; expand cos/sin of the sum instead of (B, 16, W) trig
     cos_a = np.cos(cycle_start) * np.cos(firing) - np.sin(cycle_start) * np.sin(firing)

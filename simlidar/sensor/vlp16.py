@@ -30,7 +30,7 @@ class VLP16:
     cycle_us: float = 55.296  # 16 firings (36.864 us) + 18.432 us recharge
     rpm: float = 600.0  # rotation speed, 300..1200 per the manual
     min_range_m: float = 1.0  # returns nearer than this are dropped
-    max_range_m: float = 100.0  # returns farther than this are dropped
+    max_range_m: float = 100.0  # returns at this range or farther are dropped
     range_resolution_m: float = 0.002  # the packet encodes distance in 2 mm steps
     wavelength_nm: float = 903.0  # informational
     mount_height_m: float = 1.8  # rotation-axis reference plane above the road (roof rack)

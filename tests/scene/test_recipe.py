@@ -69,6 +69,18 @@ def _edit(root, name, old, new):
         ("layouts/tunnel.toml", '"wall_height_m + 0.3"]', '"True"]', "size[2]"),
         ("layouts/tunnel.toml", 'kind = "arch"', 'kind = "arch"\ncolour = "red"', "colour"),
         ("layouts/tunnel.toml", "min_hits = 3", "min_hits = -1", "visible.min_hits"),
+        (
+            "layouts/tunnel.toml",
+            'surface = "ceiling", min',
+            'surface = "none", min',
+            "visible.surface",
+        ),
+        (
+            "layouts/tunnel.toml",
+            'surface = "ceiling", min',
+            'surface = "car", min',
+            "visible.surface",
+        ),
         ("objects/car.toml", "distance_m = [6.0, 20.0]", "", "distance_m"),
         ("objects/car.toml", "[placement]", "[placement]\nheight_m = 1.0", "height_m"),
         ("catalog.toml", '"truck"]\n', '"truck", "none"]\n', "surfaces"),
@@ -104,6 +116,8 @@ def test_a_missing_catalog_is_named(tmp_path):
     [
         ('size = [2.2, "width_m"', 'size = [-2.2, "width_m"', r"primitive\[1\]: key 'size'"),
         ('at = ["1.1", 0.0, 0.45]', 'at = ["1.1 / 0", 0.0, 0.45]', r"primitive\[2\]: .*finite"),
+        ('at = ["1.1", 0.0, 0.45]', 'at = ["(-1) ** 0.5", 0.0, 0.45]', r"primitive\[2\]: .*finite"),
+        ('at = ["1.1", 0.0, 0.45]', 'at = ["9 ** 9 ** 9", 0.0, 0.45]', r"primitive\[2\]: .*finite"),
         (
             'at = ["1.1", 0.0, 0.45]',
             "at = [200.0, 0.0, 0.45]",

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from simlidar.dataset.config import GeneratorConfig
+from simlidar.errors import ConfigError
 from simlidar.pulses import delays_from_range, quantise_range
 from simlidar.scene.build import SceneBatch, build_batch
 from simlidar.scene.primitives import box
@@ -118,13 +119,27 @@ def test_agrees_with_trimesh_pure_numpy_ray_code(catalog):
 
 
 def test_scenes_of_one_batch_do_not_see_each_other():
-    # sample 0 has a wall, sample 1 has nothing: sample 1's rays must return nothing
-    scene = boxes((0, (10.5, 0, -5), (1, 290, 25), WALL), (1, (0, 0, -200), (1, 1, 1), ROAD))
+    # Sample 0 stands in cell 0; sample 1 in cell 1, the next cell along +x. Sample 0 has a
+    # wall 149 m ahead of its sensor, as near to cell 1 as the 150 m bound allows, and a post
+    # 50 m ahead; sample 1 looks backwards, straight at them, and must see nothing: its ray
+    # stops at 101 m and the cells are 320 m apart.
+    from simlidar.sensor.raycast import cell_offsets
+
+    assert cell_offsets(np.array([1]))[0, 0] - cell_offsets(np.array([0]))[0, 0] > 0
+    scene = boxes(
+        (0, (149.5, 0, -5), (1, 290, 25), WALL),
+        (0, (50.5, 0, 0), (1, 2, 3), WALL),
+        (1, (0, 0, -140), (1, 1, 1), ROAD),
+    )
     origins = np.broadcast_to(np.array([0.0, 0.0, 1.8]), (2, 1, 1, 3)).copy()
-    directions = np.broadcast_to(np.array([1.0, 0.0, 0.0]), (2, 1, 1, 3)).copy()
+    directions = np.array([1.0, 0.0, 0.0]) * np.array([1, -1])[:, None]  # 0 ahead, 1 back
+    directions = np.broadcast_to(directions[:, None, None, :], (2, 1, 1, 3)).copy()
     hits = cast(scene, origins, directions, np.array([0, 1]), 100.0)
-    assert hits.range_m[0, 0, 0] == pytest.approx(10.0)
+    assert hits.range_m[0, 0, 0] == pytest.approx(50.0)  # sample 0 sees its own post
     assert np.isnan(hits.range_m[1]).all()
+    # but a sensor that reaches farther than the cells allow is refused
+    with pytest.raises(ConfigError, match="max range 250"):
+        cast(scene, origins, directions, np.array([0, 1]), 250.0)
 
 
 def test_the_default_config_keeps_scenes_apart():

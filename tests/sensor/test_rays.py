@@ -55,3 +55,32 @@ def test_centre_firing_lies_within_half_a_step_of_the_bin_centre():
     assert np.abs(cycle_start[:, 0, :] - centres).max() <= sensor.azimuth_step_deg / 2 + 1e-9
     # and the column centres span the field of view evenly, left (negative) to right
     np.testing.assert_allclose(centres, -24 + 1.5 + 3 * np.arange(16))
+
+
+def test_window_rays_follow_the_firing_azimuths():
+    # the pulses' directions point where firing_azimuths_deg says: clockwise, positive = right
+    sensor = VLP16(rpm=1200)
+    phase = np.array([0.1, 0.8])
+    _, directions = window_rays(sensor, 16, 36.0, phase)
+    azimuth = np.rad2deg(np.arctan2(-directions[..., 1], directions[..., 0]))
+    np.testing.assert_allclose(azimuth, firing_azimuths_deg(sensor, 16, 36.0, phase), atol=1e-9)
+    assert (directions[:, :, 0, 1] > 0).all()  # column 0 looks left (+y)
+    assert (directions[:, :, -1, 1] < 0).all()  # the last column looks right (-y)
+
+
+def test_lasers_fire_in_id_order_inside_a_cycle():
+    sensor = VLP16(rpm=1200)
+    azimuth = firing_azimuths_deg(sensor, 4, 36.0, np.array([0.25]))[0]  # (16, 4)
+    by_laser = np.empty_like(azimuth)
+    by_laser[row_order(sensor)] = azimuth  # rows -> laser ids 0..15
+    # laser j fires j x 2.304 us after laser 0: 0.0166 deg per laser at 1200 RPM
+    np.testing.assert_allclose(np.diff(by_laser, axis=0), 360 * 20 * 2.304e-6, atol=1e-12)
+
+
+def test_pitch_moves_the_upper_emitters_forward():
+    # pitched down, an emitter above the reference point moves forward (+x), one below back
+    origins = window_rays(VLP16(pitch_deg=10.0), 4, 36.0, np.array([0.0]))[0][0, :, 0]
+    rows = row_order(VLP16())
+    offsets = np.array([VLP16().vertical_offsets_mm[k] for k in rows]) * 1e-3
+    np.testing.assert_allclose(origins[:, 0], offsets * np.sin(np.deg2rad(10.0)), atol=1e-12)
+    np.testing.assert_allclose(origins[:, 2], 1.8 + offsets * np.cos(np.deg2rad(10.0)))
