@@ -101,8 +101,8 @@ def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: 
         )
     mask, normal, plane = visible_triangles(scene, origins)
     keep = np.nonzero(mask if cull else normal.any(axis=1))[0]
-    tris = scene.triangles[keep]
-    sample = scene.sample[keep]
+    tris = np.take(scene.triangles, keep, axis=0)
+    sample = np.take(scene.sample, keep)
     offsets = cell_offsets(np.asarray(slots))  # (B, 3)
 
     shape = origins.shape[:-1]
@@ -115,7 +115,7 @@ def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: 
     embree_scene = rtcs.EmbreeScene(_device())
     # float64 on purpose: embreex converts element by element, faster from float64, and rounds
     # to float32 exactly as astype would
-    world = tris + offsets[sample][:, None, :]
+    world = tris + np.take(offsets, sample, axis=0)[:, None, :]
     mc.TriangleMesh(embree_scene, world)
     ray_origin = (origins + offsets[:, None, None, :]).reshape(-1, 3).astype(np.float32)
     ray_dir = directions.reshape(-1, 3).astype(np.float32)
@@ -128,8 +128,9 @@ def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: 
     if (scene.sample[k] != flat // (shape[1] * shape[2])).any():
         raise RuntimeError("a ray hit another sample's scene: the cell isolation is broken")
     # Exact distance in float64: where the ray meets the hit triangle's plane.
-    n = normal[k]
-    o, d = origins.reshape(-1, 3)[flat], directions.reshape(-1, 3)[flat]
+    n = np.take(normal, k, axis=0)
+    o = np.take(origins.reshape(-1, 3), flat, axis=0)  # np.take: ~3x faster than a[flat]
+    d = np.take(directions.reshape(-1, 3), flat, axis=0)
     hit_range[hit] = (plane[k] - np.einsum("ij,ij->i", n, o)) / np.einsum("ij,ij->i", n, d)
     surface[hit] = scene.surface[k]
     on_object[hit] = scene.is_object[k]
