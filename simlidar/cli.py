@@ -8,6 +8,7 @@ shows the traceback instead.
 import json
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import click
@@ -69,6 +70,10 @@ def _load_catalog(scenes):
 def main(ctx: click.Context, debug: bool) -> None:
     """simlidar: synthetic VLP-16 temporal-pulse datasets (Sim LiDAR) and benchmarks."""
     ctx.meta["debug"] = debug
+    if not debug:  # warnings as one line each, without the source line
+        warnings.showwarning = lambda message, *args, **kwargs: click.echo(
+            f"Warning: {message}", err=True
+        )
 
 
 @main.command()

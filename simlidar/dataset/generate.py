@@ -1,4 +1,5 @@
-"""Writing dataset directories: splits for every noise level, atomically.
+"""Writing dataset directories: splits, preview, card, Croissant metadata and checksums for
+every noise level, atomically.
 
 The scenes are simulated once per batch and written to every noise level's files, so
 ``--noise 0.1,0.2`` gives datasets with the same scenes and different noise. Each dataset is
@@ -17,7 +18,10 @@ import h5py
 import numpy as np
 
 from simlidar import __version__
+from simlidar.dataset.card import write_card
+from simlidar.dataset.checksums import write_sums
 from simlidar.dataset.config import GeneratorConfig
+from simlidar.dataset.croissant import write_croissant
 from simlidar.dataset.h5 import SPLITS, SplitWriter
 from simlidar.dataset.preview import write_preview
 from simlidar.dataset.version import DATASET_VERSION
@@ -126,9 +130,12 @@ def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalo
             for writer in writers:
                 writer.close()
         bar.close()
-        if preview:
-            for temp, final in zip(temps, finals):
+        for temp, final in zip(temps, finals):
+            if preview:
                 write_preview(temp, temp / "preview.png", title=final.name)
+            write_croissant(temp, name=final.name)
+            write_card(temp)
+            write_sums(temp)
         for temp, final in zip(temps, finals):
             _move_into_place(temp, final)
     except BaseException:

@@ -7,12 +7,14 @@ Level 1 because the noisy delays barely compress and higher levels cost time for
 """
 
 import json
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
 import numpy as np
 
+from simlidar.dataset.version import DATASET_VERSION, RELEASE_NOTES, major
 from simlidar.errors import DatasetError
 from simlidar.pulses import add_noise
 from simlidar.simulate import Samples
@@ -120,9 +122,36 @@ def read_split_info(path: Path) -> SplitInfo:
             if missing:
                 raise DatasetError(f"{path}: not a simlidar split (missing {', '.join(missing)})")
             attrs = {k: _decode(v) for k, v in f.attrs.items()}
-            return SplitInfo(path, f["delays"].shape[0], f["delays"].shape[2], attrs)
+            info = SplitInfo(path, f["delays"].shape[0], f["delays"].shape[2], attrs)
     except OSError as exc:
         raise DatasetError(f"{path}: cannot read as HDF5 ({exc})") from None
+    check_version(path, attrs["dataset_version"])
+    return info
+
+
+_warned: set[str] = set()
+
+
+def check_version(path: Path, version: str) -> None:
+    """Refuse a dataset from a newer MAJOR version; warn once about an older one."""
+    try:
+        theirs, ours = major(version), major(DATASET_VERSION)
+    except ValueError:
+        raise DatasetError(
+            f"{path}: dataset version {version!r}: expected MAJOR.MINOR.PATCH"
+        ) from None
+    if theirs > ours:
+        raise DatasetError(
+            f"{path}: dataset version {version} is newer than this simlidar reads "
+            f"(MAJOR {ours}); expected a dataset of version {ours}.x.x: upgrade simlidar"
+        )
+    if theirs < ours and version not in _warned:
+        _warned.add(version)
+        warnings.warn(
+            f"{path}: dataset version {version}, this simlidar writes {DATASET_VERSION} "
+            f"(records changed): {RELEASE_NOTES[DATASET_VERSION]}",
+            stacklevel=3,
+        )
 
 
 def dataset_splits(path: str | Path) -> dict[str, SplitInfo]:

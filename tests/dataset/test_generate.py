@@ -15,7 +15,9 @@ from simlidar.errors import DatasetError
 def test_the_directory_and_its_files(datasets):
     path = datasets[0.1]
     assert path.name == f"simlidar-32c-noise0.1-v{DATASET_VERSION}"
-    assert sorted(p.name for p in path.iterdir()) == ["preview.png", "test.h5", "train.h5"]
+    assert sorted(p.name for p in path.iterdir()) == [
+        "README.md", "SHA256SUMS", "croissant.json", "preview.png", "test.h5", "train.h5"
+    ]
     assert not [p for p in path.parent.iterdir() if p.name.startswith(".")]  # no leftovers
 
 

@@ -1,0 +1,265 @@
+"""The dataset card (``README.md``): Hugging Face front matter and a datasheet, made from the
+constants in :mod:`simlidar.dataset.about` and the split files' own attributes."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from simlidar.dataset.about import (
+    CITATION,
+    DELAY_MEANING,
+    DESCRIPTION,
+    DISTRIBUTION,
+    LICENSE,
+    MAINTENANCE,
+    MOTIVATION,
+    NAME,
+    OUT_OF_SCOPE,
+    PREPROCESSING,
+    TAGS,
+    USES,
+)
+from simlidar.dataset.config import GeneratorConfig
+from simlidar.dataset.h5 import SCHEMA, SPLITS, dataset_splits, load_arrays
+from simlidar.dataset.version import RELEASE_DATES, RELEASE_NOTES
+from simlidar.errors import DatasetError
+
+CARD = "README.md"
+_DOCS = {  # one line per dataset of a split file; the full table is docs/dataset-format.md
+    "delays": "normalised delays with noise: the network input (1.0 = no return)",
+    "clean_delays": "the same pulses without noise",
+    "tof_ns": "round-trip time of flight, ns (NaN = no return)",
+    "surface": "surface label of what each pulse hit (0 = none)",
+    "labels": "class index",
+    "layout": "road layout index",
+    "object": "object index (0 = none)",
+    "object_pose": "object x_m, y_m, yaw_deg (NaN without object)",
+    "object_hits": "pulses that hit the labelled object",
+    "attempts": "scene draws until the object and layout were seen",
+    "phase": "head rotation phase, in azimuth steps",
+    "shift": "delay shift applied to the sample's returns",
+}
+
+
+def _size_category(n: int) -> str:
+    for limit, name in ((1_000, "n<1K"), (10_000, "1K<n<10K"), (100_000, "10K<n<100K"),
+                        (1_000_000, "100K<n<1M")):  # fmt: skip
+        if n < limit:
+            return name
+    return "n>1M"
+
+
+def front_matter(path: Path) -> dict:
+    """The YAML front matter (Hugging Face dataset card metadata) of a dataset directory."""
+    splits = dataset_splits(path)
+    attrs = splits["train"].attrs
+    width = splits["train"].width
+    total = sum(s.size for s in splits.values())
+    config_name = f"noise{float(attrs['noise'])!r}"
+    features = []
+    for name, (dtype, tail, _) in SCHEMA.items():
+        shape = list(tail(width))
+        if name == "labels":
+            names = {str(k): n for k, n in enumerate(attrs["class_names"])}
+            features.append({"name": name, "dtype": {"class_label": {"names": names}}})
+        elif len(shape) == 2:
+            features.append({"name": name, "array2_d": {"shape": shape, "dtype": dtype}})
+        elif shape:
+            features.append({"name": name, "sequence": dtype, "length": shape[0]})
+        else:
+            features.append({"name": name, "dtype": dtype})
+    nbytes = {s: info.path.stat().st_size for s, info in splits.items()}
+    return {
+        "license": LICENSE,
+        "pretty_name": f"{NAME}, {attrs['classes']} classes, noise {attrs['noise']}",
+        "task_categories": ["image-classification"],
+        "size_categories": [_size_category(total)],
+        "tags": TAGS,
+        "configs": [
+            {
+                "config_name": config_name,
+                "data_files": [{"split": s, "path": f"{s}.h5"} for s in SPLITS],
+            }
+        ],
+        "dataset_info": {
+            "config_name": config_name,
+            "features": features,
+            "splits": [
+                {"name": s, "num_bytes": nbytes[s], "num_examples": splits[s].size} for s in SPLITS
+            ],
+            "download_size": sum(nbytes.values()),  # the split files
+            "dataset_size": sum(nbytes.values()),
+        },
+    }
+
+
+def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
+    """The command that writes this dataset again, bit for bit (or the Python equivalent)."""
+    from simlidar.scene.recipe import load_catalog
+
+    default = GeneratorConfig()
+    cli_fields = {"classes", "noise", "train_size", "test_size", "seed", "width", "shift_max"}
+    other = {k for k, v in config.to_dict().items() if k not in cli_fields}
+    if any(config.to_dict()[k] != default.to_dict()[k] for k in other):
+        return (
+            "from simlidar.dataset.config import GeneratorConfig\n"
+            "from simlidar.dataset.generate import generate\n"
+            "from simlidar.scene.recipe import load_catalog\n"
+            f"config = GeneratorConfig.from_dict({config.to_dict()!r})\n"
+            f"generate(config, [{config.noise!r}], load_catalog(CATALOG), 'data')"
+            f"  # CATALOG: the scene catalog with sha256 {catalog_sha256}"
+        )
+    parts = [
+        "simlidar generate",
+        f"--classes {config.classes}",
+        f"--noise {config.noise!r}",
+        f"--train-size {config.train_size}",
+        f"--test-size {config.test_size}",
+        f"--seed {config.seed}",
+        f"--width {config.width}",
+    ]
+    if config.shift_max:
+        parts.append(f"--shift {config.shift_max!r}")
+    if catalog_sha256 != load_catalog().fingerprint():
+        parts.append(f"--scenes CATALOG  # the scene catalog with sha256 {catalog_sha256}")
+    return " ".join(parts)
+
+
+def _table(header: list[str], rows: list[list]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def render_card(path: str | Path) -> str:
+    """The whole card of a dataset directory, from its files alone."""
+    path = Path(path)
+    splits = dataset_splits(path)
+    attrs = splits["train"].attrs
+    config = GeneratorConfig.from_dict(attrs["config"])
+    names = attrs["class_names"]
+    counts = {
+        s: np.bincount(load_arrays(info.path, ("labels",))["labels"], minlength=len(names))
+        for s, info in splits.items()
+    }
+    catalog = attrs["catalog"]
+    sensor = attrs["sensor"]
+    version = attrs["dataset_version"]
+    meta = yaml.safe_dump(front_matter(path), sort_keys=False, allow_unicode=True, width=1000)
+    width = splits["train"].width
+    sections = [
+        f"---\n{meta}---\n",
+        f"# {NAME}: {len(names)} classes, noise {attrs['noise']}\n",
+        "![one example per class (test split)](preview.png)\n"
+        if (path / "preview.png").exists()
+        else "",
+        f"{DESCRIPTION}\n",
+        _table(
+            ["", ""],
+            [
+                ["dataset version", version],
+                ["simlidar version", attrs["simlidar_version"]],
+                ["classes", f"{len(names)} ({attrs['class_mode']})"],
+                ["samples", ", ".join(f"{s} {info.size}" for s, info in splits.items())],
+                ["sample", f"16 x {width} float32 delays in [0, 1]"],
+                ["noise", f"U(0, {attrs['noise']}) added to every pulse"],
+                ["seed", attrs["seed"]],
+            ],
+        )
+        + "\n",  # fmt: skip
+        f"## Motivation\n\n{MOTIVATION}\n",
+        "## Composition\n",
+        f"What a value means: {DELAY_MEANING}\n",
+        _table(
+            ["class", "name", *splits],
+            [[k, name, *(int(counts[s][k]) for s in splits)] for k, name in enumerate(names)],
+        )
+        + "\n",  # fmt: skip
+        "Each split file holds these datasets (N samples):\n",
+        _table(
+            ["dataset", "dtype", "shape", "meaning"],
+            [
+                [f"`{name}`", dtype, str(("N", *tail(width))).replace("'", ""), _DOCS[name]]
+                for name, (dtype, tail, _) in SCHEMA.items()
+            ],
+        )
+        + "\n",  # fmt: skip
+        "## Generation process\n",
+        "A simulated Velodyne VLP-16 ray-casts (Embree) into procedurally built road scenes. "
+        "Each pixel is the centre firing of its azimuth bin; see simlidar's "
+        "`docs/sensor-model.md`.\n",
+        _table(
+            ["sensor parameter", "value"],
+            [
+                [f"`{k}`", v if not isinstance(v, list) else ", ".join(map(str, v))]
+                for k, v in sensor.items()
+            ],
+        )
+        + "\n",  # fmt: skip
+        f"Horizontal field of view {config.fov_deg} deg over {config.width} columns; objects "
+        f"must be hit by at least {config.min_object_hits} pulses. Scene catalog sha256 "
+        f"`{attrs['catalog_sha256']}`:\n",
+        "\n".join(
+            [
+                f"* layout `{n}`: {catalog['layouts'][n]['description']}"
+                for n in attrs["layout_names"]
+            ]
+            + [
+                f"* object `{n}`: {catalog['objects'][n]['description']}"
+                for n in attrs["object_names"][1:]
+            ]
+        )
+        + "\n",  # fmt: skip
+        f"Noise: `delays = min(clean_delays + a * u, 1)` with `u ~ U(0, 1)` per pulse and "
+        f"a = {attrs['noise']}. Seed {attrs['seed']}: every sample has its own random stream "
+        "(numpy `SeedSequence(seed, spawn_key=(split, index))`).\n",
+        f"## Preprocessing\n\n{PREPROCESSING}\n",
+        f"## Uses\n\n{USES}\n\n### Out-of-scope uses\n\n{OUT_OF_SCOPE}\n",
+        f"## Distribution\n\n{DISTRIBUTION}\n",
+        f"## Maintenance\n\n{MAINTENANCE}\n",
+        "## Regenerate\n",
+        f"With simlidar {attrs['simlidar_version']} (dataset version {version}):\n",
+        "```\n" + regenerate_command(config, attrs["catalog_sha256"]) + "\n```\n",
+        "## Versions\n",
+        "\n".join(
+            f"* {v} ({RELEASE_DATES.get(v, 'unreleased')}): {notes}"
+            for v, notes in RELEASE_NOTES.items()
+        )
+        + "\n",  # fmt: skip
+        "## Loading\n",
+        "```python\nfrom simlidar.data import load_split\n"
+        "x, y = load_split('.', 'train')  # x: (N, 16, W) float32, y: (N,) int64\n```\n",
+        "## Citation\n\nPlease cite the paper whose dataset this rebuilds:\n",
+        f"```bibtex\n{CITATION}\n```\n",
+    ]
+    return "\n".join(s for s in sections if s)
+
+
+def write_card(path: str | Path) -> Path:
+    """(Re)write ``README.md`` of a dataset directory from its files."""
+    card = Path(path) / CARD
+    text = render_card(path)
+    tmp = card.with_name(f".{CARD}.tmp")
+    tmp.write_text(text)
+    tmp.replace(card)
+    return card
+
+
+def read_front_matter(path: str | Path) -> dict:
+    """The YAML front matter of a dataset's card; DatasetError when missing or malformed."""
+    card = Path(path) / CARD
+    if not card.is_file():
+        raise DatasetError(f"{card}: missing (expected the dataset card)")
+    text = card.read_text()
+    if not text.startswith("---\n") or "\n---\n" not in text[3:]:
+        raise DatasetError(f"{card}: expected YAML front matter between '---' lines at the top")
+    try:
+        meta = yaml.safe_load(text[4 : text.index("\n---\n", 3)])
+    except yaml.YAMLError as exc:
+        message = f"{card}: malformed YAML front matter ({exc})".replace("\n", " ")
+        raise DatasetError(message) from None
+    if not isinstance(meta, dict) or "dataset_info" not in meta:
+        raise DatasetError(f"{card}: front matter without dataset_info")
+    return json.loads(json.dumps(meta))  # plain types only

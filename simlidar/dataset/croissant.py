@@ -1,0 +1,122 @@
+"""``croissant.json``: Croissant 1.0 metadata (JSON-LD) of a dataset directory."""
+
+import json
+from pathlib import Path
+
+from simlidar.dataset.about import CITATION, CREATOR, DESCRIPTION, HOMEPAGE, LICENSE_URL, NAME
+from simlidar.dataset.checksums import sha256_file
+from simlidar.dataset.h5 import SCHEMA, SPLITS, dataset_splits
+from simlidar.dataset.version import RELEASE_DATES
+
+CROISSANT = "croissant.json"
+# The JSON-LD @context of Croissant 1.0, as the specification gives it.
+CONTEXT = {
+    "@language": "en",
+    "@vocab": "https://schema.org/",
+    "citeAs": "cr:citeAs",
+    "column": "cr:column",
+    "conformsTo": "dct:conformsTo",
+    "cr": "http://mlcommons.org/croissant/",
+    "rai": "http://mlcommons.org/croissant/RAI/",
+    "data": {"@id": "cr:data", "@type": "@json"},
+    "dataType": {"@id": "cr:dataType", "@type": "@vocab"},
+    "dct": "http://purl.org/dc/terms/",
+    "equivalentProperty": "cr:equivalentProperty",
+    "examples": {"@id": "cr:examples", "@type": "@json"},
+    "extract": "cr:extract",
+    "field": "cr:field",
+    "fileProperty": "cr:fileProperty",
+    "fileObject": "cr:fileObject",
+    "fileSet": "cr:fileSet",
+    "format": "cr:format",
+    "includes": "cr:includes",
+    "isLiveDataset": "cr:isLiveDataset",
+    "jsonPath": "cr:jsonPath",
+    "key": "cr:key",
+    "md5": "cr:md5",
+    "parentField": "cr:parentField",
+    "path": "cr:path",
+    "recordSet": "cr:recordSet",
+    "references": "cr:references",
+    "regex": "cr:regex",
+    "repeated": "cr:repeated",
+    "replace": "cr:replace",
+    "samplingRate": "cr:samplingRate",
+    "sc": "https://schema.org/",
+    "separator": "cr:separator",
+    "source": "cr:source",
+    "subField": "cr:subField",
+    "transform": "cr:transform",
+}
+_DATA_TYPES = {"float32": "sc:Float", "int64": "sc:Integer", "int32": "sc:Integer",
+               "uint8": "sc:Integer"}  # fmt: skip
+RECORD_FIELDS = ("delays", "labels", "clean_delays", "tof_ns", "surface", "layout", "object")
+
+
+def croissant(path: str | Path, name: str | None = None) -> dict:
+    """The Croissant description of a dataset directory (its split files must exist).
+
+    name : the dataset's name (default: the directory's name)
+    """
+    path = Path(path)
+    splits = dataset_splits(path)
+    attrs = splits["train"].attrs
+    version = attrs["dataset_version"]
+    distribution = [
+        {
+            "@type": "cr:FileObject",
+            "@id": f"{split}.h5",
+            "name": f"{split}.h5",
+            "description": f"The {split} split (HDF5, one row per sample).",
+            "contentUrl": f"{split}.h5",
+            "contentSize": f"{splits[split].path.stat().st_size} B",
+            "encodingFormat": "application/x-hdf5",
+            "sha256": sha256_file(splits[split].path),
+        }
+        for split in SPLITS
+    ]
+    record_sets = [
+        {
+            "@type": "cr:RecordSet",
+            "@id": split,
+            "name": split,
+            "description": f"{splits[split].size} samples of the {split} split.",
+            "field": [
+                {
+                    "@type": "cr:Field",
+                    "@id": f"{split}/{name}",
+                    "name": name,
+                    "description": f"HDF5 dataset `{name}`, {SCHEMA[name][0]} "
+                    f"{('N', *SCHEMA[name][1](splits[split].width))}".replace("'", ""),
+                    "dataType": _DATA_TYPES[SCHEMA[name][0]],
+                    "source": {"fileObject": {"@id": f"{split}.h5"}, "extract": {"column": name}},
+                }
+                for name in RECORD_FIELDS
+            ],
+        }
+        for split in SPLITS
+    ]
+    return {
+        "@context": CONTEXT,
+        "@type": "sc:Dataset",
+        "conformsTo": "http://mlcommons.org/croissant/1.0",
+        "name": name or path.name,
+        "alternateName": NAME,
+        "description": DESCRIPTION,
+        "license": LICENSE_URL,
+        "url": HOMEPAGE,
+        "creator": {"@type": "sc:Organization", "name": CREATOR},
+        "datePublished": RELEASE_DATES.get(version, "1970-01-01"),
+        "version": version,
+        "citeAs": CITATION,
+        "keywords": ["LiDAR", "spiking neural networks", "temporal pulses", "synthetic data"],
+        "distribution": distribution,
+        "recordSet": record_sets,
+    }
+
+
+def write_croissant(path: str | Path, name: str | None = None) -> Path:
+    """Write ``croissant.json`` into a dataset directory."""
+    out = Path(path) / CROISSANT
+    out.write_text(json.dumps(croissant(path, name), indent=2) + "\n")
+    return out

@@ -1,0 +1,84 @@
+"""``simlidar verify``: is a dataset directory complete, intact and in the schema?"""
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from simlidar.dataset.card import read_front_matter
+from simlidar.dataset.checksums import check_sums
+from simlidar.dataset.h5 import REQUIRED_ATTRS, SCHEMA, SPLITS
+from simlidar.errors import DatasetError
+
+_BLOCK = 65_536  # rows read at a time: memory stays flat whatever the split size
+
+
+def _check_split(path: Path, expected_size: int | None) -> list[str]:
+    problems = []
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        return [f"{path}: cannot read as HDF5 ({exc})"]
+    with f:
+        missing = [k for k in REQUIRED_ATTRS if k not in f.attrs]
+        problems += [f"{path}: attribute '{k}' missing" for k in missing]
+        size = f["labels"].shape[0] if "labels" in f else None
+        width = f["delays"].shape[2] if "delays" in f and f["delays"].ndim == 3 else None
+        for name, (dtype, tail, _) in SCHEMA.items():
+            if name not in f:
+                problems.append(f"{path}: dataset '{name}' missing")
+                continue
+            ds = f[name]
+            if ds.dtype != np.dtype(dtype):
+                problems.append(f"{path}: '{name}' is {ds.dtype}, expected {dtype}")
+            if size is not None and width is not None and ds.shape != (size, *tail(width)):
+                problems.append(f"{path}: '{name}' has shape {ds.shape}, expected "
+                                f"{(size, *tail(width))}")  # fmt: skip
+        if expected_size is not None and size is not None and size != expected_size:
+            problems.append(f"{path}: {size} samples, the card says {expected_size}")
+        if problems or size is None:
+            return problems
+        classes = len(f.attrs["class_names"])
+        try:
+            for start in range(0, size, _BLOCK):
+                rows = slice(start, start + _BLOCK)
+                for name in ("delays", "clean_delays"):
+                    block = f[name][rows]
+                    if not ((block >= 0) & (block <= 1)).all():
+                        problems.append(f"{path}: '{name}' has values outside [0, 1]")
+                labels = f["labels"][rows]
+                if labels.size and not (0 <= labels.min() and labels.max() < classes):
+                    problems.append(f"{path}: labels outside 0..{classes - 1}")
+        except OSError as exc:  # a chunk that does not decompress
+            problems.append(f"{path}: unreadable data ({exc})")
+    return sorted(set(problems), key=problems.index)
+
+
+def verify(path: str | Path) -> list[str]:
+    """Every problem found in a dataset directory; an empty list means it is sound.
+
+    Checks the checksums, the card's front matter, the HDF5 schema (datasets, dtypes, shapes,
+    attributes), value ranges (delays in [0, 1], labels within the class list) and that each
+    split holds as many samples as the card says. Raises DatasetError if ``path`` is not a
+    dataset directory at all.
+    """
+    path = Path(path)
+    if not path.is_dir():
+        raise DatasetError(f"{path}: expected a dataset directory")
+    if not any((path / f"{s}.h5").exists() for s in SPLITS):
+        raise DatasetError(f"{path}: not a simlidar dataset (no train.h5 or test.h5)")
+    problems = check_sums(path)
+    sizes: dict[str, int] = {}
+    try:
+        meta = read_front_matter(path)
+        sizes = {s["name"]: s["num_examples"] for s in meta["dataset_info"]["splits"]}
+    except (DatasetError, KeyError, TypeError) as exc:
+        problems.append(str(exc) if isinstance(exc, DatasetError)
+                        else f"{path / 'README.md'}: dataset_info.splits malformed")  # fmt: skip
+    for split in SPLITS:
+        file = path / f"{split}.h5"
+        if not file.is_file():
+            problems.append(f"{file}: missing")
+            continue
+        problems += _check_split(file, sizes.get(split))
+    return problems
