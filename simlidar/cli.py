@@ -218,6 +218,92 @@ def preview(path, out, split):
 
 
 @main.command()
+@click.argument("path", type=click.Path(path_type=Path))
+def card(path):
+    """Rewrite a dataset's card (README.md) from its files, and its line in SHA256SUMS."""
+    from simlidar.dataset.card import CARD, write_card
+    from simlidar.dataset.checksums import SUMS, write_sums
+    from simlidar.dataset.h5 import dataset_splits
+
+    dataset_splits(path)  # a dataset, or a one-line error
+    written = write_card(path)
+    if (path / SUMS).exists():
+        write_sums(path, [CARD])
+    click.echo(f"wrote {written}")
+
+
+@main.command()
+@click.argument("path", type=click.Path(path_type=Path))
+def verify(path):
+    """Check a dataset: checksums, HDF5 schema, value ranges, split sizes against the card."""
+    from simlidar.dataset.h5 import dataset_splits
+    from simlidar.dataset.verify import verify as run
+
+    problems = run(path)
+    if problems:
+        for problem in problems:
+            click.echo(f"FAILED {problem}", err=True)
+        click.echo(f"{path}: {len(problems)} problem(s)", err=True)
+        sys.exit(1)
+    splits = dataset_splits(path)
+    sizes = ", ".join(f"{s} {info.size}" for s, info in splits.items())
+    version = splits["train"].attrs["dataset_version"]
+    click.echo(f"{path}: OK (dataset version {version}, {sizes}; checksums, schema, value "
+               "ranges and card agree)")  # fmt: skip
+
+
+@main.command()
+@click.argument("path", type=click.Path(path_type=Path))
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Folder for the archive (default: beside the dataset).")  # fmt: skip
+def pack(path, out):
+    """Verify a dataset and write <name>.tar.gz and its .sha256, ready to upload."""
+    from simlidar.dataset.archive import pack as run
+
+    archive, checksum = run(path, out)
+    click.echo(f"wrote {archive} and {checksum.name}")
+
+
+def _hex_sha256(ctx, param, value):
+    """--sha256 must be 64 hexadecimal digits (usage error otherwise)."""
+    if value is not None and not (
+        len(value) == 64 and all(c in "0123456789abcdefABCDEF" for c in value)
+    ):
+        raise click.BadParameter(f"{value!r}: expected 64 hexadecimal digits")
+    return value
+
+
+@main.command()
+@click.argument("url")
+@click.option(
+    "--sha256",
+    default=None,
+    metavar="HEX",
+    callback=_hex_sha256,
+    help="Expected sha256 of the archive (default: read from URL.sha256).",
+)
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("data"),
+    show_default=True,
+)
+@click.option(
+    "--timeout",
+    type=click.FloatRange(min=0.1),
+    default=30.0,
+    show_default=True,
+    help="Seconds to wait for the server.",
+)
+@click.option("--force", is_flag=True, help="Replace an existing dataset of the same name.")
+def fetch(url, sha256, out, timeout, force):  # fmt: skip
+    """Download a dataset archive, check it, extract it safely, verify it, install it."""
+    from simlidar.dataset.archive import fetch as run
+
+    click.echo(f"installed {run(url, sha256, out, timeout=timeout, force=force)}")
+
+
+@main.command()
 @click.option(
     "--scenes",
     type=click.Path(path_type=Path),

@@ -188,3 +188,58 @@ def test_debug_shows_the_traceback(run):
     result = run("--debug", "info", "nowhere")
     assert result.exit_code == 1
     assert result.exception is not None and "expected a dataset directory" in str(result.exception)
+
+
+def test_verify_card_and_pack(run, datasets, tmp_path):
+    import shutil
+
+    copy = tmp_path / datasets[0.1].name
+    shutil.copytree(datasets[0.1], copy)
+    ok = run("verify", copy)
+    assert ok.exit_code == 0 and "OK (dataset version 1.0.0, train 96, test 64" in ok.stdout
+
+    card = copy / "README.md"
+    original = card.read_bytes()
+    card.write_text("---\nbroken: [\n---\n")
+    bad = run("verify", copy)
+    assert bad.exit_code == 1
+    assert "README.md: sha256 does not match" in bad.stderr
+    assert "README.md: malformed YAML front matter" in bad.stderr
+    assert "Traceback" not in bad.output
+    assert run("card", copy).exit_code == 0
+    assert card.read_bytes() == original  # rewritten from the files alone
+    assert run("verify", copy).exit_code == 0
+
+    packed = run("pack", copy, "--out", tmp_path / "pub")
+    assert packed.exit_code == 0
+    assert (tmp_path / "pub" / f"{copy.name}.tar.gz.sha256").is_file()
+
+
+@pytest.mark.parametrize(
+    "args, code, words",
+    [
+        (["verify", "nowhere"], 1, "nowhere: expected a dataset directory"),
+        (["card", "nowhere"], 1, "nowhere: expected a dataset directory"),
+        (["pack", "nowhere"], 1, "nowhere: expected a dataset directory"),
+        (
+            ["fetch", "http://127.0.0.1:9/x.tar.gz", "--sha256", "abc"],
+            2,
+            "expected 64 hexadecimal digits",
+        ),
+        (
+            ["fetch", "http://127.0.0.1:9/x.tar.gz", "--sha256", "0" * 64, "--timeout", "2"],
+            1,
+            "fetch failed at download: http://127.0.0.1:9/x.tar.gz",
+        ),
+        (["fetch", "not-a-url", "--sha256", "0" * 64], 1, "fetch failed at download"),
+    ],
+)
+def test_release_commands_fail_in_one_line(run, tmp_path, monkeypatch, args, code, words):
+    monkeypatch.chdir(tmp_path)
+    result = run(*args)
+    assert result.exit_code == code, result.output
+    assert words in result.stderr
+    assert result.exception is None or isinstance(result.exception, SystemExit)
+    assert list(tmp_path.iterdir()) in ([], [tmp_path / "data"])
+    if (tmp_path / "data").exists():
+        assert list((tmp_path / "data").iterdir()) == []  # nothing half written

@@ -16,7 +16,12 @@ def test_the_directory_and_its_files(datasets):
     path = datasets[0.1]
     assert path.name == f"simlidar-32c-noise0.1-v{DATASET_VERSION}"
     assert sorted(p.name for p in path.iterdir()) == [
-        "README.md", "SHA256SUMS", "croissant.json", "preview.png", "test.h5", "train.h5"
+        "README.md",
+        "SHA256SUMS",
+        "croissant.json",
+        "preview.png",
+        "test.h5",
+        "train.h5",
     ]
     assert not [p for p in path.parent.iterdir() if p.name.startswith(".")]  # no leftovers
 

@@ -1,0 +1,194 @@
+"""Publishing and downloading datasets: ``simlidar pack`` and ``simlidar fetch``.
+
+``pack`` writes a reproducible ``.tar.gz`` (sorted members, no owners, no timestamps) and its
+``.sha256``. ``fetch`` downloads an archive, checks its checksum, extracts it safely, verifies
+the dataset and only then moves it into place; a failure at any step removes what it wrote and
+says which step failed.
+"""
+
+import gzip
+import http.client
+import os
+import shutil
+import tarfile
+import tempfile
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+from simlidar.dataset.checksums import sha256_file
+from simlidar.dataset.verify import verify
+from simlidar.errors import DatasetError
+
+DEFAULT_MAX_BYTES = 20 * 2**30  # refuse archives that unpack to more than this
+_CHUNK = 1 << 16
+
+
+def _checked(path: Path) -> None:
+    problems = verify(path)
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        raise DatasetError(f"{problems[0]}{more}")
+
+
+def pack(path: str | Path, out: str | Path | None = None) -> tuple[Path, Path]:
+    """Verify a dataset directory and write ``<dir name>.tar.gz`` and its ``.sha256``.
+
+    The directory name already carries the dataset version (``...-v1.0.0``). Returns the paths
+    of the archive and of its checksum file.
+    """
+    path = Path(path)
+    _checked(path)
+    out = Path(out) if out is not None else path.parent
+    out.mkdir(parents=True, exist_ok=True)
+    archive = out / f"{path.name}.tar.gz"
+    tmp = out / f".{archive.name}.partial-{os.getpid()}"
+    try:
+        with open(tmp, "wb") as raw, gzip.GzipFile(filename="", mode="wb", fileobj=raw,
+                                                   mtime=0) as gz:  # fmt: skip
+            with tarfile.open(fileobj=gz, mode="w", format=tarfile.PAX_FORMAT) as tar:
+                tar.addfile(_info(path.name, tarfile.DIRTYPE, 0))
+                for file in sorted(p for p in path.iterdir() if p.is_file()):
+                    info = _info(f"{path.name}/{file.name}", tarfile.REGTYPE,
+                                 file.stat().st_size)  # fmt: skip
+                    with open(file, "rb") as f:
+                        tar.addfile(info, f)
+        tmp.replace(archive)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    checksum = archive.with_name(archive.name + ".sha256")
+    checksum.write_text(f"{sha256_file(archive)}  {archive.name}\n")
+    return archive, checksum
+
+
+def _info(name: str, kind: bytes, size: int) -> tarfile.TarInfo:
+    """A tar member without owner, group or time, so that the archive is reproducible."""
+    info = tarfile.TarInfo(name)
+    info.type, info.size, info.mtime = kind, size, 0
+    info.mode = 0o755 if kind == tarfile.DIRTYPE else 0o644
+    info.uid = info.gid = 0
+    info.uname = info.gname = ""
+    return info
+
+
+class FetchError(DatasetError):
+    """A step of ``fetch`` failed; the message names the step."""
+
+    def __init__(self, step: str, message: str):
+        super().__init__(f"fetch failed at {step}: {message}")
+        self.step = step
+
+
+def _download(url: str, target: Path, timeout: float, progress: bool) -> None:
+    from tqdm import tqdm
+
+    try:
+        with urllib.request.urlopen(url, timeout=timeout) as response:  # noqa: S310
+            expected = response.headers.get("Content-Length")
+            expected = int(expected) if expected is not None else None
+            received = 0
+            with open(target, "wb") as f, tqdm(total=expected, unit="B", unit_scale=True,
+                                                desc="download", disable=not progress,
+                                                leave=False) as bar:  # fmt: skip
+                while block := response.read(_CHUNK):
+                    f.write(block)
+                    received += len(block)
+                    bar.update(len(block))
+    except urllib.error.HTTPError as exc:
+        raise FetchError("download", f"{url}: HTTP {exc.code} {exc.reason}") from None
+    except urllib.error.URLError as exc:
+        reason = exc.reason
+        if isinstance(reason, TimeoutError):
+            reason = f"no answer within {timeout:g} s"
+        raise FetchError("download", f"{url}: {reason}") from None
+    except TimeoutError:
+        raise FetchError("download", f"{url}: no answer within {timeout:g} s") from None
+    except ValueError as exc:  # not a URL urllib can open
+        raise FetchError("download", f"{url}: {exc}") from None
+    except (OSError, http.client.HTTPException) as exc:  # e.g. IncompleteRead
+        raise FetchError("download", f"{url}: {exc.__class__.__name__}: {exc}") from None
+    if expected is not None and received != expected:
+        raise FetchError("download", f"{url}: got {received} of {expected} bytes")
+
+
+def _sidecar_sha256(url: str, timeout: float) -> str:
+    try:
+        with urllib.request.urlopen(url + ".sha256", timeout=timeout) as response:  # noqa: S310
+            text = response.read(4096).decode("ascii", "replace")
+    except (urllib.error.URLError, OSError) as exc:
+        raise FetchError("checksum", f"no --sha256 given and {url}.sha256 is not available "
+                         f"({getattr(exc, 'reason', exc)})") from None  # fmt: skip
+    digest = text.split()[0] if text.split() else ""
+    if len(digest) != 64:
+        raise FetchError("checksum", f"{url}.sha256 does not hold a sha256 ({text[:40]!r})")
+    return digest.lower()
+
+
+def safe_extract(archive: Path, target: Path, max_bytes: int) -> Path:
+    """Extract a dataset archive into ``target``; return the one top-level folder.
+
+    Refused: absolute paths, ``..``, links and anything but files and folders, more than one
+    top-level folder, and more than ``max_bytes`` unpacked.
+    """
+    try:
+        tar = tarfile.open(archive, "r:gz")
+    except (tarfile.TarError, OSError) as exc:
+        raise FetchError("extract", f"not a .tar.gz archive ({exc})") from None
+    with tar:
+        try:
+            members = tar.getmembers()
+        except (tarfile.TarError, OSError, EOFError) as exc:
+            raise FetchError("extract", f"damaged archive ({exc})") from None
+        tops, total = set(), 0
+        for m in members:
+            parts = Path(m.name).parts
+            if m.name.startswith("/") or os.path.isabs(m.name) or ".." in parts:
+                raise FetchError("extract", f"member {m.name!r} would land outside the target")
+            if not (m.isfile() or m.isdir()):
+                raise FetchError("extract", f"member {m.name!r} is a link or special file")
+            tops.add(parts[0])
+            total += m.size
+        if len(tops) != 1:
+            raise FetchError("extract", f"expected one top-level folder, got {sorted(tops)}")
+        if total > max_bytes:
+            raise FetchError("extract", f"{total} bytes unpacked, more than the limit "
+                             f"{max_bytes}")  # fmt: skip
+        tar.extractall(target, filter="data")
+    return target / tops.pop()
+
+
+def fetch(url: str, sha256: str | None = None, out: str | Path = ".", timeout: float = 30.0,
+          force: bool = False, max_bytes: int = DEFAULT_MAX_BYTES,
+          progress: bool = True) -> Path:  # fmt: skip
+    """Download, check, extract and verify a dataset archive; return the installed folder."""
+    if sha256 is not None and (len(sha256) != 64 or any(c not in "0123456789abcdefABCDEF"
+                                                         for c in sha256)):  # fmt: skip
+        raise FetchError("checksum", f"--sha256 {sha256!r}: expected 64 hexadecimal digits")
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DatasetError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
+    work = Path(tempfile.mkdtemp(prefix=".fetch-", dir=out))
+    try:
+        archive = work / "archive.tar.gz"
+        _download(url, archive, timeout, progress)
+        expected = (sha256 or _sidecar_sha256(url, timeout)).lower()
+        actual = sha256_file(archive)
+        if actual != expected:
+            raise FetchError("checksum", f"sha256 {actual} does not match {expected}")
+        folder = safe_extract(archive, work / "extracted", max_bytes)
+        try:
+            _checked(folder)
+        except DatasetError as exc:
+            raise FetchError("verify", str(exc)) from None
+        final = out / folder.name
+        if final.exists():
+            if not force:
+                raise FetchError("install", f"{final} already exists: pass --force to replace")
+            shutil.rmtree(final)
+        folder.rename(final)
+        return final
+    finally:
+        shutil.rmtree(work, ignore_errors=True)

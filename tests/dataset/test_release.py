@@ -1,0 +1,168 @@
+"""What makes a dataset publishable: card, Croissant metadata, checksums, verify, versions."""
+
+import json
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+
+from simlidar.dataset.card import read_front_matter, render_card
+from simlidar.dataset.checksums import SUMS, check_sums, read_sums
+from simlidar.dataset.h5 import read_split_info
+from simlidar.dataset.verify import verify
+from simlidar.errors import DatasetError
+
+
+@pytest.fixture
+def copy(datasets, tmp_path):
+    """A writable copy of the small noise-0.1 dataset."""
+    target = tmp_path / datasets[0.1].name
+    shutil.copytree(datasets[0.1], target)
+    return target
+
+
+def test_the_card_parses_as_a_hugging_face_dataset_card(datasets):
+    from huggingface_hub import DatasetCard
+
+    card = DatasetCard.load(datasets[0.1] / "README.md")
+    meta = card.data.to_dict()
+    assert meta["license"] == "cc-by-4.0"
+    assert meta["configs"][0]["config_name"] == "noise0.1"
+    assert {f["split"] for f in meta["configs"][0]["data_files"]} == {"train", "test"}
+    splits = {s["name"]: s for s in meta["dataset_info"]["splits"]}
+    assert splits["train"]["num_examples"] == 96 and splits["test"]["num_examples"] == 64
+    assert splits["train"]["num_bytes"] == (datasets[0.1] / "train.h5").stat().st_size
+    features = {f["name"]: f for f in meta["dataset_info"]["features"]}
+    assert features["delays"]["array2_d"] == {"shape": [16, 16], "dtype": "float32"}
+    assert features["labels"]["dtype"]["class_label"]["names"]["5"] == "open_road/car"
+    for section in ("## Motivation", "## Composition", "## Generation process",
+                    "## Preprocessing", "## Uses", "### Out-of-scope uses", "## Distribution",
+                    "## Maintenance", "## Regenerate", "## Versions", "## Citation"):  # fmt: skip
+        assert section in card.text, section
+    assert "![one example per class (test split)](preview.png)" in card.text
+    assert "@article{wang2020temporal" in card.text
+
+
+def test_the_card_is_made_from_the_files_alone(datasets, copy):
+    assert render_card(copy) == (datasets[0.1] / "README.md").read_text()
+
+
+def test_the_regenerate_command_gives_the_same_bytes(datasets, tmp_path):
+    from click.testing import CliRunner
+
+    from simlidar.cli import main
+
+    text = (datasets[0.5] / "README.md").read_text()
+    command = text.split("## Regenerate")[1].split("```\n")[1].strip()
+    assert command.startswith("simlidar generate ")
+    args = command.split()[1:] + ["--out", str(tmp_path)]
+    assert CliRunner().invoke(main, args).exit_code == 0
+    again = tmp_path / datasets[0.5].name
+    for name in ("train.h5", "test.h5", "README.md", "croissant.json", "SHA256SUMS"):
+        assert (again / name).read_bytes() == (datasets[0.5] / name).read_bytes(), name
+
+
+def test_croissant_validates_with_mlcroissant(datasets, caplog):
+    import mlcroissant as mlc
+
+    path = datasets[0.1] / "croissant.json"
+    dataset = mlc.Dataset(jsonld=path)
+    assert dataset.metadata.name == datasets[0.1].name
+    assert not any("not standard" in r.getMessage() for r in caplog.records)
+    meta = json.loads(path.read_text())
+    sums = read_sums(datasets[0.1])
+    for obj in meta["distribution"]:
+        assert obj["sha256"] == sums[obj["name"]]
+    fields = {f["name"] for f in meta["recordSet"][0]["field"]}
+    assert {"delays", "labels"} <= fields
+
+
+def test_checksums_cover_every_file(datasets):
+    sums = read_sums(datasets[0.1])
+    assert sorted(sums) == ["README.md", "croissant.json", "preview.png", "test.h5", "train.h5"]
+    assert check_sums(datasets[0.1]) == []
+
+
+def test_a_sound_dataset_verifies(datasets):
+    assert verify(datasets[0.1]) == []
+
+
+def _flip_a_byte(path, offset):
+    data = bytearray(path.read_bytes())
+    data[offset] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize(
+    "damage, words",
+    [
+        (
+            lambda d: (d / "train.h5").write_bytes((d / "train.h5").read_bytes()[:5000]),
+            "train.h5: cannot read as HDF5",
+        ),
+        (lambda d: _flip_a_byte(d / "test.h5", -2000), "test.h5: sha256 does not match"),
+        (lambda d: (d / "preview.png").unlink(), "preview.png: listed in SHA256SUMS but missing"),
+        (lambda d: (d / "notes.txt").write_text("x"), "notes.txt: not listed in SHA256SUMS"),
+        (lambda d: (d / SUMS).unlink(), "SHA256SUMS: missing"),
+        (lambda d: (d / "README.md").write_text("no front matter"), "expected YAML front matter"),
+    ],
+)
+def test_verify_names_each_problem(copy, damage, words):
+    damage(copy)
+    problems = verify(copy)
+    assert any(words in p for p in problems), problems
+
+
+def test_verify_checks_schema_ranges_and_card(copy):
+    with h5py.File(copy / "train.h5", "r+") as f:
+        del f.attrs["seed"]
+        f["delays"][0, 0, 0] = 1.5
+        f["labels"][1] = 99
+    card = copy / "README.md"
+    card.write_text(card.read_text().replace("num_examples: 64", "num_examples: 65"))
+    problems = "\n".join(verify(copy))
+    assert "train.h5: attribute 'seed' missing" in problems
+    assert "test.h5: 64 samples, the card says 65" in problems
+    with h5py.File(copy / "test.h5", "r+") as f:
+        f["delays"][0, 0, 0] = -0.5
+        f["labels"][0] = 40
+    problems = "\n".join(verify(copy))
+    assert "test.h5: 'delays' has values outside [0, 1]" in problems
+    assert "test.h5: labels outside 0..31" in problems
+
+
+def test_verify_refuses_what_is_not_a_dataset(tmp_path):
+    with pytest.raises(DatasetError, match="expected a dataset directory"):
+        verify(tmp_path / "nothing")
+    with pytest.raises(DatasetError, match="no train.h5 or test.h5"):
+        verify(tmp_path)
+
+
+def test_versions_newer_major_refused_older_warned_once(copy):
+    from simlidar.dataset import h5 as h5module
+
+    with h5py.File(copy / "train.h5", "r+") as f:
+        f.attrs["dataset_version"] = "2.0.0"
+    with pytest.raises(DatasetError, match=r"dataset version 2.0.0 is newer .* upgrade simlidar"):
+        read_split_info(copy / "train.h5")
+    with h5py.File(copy / "test.h5", "r+") as f:
+        f.attrs["dataset_version"] = "0.9.0"
+    h5module._warned.discard("0.9.0")
+    with pytest.warns(UserWarning, match=r"dataset version 0.9.0, this simlidar writes 1.0.0"):
+        read_split_info(copy / "test.h5")
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_split_info(copy / "test.h5")  # once only
+
+
+def test_front_matter_errors_are_named(copy):
+    (copy / "README.md").write_text("---\nlicense: [unclosed\n---\n# x\n")
+    with pytest.raises(DatasetError, match="README.md: malformed YAML front matter"):
+        read_front_matter(copy)
+    (copy / "README.md").unlink()
+    with pytest.raises(DatasetError, match="README.md: missing"):
+        read_front_matter(copy)
+    assert np.isfinite(1.0)
