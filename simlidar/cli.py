@@ -57,6 +57,14 @@ class NoiseLevels(click.ParamType):
         return levels
 
 
+_scenes_option = click.option(
+    "--scenes",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Scene catalog folder (default: the one shipped with simlidar).",
+)
+
+
 def _load_catalog(scenes):
     from simlidar.scene.recipe import load_catalog
 
@@ -117,12 +125,7 @@ def main(ctx: click.Context, debug: bool) -> None:
     show_default=True,
     help="Azimuth columns per sample.",
 )
-@click.option(
-    "--scenes",
-    type=click.Path(path_type=Path),
-    default=None,
-    help="Scene catalog folder (default: the one shipped with simlidar).",
-)
+@_scenes_option
 @click.option(
     "--batch-size",
     type=click.IntRange(1, 4096),
@@ -134,7 +137,8 @@ def main(ctx: click.Context, debug: bool) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def generate(classes, noise, train_size, test_size, seed, shift, out, width, scenes, batch_size,
              force, as_json):  # fmt: skip
-    """Generate Sim LiDAR train/test splits (HDF5) and a preview picture per noise level."""
+    """Generate Sim LiDAR datasets: per noise level, train/test splits (HDF5), a preview
+    picture, the dataset card, Croissant metadata and checksums."""
     from simlidar.dataset.config import GeneratorConfig
     from simlidar.dataset.generate import generate as run
     from simlidar.simulate import class_plan
@@ -304,12 +308,7 @@ def fetch(url, sha256, out, timeout, force):  # fmt: skip
 
 
 @main.command()
-@click.option(
-    "--scenes",
-    type=click.Path(path_type=Path),
-    default=None,
-    help="Scene catalog folder (default: the one shipped with simlidar).",
-)
+@_scenes_option
 @click.option(
     "--export",
     "export_dir",
