@@ -16,7 +16,7 @@ from simlidar.pulses import delays_from_range, quantise_range, shift_delays
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.raycast import MAX_BATCH, cast
-from simlidar.sensor.rays import window_rays
+from simlidar.sensor.rays import column_centres_deg, window_rays
 
 SPLIT_IDS = {"train": 0, "test": 1}
 _FIXED_COLUMNS = 2  # per attempt: rotation phase, delay shift
@@ -121,6 +121,7 @@ def simulate(config: GeneratorConfig, catalog: Catalog, split: str, start: int, 
     layout, obj = factors(plan, labels, free, len(catalog.layouts), len(catalog.objects))
 
     lc, oc = catalog.layout_columns, catalog.object_columns
+    azimuth = column_centres_deg(width, config.fov_deg)  # negative: left half of the window
     columns = _FIXED_COLUMNS + lc + oc
     range_m = np.full((n, 16, width), np.nan)
     surface = np.zeros((n, 16, width), np.uint8)
@@ -144,10 +145,14 @@ def simulate(config: GeneratorConfig, catalog: Catalog, split: str, start: int, 
         ok = (obj[pending] == 0) | (on_object >= config.min_object_hits)
         # Layouts whose defining structure can leave the window must be seen (recipe key
         # `visible`): a label the sensor cannot see is not a label.
-        need = np.array([(r.visible_surface, r.visible_hits) for r in catalog.layouts])
-        feature = need[layout[pending]]  # (m, 2)
-        seen = (hits.surface == feature[:, 0, None, None]) & ~np.isnan(r)
-        ok &= seen.sum(axis=(1, 2)) >= feature[:, 1]
+        returned = ~np.isnan(r)
+        for lid in np.unique(layout[pending]):
+            rows = np.nonzero(layout[pending] == lid)[0]
+            for label, min_hits, side in catalog.layouts[lid].visible:
+                seen = (hits.surface[rows] == label) & returned[rows]
+                if side != "any":
+                    seen &= (azimuth < 0 if side == "left" else azimuth > 0)[None, None, :]
+                ok[rows] &= seen.sum(axis=(1, 2)) >= min_hits
         done = pending[ok]
         range_m[done] = r[ok]
         surface[done] = np.where(np.isnan(r[ok]), 0, hits.surface[ok])

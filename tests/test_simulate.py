@@ -34,12 +34,20 @@ def test_every_labelled_object_is_visible(batch, catalog):
     assert (shown[has_object] == batch.object_hits[has_object]).all()
 
 
-def test_layouts_show_their_defining_surface(batch, catalog):
+def test_layouts_show_their_defining_surfaces(batch, catalog):
+    from simlidar.sensor import column_centres_deg
+
+    left = column_centres_deg(16, GeneratorConfig().fov_deg) < 0
+    checked = 0
     for lid, recipe in enumerate(catalog.layouts):
-        if recipe.visible_hits:
-            rows = batch.layout == lid
-            seen = (batch.surface[rows] == recipe.visible_surface).sum(axis=(1, 2))
-            assert (seen >= recipe.visible_hits).all(), recipe.name
+        rows = batch.layout == lid
+        for surface, min_hits, side in recipe.visible:
+            seen = batch.surface[rows] == surface
+            if side != "any":
+                seen = seen[..., left if side == "left" else ~left]
+            assert (seen.sum(axis=(1, 2)) >= min_hits).all(), (recipe.name, side)
+            checked += 1
+    assert checked >= 9  # both lamp rows and both walls count separately
 
 
 @pytest.mark.parametrize("name, median, share", [("car", 4, 0.95), ("truck", 4, 0.95),
@@ -145,7 +153,7 @@ def test_an_invisible_object_is_reported_not_looped_on(catalog_copy):
 
     path = catalog_copy / "objects" / "pedestrian.toml"
     path.write_text(
-        path.read_text().replace("distance_m = [4.0, 12.0]", "distance_m = [-12.0, -4.0]")
+        path.read_text().replace("distance_m = [3.0, 10.0]", "distance_m = [-10.0, -3.0]")
     )  # behind the sensor
     catalog = load_catalog(catalog_copy)
     config = GeneratorConfig(max_attempts=3)

@@ -71,8 +71,9 @@ class Recipe:
     params: tuple[Param, ...]  # for objects, the placement params come first
     primitives: tuple[Primitive, ...]
     source: dict  # the parsed TOML, stored in every dataset
-    visible_surface: int = 0  # a surface the sensor must see for the label to hold (0: none)
-    visible_hits: int = 0  # ... by at least this many pulses
+    # What the sensor must see for the label to hold: (surface index, min hits, side), side
+    # being "any", "left" or "right" (the half of the window, by column azimuth).
+    visible: tuple[tuple[int, int, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -255,24 +256,31 @@ def load_recipe(path: Path, surfaces: list[str], is_object: bool) -> Recipe:
         _primitive(f"{where}: primitive[{k}]", p, params, surfaces, default_surface)
         for k, p in enumerate(prims)
     )
-    visible = data.get("visible", {"surface": surfaces[0], "min_hits": 0})
-    if not (isinstance(visible, dict) and set(visible) == {"surface", "min_hits"}):
-        raise _fail(where, "visible", "a table {surface = NAME, min_hits = N}", visible)
-    if visible["surface"] not in surfaces:
-        raise _fail(where, "visible.surface", f"a surface of catalog.toml {surfaces[1:]}",
-                    visible["surface"])  # fmt: skip
-    if not (isinstance(visible["min_hits"], int) and visible["min_hits"] >= 0):
-        raise _fail(where, "visible.min_hits", "a non-negative integer", visible["min_hits"])
-    return Recipe(
-        path.stem,
-        data["description"],
-        where,
-        tuple(params.values()),
-        primitives,
-        data,
-        surfaces.index(visible["surface"]),
-        visible["min_hits"],
-    )
+    return Recipe(path.stem, data["description"], where, tuple(params.values()), primitives,
+                  data, _visible(where, data.get("visible", []), surfaces))  # fmt: skip
+
+
+def _visible(where: str, visible, surfaces: list[str]) -> tuple[tuple[int, int, str], ...]:
+    """Check a layout's `visible` rules: a table or a list of tables."""
+    rules = visible if isinstance(visible, list) else [visible]
+    checked = []
+    for k, rule in enumerate(rules):
+        key = f"visible[{k}]" if isinstance(visible, list) else "visible"
+        if not (isinstance(rule, dict) and {"surface", "min_hits"} <= set(rule)
+                and set(rule) <= {"surface", "min_hits", "side"}):  # fmt: skip
+            raise _fail(where, key, "a table {surface = NAME, min_hits = N, side = ...} or a "
+                        "list of them", rule)  # fmt: skip
+        if rule["surface"] not in surfaces:
+            raise _fail(where, f"{key}.surface", f"a surface of catalog.toml {surfaces[1:]}",
+                        rule["surface"])  # fmt: skip
+        hits = rule["min_hits"]
+        if not (isinstance(hits, int) and not isinstance(hits, bool) and hits >= 1):
+            raise _fail(where, f"{key}.min_hits", "a positive integer", hits)
+        side = rule.get("side", "any")
+        if side not in ("any", "left", "right"):
+            raise _fail(where, f"{key}.side", "'any', 'left' or 'right'", side)
+        checked.append((surfaces.index(rule["surface"]), hits, side))
+    return tuple(checked)
 
 
 def _name_list(where: str, data: dict, key: str) -> list[str]:
@@ -305,10 +313,9 @@ def load_catalog(root: str | Path | None = None) -> Catalog:
                     for n in _name_list(where, data, "objects"))  # fmt: skip
     object_surfaces = {p.surface for r in objects for p in r.primitives}
     for recipe in layouts:
-        if recipe.visible_hits and (
-            recipe.visible_surface == 0 or recipe.visible_surface in object_surfaces
-        ):
-            raise _fail(recipe.path, "visible.surface", "a surface of the layout itself (not "
-                        "'none' nor an object's)", surfaces[recipe.visible_surface])  # fmt: skip
+        for surface, _, _ in recipe.visible:
+            if surface == 0 or surface in object_surfaces:
+                raise _fail(recipe.path, "visible.surface", "a surface of the layout itself "
+                            "(not 'none' nor an object's)", surfaces[surface])  # fmt: skip
     empty = Recipe(NO_OBJECT, "No object on the road.", "", (), (), {})
     return Catalog(str(root), tuple(surfaces), layouts, (empty,) + objects)

@@ -35,7 +35,7 @@ def test_a_batch_of_every_class(catalog):
     assert np.isnan(batch.object_pose[obj == 0]).all()
     pose = batch.object_pose[obj > 0]
     assert np.isfinite(pose).all()
-    assert (pose[:, 0] >= 4.0).all() and (pose[:, 0] <= 25.0).all()  # distance ahead
+    assert (pose[:, 0] >= 3.0).all() and (pose[:, 0] <= 25.0).all()  # distance ahead
 
 
 def test_objects_stand_where_their_pose_says(catalog):

@@ -68,7 +68,14 @@ def _edit(root, name, old, new):
         ("layouts/tunnel.toml", '"wall_height_m + 0.3"]', '"min(1, 2, 3)"]', "size[2]"),
         ("layouts/tunnel.toml", '"wall_height_m + 0.3"]', '"True"]', "size[2]"),
         ("layouts/tunnel.toml", 'kind = "arch"', 'kind = "arch"\ncolour = "red"', "colour"),
-        ("layouts/tunnel.toml", "min_hits = 3", "min_hits = -1", "visible.min_hits"),
+        ("layouts/tunnel.toml", "min_hits = 3", "min_hits = 0", "visible.min_hits"),
+        ("layouts/tunnel.toml", "min_hits = 3 }", 'min_hits = 3, side = "up" }', "visible.side"),
+        (
+            "layouts/two_side_walls.toml",
+            'side = "right" }',
+            'side = "right", x = 1 }',
+            "visible[1]",
+        ),
         (
             "layouts/tunnel.toml",
             'surface = "ceiling", min',

@@ -1,0 +1,150 @@
+"""Time-to-first-spike layers (Mostafa 2018) as pure functions on whole batches.
+
+Neuron model: non-leaky integrate-and-fire with exponentially decaying synaptic current
+(time constant 1). Input spike i at time t_i with weight w_i adds w_i (1 - exp(-(t - t_i)))
+to the membrane potential for t > t_i; the neuron fires once, when the potential reaches the
+threshold 1. In z = exp(t) the first spike time has the closed form
+
+    z_out = sum_{i in C} w_i z_i / (sum_{i in C} w_i - 1)
+
+where C is the set of inputs that arrive before the output spike: the shortest time-ordered
+prefix for which ``sum_C w_i - 1 > MIN_EXCESS``, ``z_out >= z_last(C)`` and ``z_out`` comes
+before the next input (``z_out < z_next``). A neuron with no such prefix never fires.
+
+Representation: spike times travel in the z domain; ``z = inf`` means "no spike". No
+arithmetic ever runs on an infinite value: silent inputs are masked out, silent outputs get
+zero gradient. ``exp`` is only taken of the bounded input times (see :func:`encode`).
+
+Near-zero denominators: a prefix whose weight excess ``sum_C w_i - 1`` is not above
+``MIN_EXCESS`` (1e-4) is not a firing prefix. The neuron's potential would approach the
+threshold only asymptotically (firing after ln(sum w z / excess) time units or never), and
+the division would amplify rounding error without bound.
+
+Gradients (hand-written backward, checked by ``torch.autograd.gradcheck``), for i in C:
+``dz_out/dz_i = w_i / (sum_C w - 1)`` and ``dz_out/dw_i = (z_i - z_out) / (sum_C w - 1)``;
+zero for inputs outside C and for neurons that do not fire.
+"""
+
+import torch
+import torch.nn.functional as F
+
+MIN_EXCESS = 1e-4
+
+
+def encode(delays: torch.Tensor, scale: float, no_return: float = 1.0) -> torch.Tensor:
+    """Normalised delays -> input spikes in the z domain.
+
+    A delay d < no_return becomes the spike time t = scale * d, so z = exp(scale * d) lies in
+    [1, exp(scale)); a missing return (d >= no_return) is no spike (z = inf).
+    """
+    spike = delays < no_return
+    return torch.where(spike, torch.exp(scale * torch.where(spike, delays, 0.0)), torch.inf)
+
+
+def _first_spikes(z: torch.Tensor, w: torch.Tensor):
+    """Forward of the dense layer. z (B, N) with inf = silent, w (N, M).
+
+    returns z_out (B, M) (inf = silent), and what the backward needs: the time order of the
+    inputs (B, N), the index of the last input of the causal set (B, M) and its weight excess
+    sum_C w - 1 (B, M).
+    """
+    order = torch.argsort(z, dim=1)  # silent inputs (inf) sort last
+    zs = torch.gather(z, 1, order)  # (B, N)
+    arrived = torch.isfinite(zs)
+    zs0 = torch.where(arrived, zs, 0.0)
+    ws = w[order] * arrived[..., None]  # (B, N, M), silent inputs weigh nothing
+    excess = torch.cumsum(ws, dim=1) - 1.0  # (B, N, M): sum of the first k+1 weights - 1
+    num = torch.cumsum(ws * zs0[..., None], dim=1)
+    ok = (excess > MIN_EXCESS) & arrived[..., None]
+    cand = num / torch.where(ok, excess, 1.0)
+    nxt = torch.cat([zs[:, 1:], torch.full_like(zs[:, :1], torch.inf)], dim=1)  # (B, N)
+    valid = ok & (cand >= zs0[..., None]) & (cand < nxt[..., None])
+    fired = valid.any(dim=1)  # (B, M)
+    last = torch.argmax(valid.to(torch.uint8), dim=1)  # first valid prefix (0 if none)
+    pick = last[:, None, :]
+    z_out = torch.where(fired, torch.gather(cand, 1, pick).squeeze(1), torch.inf)
+    excess_at = torch.where(fired, torch.gather(excess, 1, pick).squeeze(1), 1.0)
+    return z_out, order, torch.where(fired, last, -1), excess_at
+
+
+class _DenseTTFS(torch.autograd.Function):
+    @staticmethod
+    def forward(ctx, z, w):
+        z_out, order, last, excess = _first_spikes(z, w)
+        ctx.save_for_backward(z, w, z_out, order, last, excess)
+        return z_out
+
+    @staticmethod
+    def backward(ctx, grad_out):
+        z, w, z_out, order, last, excess = ctx.saved_tensors
+        fired = last >= 0
+        zs = torch.gather(z, 1, order)
+        zs0 = torch.where(torch.isfinite(zs), zs, 0.0)
+        rank = torch.arange(z.shape[1], device=z.device)[None, :, None]
+        causal = rank <= last[:, None, :]  # (B, N, M): input (in time order) is in C
+        g = torch.where(fired, grad_out, 0.0) / excess  # (B, M), excess is 1 when silent
+        zo = torch.where(fired, z_out, 0.0)
+        coeff = torch.where(causal, g[:, None, :], 0.0)  # (B, N, M)
+        grad_z = grad_w = None
+        if ctx.needs_input_grad[0]:
+            grad_sorted = (coeff * w[order]).sum(dim=2)  # (B, N)
+            grad_z = torch.zeros_like(z).scatter_(1, order, grad_sorted)
+        if ctx.needs_input_grad[1]:
+            per = coeff * (zs0[..., None] - zo[:, None, :])  # (B, N, M)
+            grad_w = torch.zeros_like(w).index_add_(0, order.reshape(-1),
+                                                    per.reshape(-1, w.shape[1]))  # fmt: skip
+        return grad_z, grad_w
+
+
+def dense(z: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
+    """First output spikes of a dense TTFS layer.
+
+    z : (B, N) input spikes in the z domain, inf = no spike
+    w : (N, M) weights
+    returns : (B, M) output spikes in the z domain, inf = no spike
+    """
+    return _DenseTTFS.apply(z, w)
+
+
+def conv2d(z: torch.Tensor, w: torch.Tensor, stride: int = 1, padding: int = 0) -> torch.Tensor:
+    """First output spikes of a 2D convolutional TTFS layer (each output is a dense TTFS neuron
+    over its receptive field, weights shared across positions).
+
+    z : (B, C_in, H, W) input spikes in the z domain, inf = no spike
+    w : (C_out, C_in, k, k) weights
+    returns : (B, C_out, H_out, W_out); padding adds "no spike" (inf), never an early spike
+    """
+    batch, channels = z.shape[:2]
+    c_out, _, k, _ = w.shape
+    if padding:
+        z = F.pad(z, (padding,) * 4, value=torch.inf)
+    h_out = (z.shape[2] - k) // stride + 1
+    w_out = (z.shape[3] - k) // stride + 1
+    patches = F.unfold(z, k, stride=stride)  # (B, C_in k k, L); copies values, inf stays inf
+    flat = patches.transpose(1, 2).reshape(-1, channels * k * k)
+    out = dense(flat, w.reshape(c_out, -1).t())  # (B L, C_out)
+    return (
+        out.reshape(batch, h_out * w_out, c_out).transpose(1, 2).reshape(batch, c_out, h_out, w_out)
+    )
+
+
+def weight_sum_penalty(w: torch.Tensor) -> torch.Tensor:
+    """mean_j max(0, 1 - sum_i w_ij): pushes every neuron's total input weight above the
+    threshold so that it can fire (Mostafa 2018). w : (N, M) or (C_out, C_in, k, k)."""
+    per_neuron = w.sum(dim=0) if w.dim() == 2 else w.flatten(1).sum(dim=1)
+    return torch.relu(1.0 - per_neuron).mean()
+
+
+def output_logits(z_out: torch.Tensor) -> torch.Tensor:
+    """Logits -z for a softmax over the output neurons; a silent neuron gets a logit below
+    every firing one (no gradient), so it can never win the softmax by being silent."""
+    fired = torch.isfinite(z_out)
+    finite = torch.where(fired, z_out, 0.0)
+    floor = finite.detach().amax(dim=1, keepdim=True) + 10.0
+    return -torch.where(fired, finite, floor)
+
+
+def predict(z_out: torch.Tensor) -> torch.Tensor:
+    """The first output neuron to fire; -1 where none fires (counted as wrong, never class 0)."""
+    first = torch.argmin(z_out, dim=1)
+    return torch.where(torch.isfinite(z_out).any(dim=1), first, -1)
