@@ -308,6 +308,58 @@ def fetch(url, sha256, out, timeout, force):  # fmt: skip
 
 
 @main.command()
+@click.option(
+    "--model",
+    "model",
+    required=True,
+    help="Model recipe: a name in baselines/ (snn_simlidar, ...) or a .toml file.",
+)
+@click.option(
+    "--dataset",
+    type=click.Path(path_type=Path),
+    required=True,
+    help="Dataset directory in the simlidar schema.",
+)
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("runs"),
+    show_default=True,
+    help="Folder for the checkpoint.",
+)
+@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
+@click.option(
+    "--epochs", type=click.IntRange(min=1), default=None, help="Override the recipe's epochs."
+)
+@click.option(
+    "--max-seconds",
+    type=click.FloatRange(min=0),
+    default=None,
+    help="Override the recipe's time budget.",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+def train(model, dataset, out, seed, epochs, max_seconds, as_json):  # fmt: skip
+    """Train a model on a dataset's train split, score it on the test split, save a checkpoint."""
+    from simlidar.bench.train import save_checkpoint
+    from simlidar.bench.train import train as run
+    from simlidar.data import split_path
+    from simlidar.models.registry import load_recipe
+
+    recipe = load_recipe(model)
+    split_path(dataset, "train")  # a dataset, or a one-line error
+    result = run(recipe, dataset, seed=seed, epochs=epochs, max_seconds=max_seconds)
+    path = save_checkpoint(result, out / f"{recipe['name']}-seed{seed}.pt")
+    record = {"model": recipe["name"], "dataset": str(dataset), "seed": seed,
+              "test_accuracy": round(result.test_accuracy, 4), "epochs": result.epochs,
+              "seconds": round(result.seconds, 1), "checkpoint": str(path)}  # fmt: skip
+    if as_json:
+        click.echo(json.dumps(record))
+    else:
+        click.echo(f"{recipe['name']}: test accuracy {result.test_accuracy:.4f} after "
+                   f"{result.epochs} epochs, {result.seconds:.0f} s; wrote {path}")  # fmt: skip
+
+
+@main.command()
 @_scenes_option
 @click.option(
     "--export",

@@ -1,0 +1,57 @@
+"""The paper's spiking networks: a dense SNN and a spiking CNN, in the z domain."""
+
+import torch
+from torch import nn
+
+from simlidar.models import ttfs
+from simlidar.models.layers import ConvTTFS, DenseTTFS
+from simlidar.models.registry import register_model
+
+
+class SpikingNet(nn.Module):
+    """Input delays (B, C, H, W) -> output first-spike times in the z domain (B, classes).
+
+    scale : input spike time t = scale * delay (a missing return is no spike)
+    """
+
+    def __init__(self, layers: list[nn.Module], scale: float):
+        super().__init__()
+        self.layers = nn.ModuleList(layers)
+        self.scale = scale
+
+    def forward(self, delays: torch.Tensor) -> torch.Tensor:
+        z = ttfs.encode(delays, self.scale)
+        for layer in self.layers:
+            z = layer(z)
+        return z
+
+    def penalty(self) -> torch.Tensor:
+        """Mean weight-sum penalty over layers (keeps every neuron able to fire)."""
+        return sum(ttfs.weight_sum_penalty(m.weight) for m in self.layers) / len(self.layers)
+
+
+@register_model("snn")
+def dense_snn(input_shape, classes, generator=None, hidden=(400,), scale=3.0, excess=2.0,
+              spread=1.0) -> SpikingNet:  # fmt: skip
+    """Dense TTFS network: inputs (all pixels) - hidden... - classes (256-400-32 on Sim LiDAR)."""
+    sizes = [int(torch.tensor(input_shape).prod())] + list(hidden) + [classes]
+    layers = [DenseTTFS(a, b, excess, spread, generator) for a, b in zip(sizes, sizes[1:])]
+    return SpikingNet(layers, scale)
+
+
+@register_model("scnn")
+def spiking_cnn(input_shape, classes, generator=None, conv=((48, 5, 2), (24, 5, 2)),
+                dense=(256,), scale=3.0, excess=2.0, spread=1.0) -> SpikingNet:  # fmt: skip
+    """Spiking CNN: TTFS convolutions (channels, kernel, stride; padded with "no spike"),
+    then dense TTFS layers (the paper's KITTI network: 48 and 24 channels of 5x5 stride 2,
+    dense 256, dense C)."""
+    c, h, w = input_shape
+    layers: list[nn.Module] = []
+    for channels, kernel, stride in conv:
+        pad = kernel // 2
+        layers.append(ConvTTFS(c, channels, kernel, stride, pad, excess, spread, generator))
+        c = channels
+        h, w = (h + 2 * pad - kernel) // stride + 1, (w + 2 * pad - kernel) // stride + 1
+    sizes = [c * h * w] + list(dense) + [classes]
+    layers += [DenseTTFS(a, b, excess, spread, generator) for a, b in zip(sizes, sizes[1:])]
+    return SpikingNet(layers, scale)

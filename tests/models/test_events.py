@@ -1,0 +1,49 @@
+"""The event-driven evaluator agrees with the batched closed form, sample by sample."""
+
+import numpy as np
+import pytest
+import torch
+
+from simlidar.data import load_split
+from simlidar.models import ttfs
+from simlidar.models.events import ALPHAS_PJ, Decision, decide
+
+
+def _random_net(seed, sizes=(256, 60, 32)):
+    rng = np.random.default_rng(seed)
+    return [rng.normal(3.0 / a, 1.0 / np.sqrt(a), (a, b)) for a, b in zip(sizes, sizes[1:])]
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_event_driven_equals_closed_form_on_every_test_sample(datasets, seed):
+    x, _ = load_split(datasets[0.5], "test")
+    weights = _random_net(seed)
+    z = ttfs.encode(torch.from_numpy(x.astype(np.float64)).flatten(1), 3.0)
+    out = z
+    for w in weights:
+        out = ttfs.dense(out, torch.from_numpy(w))
+    expected = ttfs.predict(out).numpy()
+    first = out.min(dim=1).values.numpy()
+    for i in range(len(x)):
+        d = decide(weights, z[i].numpy())
+        assert d.label == expected[i], i
+        if d.label >= 0:
+            assert d.z == pytest.approx(first[i], rel=1e-9), i
+            assert d.input_spikes <= d.input_total == int(torch.isfinite(z[i]).sum())
+
+
+def test_a_decision_before_all_inputs_by_hand():
+    # one input neuron pair feeding one output: input 0 at z=1 (w=2) makes the output fire at
+    # z=2, before input 1 arrives at z=e^3: one of two input spikes consumed
+    weights = [np.array([[2.0], [0.5]])]
+    d = decide(weights, np.array([1.0, np.exp(3.0)]))
+    assert (d.label, d.z, d.input_spikes, d.input_total, d.hidden_spikes) == (0, 2.0, 1, 2, 0)
+    assert d.data_ratio == 0.5 and d.time == pytest.approx(np.log(2.0))
+    # network time ln 2 with scale 3 is the delay ln 2 / 3 of a 667.13 ns window
+    assert d.time_ns(3.0, 667.128) == pytest.approx(np.log(2.0) / 3 * 667.128)
+    assert d.spikes == 2 and d.energy_pj(ALPHAS_PJ[0]) == pytest.approx(0.74)
+
+
+def test_a_silent_network_decides_nothing():
+    d = decide([np.full((3, 2), 0.1)], np.array([1.0, 2.0, np.inf]))
+    assert d == Decision(-1, np.inf, 2, 2, 0)

@@ -1,0 +1,117 @@
+"""The time-to-first-spike layers against the neuron's differential equation and gradcheck."""
+
+import numpy as np
+import pytest
+import torch
+
+from simlidar.models import ttfs
+
+
+def integrate(t_in: np.ndarray, w: np.ndarray, dt: float = 2e-4, horizon: float = 8.0):
+    """First threshold crossing of dV/dt = I, dI/dt = -I, I += w_i at t_i (forward Euler).
+
+    t_in : (B, N) input spike times (inf = none); w : (N, M)
+    returns : (B, M) first spike times, inf where V stays below 1 until the horizon
+    """
+    batch, (_, m) = t_in.shape[0], w.shape
+    current = np.zeros((batch, m))
+    potential = np.zeros((batch, m))
+    fired = np.full((batch, m), np.inf)
+    steps = int(horizon / dt)
+    arrival = np.where(np.isfinite(t_in), np.ceil(t_in / dt), -1).astype(np.int64)
+    for k in range(steps):
+        arriving = arrival == k  # (B, N)
+        if arriving.any():
+            current += arriving.astype(float) @ w
+        potential += dt * current
+        current -= dt * current
+        crossed = (potential >= 1.0) & ~np.isfinite(fired)
+        fired[crossed] = (k + 1) * dt
+    return fired
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_closed_form_matches_the_differential_equation(seed):
+    rng = np.random.default_rng(seed)
+    t_in = rng.uniform(0.0, 2.0, size=(6, 8))
+    t_in[rng.random(t_in.shape) < 0.2] = np.inf  # some inputs never spike
+    w = rng.uniform(-0.3, 0.7, size=(8, 5))
+    w[:, 0] = 0.05  # a neuron whose weights never reach the threshold: silent
+    z = torch.from_numpy(np.exp(t_in))
+    closed = np.log(ttfs.dense(z, torch.from_numpy(w)).numpy())
+    numeric = integrate(t_in, w)
+    assert np.isinf(closed[:, 0]).all() and np.isinf(numeric[:, 0]).all()
+    both = np.isfinite(closed) & np.isfinite(numeric)
+    assert (np.isfinite(closed) == np.isfinite(numeric)).all()
+    assert both.sum() > 10
+    np.testing.assert_allclose(closed[both], numeric[both], atol=3e-3)
+
+
+def test_a_single_input_by_hand():
+    # one input at t = 0 with weight 2: V(t) = 2 (1 - e^-t) = 1 at t = ln 2, z = 2
+    z = ttfs.dense(torch.tensor([[1.0]]), torch.tensor([[2.0]]))
+    assert z.item() == pytest.approx(2.0)
+    # weight 1 exactly: the potential only approaches the threshold, no spike
+    assert torch.isinf(ttfs.dense(torch.tensor([[1.0]]), torch.tensor([[1.0]]))).all()
+
+
+def test_an_output_spike_before_a_late_input_ignores_it():
+    # inputs at t = 0 (w = 2) and t = 5 (w = -10): the neuron fires at ln 2, before the second
+    z = torch.tensor([[1.0, np.exp(5.0)]])
+    w = torch.tensor([[2.0], [-10.0]])
+    assert ttfs.dense(z, w).item() == pytest.approx(2.0)
+
+
+def _finite(f):
+    def wrapped(*args):
+        out = f(*args)
+        return torch.where(torch.isfinite(out), out, 0.0)
+
+    return wrapped
+
+
+def test_gradcheck_dense():
+    g = torch.Generator().manual_seed(3)
+    z = torch.exp(torch.rand(5, 7, generator=g, dtype=torch.float64) * 2)
+    z[1, 3] = torch.inf
+    z.requires_grad_()
+    w = (torch.rand(7, 4, generator=g, dtype=torch.float64) * 0.8).requires_grad_()
+    assert torch.autograd.gradcheck(_finite(ttfs.dense), (z, w), eps=1e-6, atol=1e-5)
+
+
+def test_gradcheck_conv():
+    g = torch.Generator().manual_seed(4)
+    z = torch.exp(torch.rand(2, 2, 5, 5, generator=g, dtype=torch.float64) * 2)
+    z.requires_grad_()
+    w = (torch.rand(3, 2, 3, 3, generator=g, dtype=torch.float64) * 0.5).requires_grad_()
+    conv = _finite(lambda a, b: ttfs.conv2d(a, b, stride=2, padding=1))
+    assert torch.autograd.gradcheck(conv, (z, w), eps=1e-6, atol=1e-5)
+
+
+def test_silent_neurons_carry_no_nan_or_inf_into_gradients():
+    z = torch.tensor([[1.0, torch.inf, 3.0]], requires_grad=True)
+    w = torch.tensor([[0.1, 2.0], [5.0, 1.0], [0.2, 0.5]], requires_grad=True)
+    out = ttfs.dense(z, w)
+    assert torch.isinf(out[0, 0]) and torch.isfinite(out[0, 1])
+    loss = torch.nn.functional.cross_entropy(ttfs.output_logits(out), torch.tensor([0]))
+    loss.backward()
+    assert torch.isfinite(z.grad).all() and torch.isfinite(w.grad).all()
+    assert z.grad[0, 1] == 0  # a silent input gets no gradient
+
+
+def test_convolution_pads_with_no_spike():
+    # a single early input in the corner; padding must not act like an extra early spike
+    z = torch.full((1, 1, 3, 3), torch.inf)
+    z[0, 0, 0, 0] = 1.0
+    w = torch.full((1, 1, 3, 3), 2.0)
+    out = ttfs.conv2d(z, w, padding=1)
+    assert torch.isfinite(out).sum() == 4  # the 4 windows that contain the corner input
+    assert torch.allclose(out[torch.isfinite(out)], torch.tensor(2.0))
+
+
+def test_encoding_and_prediction():
+    delays = torch.tensor([[0.0, 0.5, 1.0]])
+    z = ttfs.encode(delays, scale=2.0)
+    assert torch.allclose(z[0, :2], torch.tensor([1.0, np.e])) and torch.isinf(z[0, 2])
+    out = torch.tensor([[3.0, 2.0, torch.inf], [torch.inf, torch.inf, torch.inf]])
+    assert ttfs.predict(out).tolist() == [1, -1]  # silence is no answer, never class 0
