@@ -352,11 +352,23 @@ def train(model, dataset, out, seed, epochs, max_seconds, as_json):  # fmt: skip
     record = {"model": recipe["name"], "dataset": str(dataset), "seed": seed,
               "test_accuracy": round(result.test_accuracy, 4), "epochs": result.epochs,
               "seconds": round(result.seconds, 1), "checkpoint": str(path)}  # fmt: skip
+    if recipe["model"] == "snn":  # dense spiking network: how early it decides
+        from simlidar.bench.early import early_decisions
+
+        record["early"] = early_decisions(result.model, dataset)
     if as_json:
         click.echo(json.dumps(record))
-    else:
-        click.echo(f"{recipe['name']}: test accuracy {result.test_accuracy:.4f} after "
-                   f"{result.epochs} epochs, {result.seconds:.0f} s; wrote {path}")  # fmt: skip
+        return
+    click.echo(f"{recipe['name']}: test accuracy {result.test_accuracy:.4f} after "
+               f"{result.epochs} epochs, {result.seconds:.0f} s; wrote {path}")  # fmt: skip
+    if "early" in record:
+        e = record["early"]
+        click.echo(f"  event-driven: accuracy {e['accuracy']:.4f}, {e['input_spikes_mean']:.1f} of "
+                   f"{e['input_spikes_total_mean']:.1f} input spikes consumed (R_data "
+                   f"{e['data_ratio_mean']:.3f}), {e['hidden_spikes_mean']:.1f} hidden spikes, "
+                   f"decision after {e['decision_time_ns_mean']} ns, energy "
+                   f"{e['energy_pj_mean']['0.37']:.1f} pJ (0.37 pJ/spike) / "
+                   f"{e['energy_pj_mean']['45.0']:.0f} pJ (45 pJ/spike)")  # fmt: skip
 
 
 @main.command()

@@ -2,6 +2,7 @@
 
 import json
 
+import pytest
 import torch
 from click.testing import CliRunner
 
@@ -33,6 +34,13 @@ def test_training_learns_and_is_seeded(datasets, tmp_path):
     x = torch.from_numpy(x)[:, None]
     assert torch.equal(predictions(model, x), predictions(a.model, x))
 
+    from simlidar.bench.early import early_decisions
+
+    early = early_decisions(a.model, datasets[0.1])
+    assert early["accuracy"] == pytest.approx(a.test_accuracy)  # event-driven = batched
+    assert 0 < early["input_spikes_mean"] <= early["input_spikes_total_mean"]
+    assert early["energy_pj_mean"]["45.0"] > early["energy_pj_mean"]["0.37"] > 0
+
 
 def test_the_train_command(datasets, tmp_path):
     result = CliRunner().invoke(main, ["train", "--model", "snn_simlidar", "--dataset",
@@ -41,6 +49,7 @@ def test_the_train_command(datasets, tmp_path):
     assert result.exit_code == 0, result.output
     record = json.loads(result.stdout)
     assert record["epochs"] == 1 and 0.0 <= record["test_accuracy"] <= 1.0
+    assert record["early"]["samples"] == 64
     assert (tmp_path / "snn_simlidar-seed0.pt").is_file()
 
 
