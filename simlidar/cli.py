@@ -175,28 +175,13 @@ def generate(classes, noise, train_size, test_size, seed, shift, out, width, sce
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def info(path, as_json):
     """Show a dataset's versions, classes, counts per split and class, noise and config."""
-    from simlidar.dataset.info import dataset_info
+    from simlidar.dataset.info import dataset_info, format_info
 
     summary = dataset_info(path)
     if as_json:
         click.echo(json.dumps(summary))
         return
-    click.echo(f"{summary['path']}")
-    click.echo(f"  dataset version {summary['dataset_version']}, "
-               f"simlidar {summary['simlidar_version']}")  # fmt: skip
-    click.echo(f"  release notes: {summary['release_notes']}")
-    click.echo(
-        f"  {summary['classes']} classes ({summary['class_mode']}), noise "
-        f"{summary['noise']:g}, seed {summary['seed']}, 16 x {summary['width']} pulses"
-    )
-    for split, size in summary["splits"].items():
-        counts = summary["counts"][split].values()
-        click.echo(f"  {split}: {size} samples, {min(counts)}..{max(counts)} per class")
-    width = max(len(n) for n in summary["counts"]["train"])
-    for name in summary["counts"]["train"]:
-        per = "  ".join(f"{s} {summary['counts'][s][name]:5d}" for s in summary["counts"])
-        click.echo(f"    {name:<{width}}  {per}")
-    click.echo(f"  config: {json.dumps(summary['config'], sort_keys=True)}")
+    click.echo(format_info(summary))
 
 
 @main.command()
@@ -362,13 +347,9 @@ def train(model, dataset, out, seed, epochs, max_seconds, as_json):  # fmt: skip
     click.echo(f"{recipe['name']}: test accuracy {result.test_accuracy:.4f} after "
                f"{result.epochs} epochs, {result.seconds:.0f} s; wrote {path}")  # fmt: skip
     if "early" in record:
-        e = record["early"]
-        click.echo(f"  event-driven: accuracy {e['accuracy']:.4f}, {e['input_spikes_mean']:.1f} of "
-                   f"{e['input_spikes_total_mean']:.1f} input spikes consumed (R_data "
-                   f"{e['data_ratio_mean']:.3f}), {e['hidden_spikes_mean']:.1f} hidden spikes, "
-                   f"decision after {e['decision_time_ns_mean']} ns, energy "
-                   f"{e['energy_pj_mean']['0.37']:.1f} pJ (0.37 pJ/spike) / "
-                   f"{e['energy_pj_mean']['45.0']:.0f} pJ (45 pJ/spike)")  # fmt: skip
+        from simlidar.bench.early import format_early
+
+        click.echo(format_early(record["early"]))
 
 
 @main.command()

@@ -36,3 +36,15 @@ def early_decisions(model: torch.nn.Module, dataset: str | Path, split: str = "t
         "hidden_spikes_mean": float(np.mean([d.hidden_spikes for d in runs])),
         "energy_pj_mean": {str(a): float(spikes.mean() * a) for a in ALPHAS_PJ},
     }  # fmt: skip
+
+
+def format_early(e: dict) -> str:
+    """One line on how early a network decides (what ``simlidar train`` prints)."""
+    when = f"{e['decision_time_ns_mean']:.0f} ns" if e["decision_time_ns_mean"] else "never"
+    return (
+        f"  event-driven: accuracy {e['accuracy']:.4f}, {e['input_spikes_mean']:.1f} of "
+        f"{e['input_spikes_total_mean']:.1f} input spikes consumed (R_data "
+        f"{e['data_ratio_mean']:.3f}), {e['hidden_spikes_mean']:.1f} hidden spikes, decision "
+        f"after {when} on average, energy {e['energy_pj_mean']['0.37']:.1f} pJ at 0.37 "
+        f"pJ/spike, {e['energy_pj_mean']['45.0']:.0f} pJ at 45 pJ/spike"
+    )

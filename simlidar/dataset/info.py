@@ -1,5 +1,6 @@
 """A dataset's summary: versions, classes, counts per split and class, noise, config."""
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -31,3 +32,23 @@ def dataset_info(path: str | Path) -> dict:
         "counts": counts,
         "config": first["config"],
     }
+
+
+def format_info(summary: dict) -> str:
+    """The text form of :func:`dataset_info` (what ``simlidar info`` prints)."""
+    lines = [
+        summary["path"],
+        f"  dataset version {summary['dataset_version']}, simlidar {summary['simlidar_version']}",
+        f"  release notes: {summary['release_notes']}",
+        f"  {summary['classes']} classes ({summary['class_mode']}), noise {summary['noise']:g}, "
+        f"seed {summary['seed']}, 16 x {summary['width']} pulses",
+    ]
+    for split, size in summary["splits"].items():
+        counts = summary["counts"][split].values()
+        lines.append(f"  {split}: {size} samples, {min(counts)}..{max(counts)} per class")
+    width = max(len(n) for n in summary["counts"]["train"])
+    for name in summary["counts"]["train"]:
+        per = "  ".join(f"{s} {summary['counts'][s][name]:5d}" for s in summary["counts"])
+        lines.append(f"    {name:<{width}}  {per}")
+    lines.append(f"  config: {json.dumps(summary['config'], sort_keys=True)}")
+    return "\n".join(lines)

@@ -50,6 +50,11 @@ def test_the_train_command(datasets, tmp_path):
     record = json.loads(result.stdout)
     assert record["epochs"] == 1 and 0.0 <= record["test_accuracy"] <= 1.0
     assert record["early"]["samples"] == 64
+    text = CliRunner().invoke(main, ["train", "--model", "snn_simlidar", "--dataset",
+                                     str(datasets[0.1]), "--out", str(tmp_path), "--epochs",
+                                     "1"])  # fmt: skip
+    assert text.exit_code == 0 and "snn_simlidar: test accuracy" in text.stdout
+    assert "event-driven: accuracy" in text.stdout and "pJ at 45 pJ/spike" in text.stdout
     assert (tmp_path / "snn_simlidar-seed0.pt").is_file()
 
 
