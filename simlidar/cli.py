@@ -325,6 +325,12 @@ def fetch(url, sha256, out, timeout, force):  # fmt: skip
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def train(model, dataset, out, seed, epochs, max_seconds, as_json):  # fmt: skip
     """Train a model on a dataset's train split, score it on the test split, save a checkpoint."""
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise SimlidarError(
+            "simlidar train needs PyTorch: pip install 'simlidar[torch]' (or torch itself)"
+        ) from None
     from simlidar.bench.train import save_checkpoint
     from simlidar.bench.train import train as run
     from simlidar.data import split_path
