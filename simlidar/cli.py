@@ -1,8 +1,8 @@
 """The ``simlidar`` command line. The only module that imports click.
 
-User mistakes end in one line on stderr: exit code 2 for a bad option value (usage), 1 for
-anything else (a bad recipe, a path that is not a dataset, an existing dataset, ...). ``--debug``
-shows the traceback instead.
+User mistakes end in one line on stderr: exit code 2 for a bad option value (usage, including a
+bad model recipe given to --model), 1 for anything else (a bad scene recipe, a path that is not
+a dataset, an existing dataset, ...). ``--debug`` shows the traceback instead.
 """
 
 import json

@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from simlidar.data import load_split
+from simlidar.data import load_split, split_path
+from simlidar.dataset.h5 import read_split_info
 from simlidar.errors import ConfigError
 from simlidar.models import ttfs
 from simlidar.models.registry import build_model
@@ -51,7 +52,7 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
     x_train, y_train = (torch.from_numpy(a) for a in load_split(dataset, "train"))
     x_test, y_test = (torch.from_numpy(a) for a in load_split(dataset, "test"))
     x_train, x_test = x_train[:, None], x_test[:, None]  # (N, 1, 16, W)
-    classes = int(max(y_train.max(), y_test.max())) + 1
+    classes = len(read_split_info(split_path(dataset, "train")).attrs["class_names"])
     generator = torch.Generator().manual_seed(seed)
     model = build_model(recipe, tuple(x_train.shape[1:]), classes, generator)
     optimizer = _optimizer(model.parameters(), training)

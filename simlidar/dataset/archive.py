@@ -40,6 +40,8 @@ def pack(path: str | Path, out: str | Path | None = None) -> tuple[Path, Path]:
     path = Path(path)
     _checked(path)
     out = Path(out) if out is not None else path.parent
+    if out.resolve() == path.resolve() or path.resolve() in out.resolve().parents:
+        raise DatasetError(f"--out {out}: expected a folder outside the dataset {path}")
     out.mkdir(parents=True, exist_ok=True)
     archive = out / f"{path.name}.tar.gz"
     tmp = out / f".{archive.name}.partial-{os.getpid()}"
@@ -142,7 +144,9 @@ def safe_extract(archive: Path, target: Path, max_bytes: int) -> Path:
             raise FetchError("extract", f"damaged archive ({exc})") from None
         tops, total = set(), 0
         for m in members:
-            parts = Path(m.name).parts
+            parts = Path(m.name).parts  # "./a/b" -> ("a", "b"); "./" -> ()
+            if not parts:
+                continue
             if m.name.startswith("/") or os.path.isabs(m.name) or ".." in parts:
                 raise FetchError("extract", f"member {m.name!r} would land outside the target")
             if not (m.isfile() or m.isdir()):
@@ -154,7 +158,10 @@ def safe_extract(archive: Path, target: Path, max_bytes: int) -> Path:
         if total > max_bytes:
             raise FetchError("extract", f"{total} bytes unpacked, more than the limit "
                              f"{max_bytes}")  # fmt: skip
-        tar.extractall(target, filter="data")
+        try:
+            tar.extractall(target, filter="data")
+        except (OSError, tarfile.TarError) as exc:
+            raise FetchError("extract", f"{exc.__class__.__name__}: {exc}") from None
     return target / tops.pop()
 
 

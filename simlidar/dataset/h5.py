@@ -121,6 +121,9 @@ def read_split_info(path: Path) -> SplitInfo:
             missing += [k for k in ("delays", "labels") if k not in f]
             if missing:
                 raise DatasetError(f"{path}: not a simlidar split (missing {', '.join(missing)})")
+            if f["delays"].ndim != 3:
+                raise DatasetError(f"{path}: 'delays' has shape {f['delays'].shape}, expected "
+                                   "(N, 16, W)")  # fmt: skip
             attrs = {k: _decode(v) for k, v in f.attrs.items()}
             info = SplitInfo(path, f["delays"].shape[0], f["delays"].shape[2], attrs)
     except OSError as exc:

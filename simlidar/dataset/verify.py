@@ -7,7 +7,7 @@ import numpy as np
 
 from simlidar.dataset.card import read_front_matter
 from simlidar.dataset.checksums import check_sums
-from simlidar.dataset.h5 import REQUIRED_ATTRS, SCHEMA, SPLITS
+from simlidar.dataset.h5 import REQUIRED_ATTRS, SCHEMA, SPLITS, _decode, check_version
 from simlidar.errors import DatasetError
 
 _BLOCK = 65_536  # rows read at a time: memory stays flat whatever the split size
@@ -24,6 +24,15 @@ def _check_split(path: Path, expected_size: int | None) -> list[str]:
         problems += [f"{path}: attribute '{k}' missing" for k in missing]
         size = f["labels"].shape[0] if "labels" in f else None
         width = f["delays"].shape[2] if "delays" in f and f["delays"].ndim == 3 else None
+        if "delays" in f and width is None:
+            problems.append(f"{path}: 'delays' has shape {f['delays'].shape}, expected "
+                            "(N, 16, W)")  # fmt: skip
+        version = f.attrs.get("dataset_version")
+        if version is not None:
+            try:
+                check_version(path, _decode(version))
+            except DatasetError as exc:
+                problems.append(str(exc))
         for name, (dtype, tail, _) in SCHEMA.items():
             if name not in f:
                 problems.append(f"{path}: dataset '{name}' missing")
@@ -34,7 +43,7 @@ def _check_split(path: Path, expected_size: int | None) -> list[str]:
             if size is not None and width is not None and ds.shape != (size, *tail(width)):
                 problems.append(f"{path}: '{name}' has shape {ds.shape}, expected "
                                 f"{(size, *tail(width))}")  # fmt: skip
-        if problems or size is None:  # the datasets cannot be read as the schema says
+        if problems or size is None or width is None:  # not readable as the schema says
             return problems
         if expected_size is not None and size != expected_size:
             problems.append(f"{path}: {size} samples, the card says {expected_size}")

@@ -3,9 +3,12 @@
 import torch
 from torch import nn
 
+from simlidar.errors import ConfigError
 from simlidar.models import ttfs
 from simlidar.models.layers import ConvTTFS, DenseTTFS
 from simlidar.models.registry import register_model
+
+MAX_SCALE = 80.0  # exp(80) = 5.5e34, below float32's 3.4e38
 
 
 class SpikingNet(nn.Module):
@@ -15,6 +18,9 @@ class SpikingNet(nn.Module):
     """
 
     def __init__(self, layers: list[nn.Module], scale: float):
+        if not 0.0 < scale <= MAX_SCALE:
+            raise ConfigError(f"scale={scale!r}: expected a value in (0, {MAX_SCALE}] so that "
+                              "exp(scale * delay) stays finite in float32")  # fmt: skip
         super().__init__()
         self.layers = nn.ModuleList(layers)
         self.scale = scale

@@ -44,6 +44,16 @@ def load_recipe(name_or_path: str | Path) -> dict:
     if recipe["model"] not in MODELS:
         raise ConfigError(f"{path}: key 'model': expected one of {sorted(MODELS)}, got "
                           f"{recipe['model']!r}")  # fmt: skip
+    training = recipe["training"]
+    for key, low in (("lr", 0.0), ("batch_size", 1), ("epochs", 1)):
+        value = training.get(key)
+        if (
+            not isinstance(value, int | float)
+            or isinstance(value, bool)
+            or not (value > low if key == "lr" else value >= low)
+        ):
+            raise ConfigError(f"{path}: key 'training.{key}': expected a number "
+                              f"{'>' if key == 'lr' else '>='} {low}, got {value!r}")  # fmt: skip
     recipe["name"] = path.stem
     return recipe
 

@@ -81,6 +81,41 @@ def test_pack_refuses_a_damaged_dataset(datasets, tmp_path):
     assert not (tmp_path / "out").exists() or not list((tmp_path / "out").iterdir())
 
 
+def test_pack_refuses_an_out_inside_the_dataset(datasets, tmp_path):
+    copy = tmp_path / "d"
+    shutil.copytree(datasets[0.1], copy)
+    for out in (copy, copy / "sub"):
+        with pytest.raises(DatasetError, match="expected a folder outside the dataset"):
+            pack(copy, out)
+    assert sorted(p.name for p in copy.iterdir()) == sorted(p.name for p in datasets[0.1].iterdir())
+
+
+def test_an_archive_made_with_dot_slash_members_installs(server, datasets, tmp_path):
+    url, root = server
+    buffer = io.BytesIO()
+    with tarfile.open(fileobj=buffer, mode="w:gz") as tar:  # like `tar czf x.tar.gz -C d .`
+        tar.add(datasets[0.1].parent, arcname=".", recursive=False)
+        tar.add(datasets[0.1], arcname=f"./{datasets[0.1].name}")
+    (root / "dot.tar.gz").write_bytes(buffer.getvalue())
+    digest = hashlib.sha256(buffer.getvalue()).hexdigest()
+    installed = fetch(f"{url}/dot.tar.gz", sha256=digest, out=tmp_path / "d", progress=False)
+    assert installed.name == datasets[0.1].name
+
+
+def test_a_member_conflict_names_the_extract_step(server, datasets, tmp_path):
+    url, root = server
+    buffer = io.BytesIO()
+    with tarfile.open(fileobj=buffer, mode="w:gz") as tar:
+        tar.add(datasets[0.1], arcname="ds")
+        info = tarfile.TarInfo("ds")  # a file where the folder is
+        info.size = 1
+        tar.addfile(info, io.BytesIO(b"x"))
+    (root / "conflict.tar.gz").write_bytes(buffer.getvalue())
+    digest = hashlib.sha256(buffer.getvalue()).hexdigest()
+    with pytest.raises(FetchError, match="fetch failed at extract"):
+        fetch(f"{url}/conflict.tar.gz", sha256=digest, out=tmp_path / "d", progress=False)
+
+
 def test_fetch_a_good_archive(server, packed, tmp_path, datasets):
     url, _ = server
     out = tmp_path / "data"

@@ -132,6 +132,23 @@ def test_verify_checks_schema_ranges_and_card(copy):
     assert "test.h5: labels outside 0..31" in problems
 
 
+def test_verify_catches_wrongly_shaped_arrays_and_newer_versions(copy):
+    from simlidar.dataset.checksums import write_sums
+
+    with h5py.File(copy / "train.h5", "r+") as f:
+        flat = f["delays"][:].reshape(len(f["delays"]), -1)
+        del f["delays"]
+        f["delays"] = flat
+    with h5py.File(copy / "test.h5", "r+") as f:
+        f.attrs["dataset_version"] = "9.0.0"
+    write_sums(copy)
+    problems = "\n".join(verify(copy))
+    assert "train.h5: 'delays' has shape (96, 256), expected (N, 16, W)" in problems
+    assert "test.h5: dataset version 9.0.0 is newer" in problems
+    with pytest.raises(DatasetError, match="'delays' has shape"):
+        read_split_info(copy / "train.h5")
+
+
 def test_verify_refuses_what_is_not_a_dataset(tmp_path):
     with pytest.raises(DatasetError, match="expected a dataset directory"):
         verify(tmp_path / "nothing")

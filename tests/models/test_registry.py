@@ -37,6 +37,15 @@ def test_bad_recipes_are_named(tmp_path):
     bad.write_text('model = "mlp"\n[architecture]\n[training]\n')
     with pytest.raises(ConfigError, match="key 'model': expected one of"):
         load_recipe(bad)
-    bad.write_text('model = "snn"\n[architecture]\nlayers = [3]\n[training]\n')
+    training = "[training]\nlr = 0.01\nbatch_size = 4\nepochs = 1\n"
+    bad.write_text('model = "snn"\n[architecture]\nlayers = [3]\n' + training)
     with pytest.raises(ConfigError, match=r"\[architecture\]"):
         build_model(load_recipe(bad), (1, 4, 4), 2)
+    bad.write_text('model = "snn"\n[architecture]\nscale = 100.0\n' + training)
+    with pytest.raises(ConfigError, match=r"scale=100.0: expected a value in \(0, 80.0\]"):
+        build_model(load_recipe(bad), (1, 4, 4), 2)
+    for broken, key in (("lr = 0.01", "training.lr"), ("batch_size = 4", "training.batch_size"),
+                        ("epochs = 1", "training.epochs")):  # fmt: skip
+        bad.write_text('model = "snn"\n[architecture]\n' + training.replace(broken, ""))
+        with pytest.raises(ConfigError, match=key):
+            load_recipe(bad)
