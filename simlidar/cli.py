@@ -255,9 +255,9 @@ def pack(path, out):
 
 def _hex_sha256(ctx, param, value):
     """--sha256 must be 64 hexadecimal digits (usage error otherwise)."""
-    if value is not None and not (
-        len(value) == 64 and all(c in "0123456789abcdefABCDEF" for c in value)
-    ):
+    from simlidar.dataset.checksums import is_sha256
+
+    if value is not None and not is_sha256(value):
         raise click.BadParameter(f"{value!r}: expected 64 hexadecimal digits")
     return value
 

@@ -16,7 +16,7 @@ import urllib.error
 import urllib.request
 from pathlib import Path
 
-from simlidar.dataset.checksums import sha256_file
+from simlidar.dataset.checksums import is_sha256, sha256_file
 from simlidar.dataset.verify import verify
 from simlidar.errors import DatasetError
 
@@ -169,8 +169,7 @@ def fetch(url: str, sha256: str | None = None, out: str | Path = ".", timeout: f
           force: bool = False, max_bytes: int = DEFAULT_MAX_BYTES,
           progress: bool = True) -> Path:  # fmt: skip
     """Download, check, extract and verify a dataset archive; return the installed folder."""
-    if sha256 is not None and (len(sha256) != 64 or any(c not in "0123456789abcdefABCDEF"
-                                                         for c in sha256)):  # fmt: skip
+    if sha256 is not None and not is_sha256(sha256):
         raise FetchError("checksum", f"--sha256 {sha256!r}: expected 64 hexadecimal digits")
     out = Path(out)
     try:

@@ -4,7 +4,6 @@ constants in :mod:`simlidar.dataset.about` and the split files' own attributes."
 import json
 from pathlib import Path
 
-import numpy as np
 import yaml
 
 from simlidar.dataset.about import (
@@ -22,7 +21,8 @@ from simlidar.dataset.about import (
     USES,
 )
 from simlidar.dataset.config import GeneratorConfig
-from simlidar.dataset.h5 import SCHEMA, SPLITS, dataset_splits, load_arrays
+from simlidar.dataset.h5 import SCHEMA, SPLITS, dataset_splits
+from simlidar.dataset.info import dataset_info
 from simlidar.dataset.version import RELEASE_DATES, RELEASE_NOTES
 from simlidar.errors import DatasetError
 
@@ -140,10 +140,7 @@ def render_card(path: str | Path) -> str:
     attrs = splits["train"].attrs
     config = GeneratorConfig.from_dict(attrs["config"])
     names = attrs["class_names"]
-    counts = {
-        s: np.bincount(load_arrays(info.path, ("labels",))["labels"], minlength=len(names))
-        for s, info in splits.items()
-    }
+    counts = dataset_info(path)["counts"]  # split -> class name -> count
     catalog = attrs["catalog"]
     sensor = attrs["sensor"]
     version = attrs["dataset_version"]
@@ -174,7 +171,7 @@ def render_card(path: str | Path) -> str:
         f"What a value means: {DELAY_MEANING}\n",
         _table(
             ["class", "name", *splits],
-            [[k, name, *(int(counts[s][k]) for s in splits)] for k, name in enumerate(names)],
+            [[k, name, *(counts[s][name] for s in splits)] for k, name in enumerate(names)],
         )
         + "\n",  # fmt: skip
         "Each split file holds these datasets (N samples):\n",

@@ -7,6 +7,11 @@ SUMS = "SHA256SUMS"
 _BLOCK = 1 << 20
 
 
+def is_sha256(text: str) -> bool:
+    """Whether ``text`` is a hex sha256 digest (64 hexadecimal digits, any case)."""
+    return len(text) == 64 and all(c in "0123456789abcdefABCDEF" for c in text)
+
+
 def sha256_file(path: str | Path) -> str:
     """Hex sha256 of a file, read in 1 MiB blocks."""
     digest = hashlib.sha256()
