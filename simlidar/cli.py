@@ -292,6 +292,15 @@ def fetch(url, sha256, out, timeout, force):  # fmt: skip
     click.echo(f"installed {run(url, sha256, out, timeout=timeout, force=force)}")
 
 
+def _need_torch(command: str) -> None:
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise SimlidarError(
+            f"simlidar {command} needs PyTorch: pip install 'simlidar[torch]' (or torch itself)"
+        ) from None
+
+
 @main.command()
 @click.option(
     "--model",
@@ -325,12 +334,7 @@ def fetch(url, sha256, out, timeout, force):  # fmt: skip
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def train(model, dataset, out, seed, epochs, max_seconds, as_json):  # fmt: skip
     """Train a model on a dataset's train split, score it on the test split, save a checkpoint."""
-    try:
-        import torch  # noqa: F401
-    except ImportError:
-        raise SimlidarError(
-            "simlidar train needs PyTorch: pip install 'simlidar[torch]' (or torch itself)"
-        ) from None
+    _need_torch("train")
     from simlidar.bench.train import save_checkpoint
     from simlidar.bench.train import train as run
     from simlidar.data import split_path
@@ -356,6 +360,64 @@ def train(model, dataset, out, seed, epochs, max_seconds, as_json):  # fmt: skip
         from simlidar.bench.early import format_early
 
         click.echo(format_early(record["early"]))
+
+
+@main.command()
+@click.option(
+    "--suite",
+    default="quick",
+    show_default=True,
+    help="Suite: a name in benchmark/ (quick, paper) or a .toml file.",
+)
+@click.option(
+    "--models",
+    default=None,
+    help="Comma-separated model recipes to run instead of the suite's (e.g. snn_simlidar,cnn).",
+)
+@click.option(
+    "--dataset",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Run the suite's models on this dataset directory instead of the suite's datasets.",
+)
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="Output directory (default: bench/<suite name>).",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print results.json's content on stdout.")
+def bench(suite, models, dataset, out, as_json):
+    """Train and score the suite's models on its datasets: accuracy, how early spiking networks
+    decide, energy, latency, size. Writes results.json, report.md and pictures; a rerun into
+    the same directory skips the cells already finished."""
+    _need_torch("bench")
+    from simlidar.bench.run import run_suite
+    from simlidar.bench.suite import load_suite
+
+    try:
+        chosen = load_suite(suite)
+    except ConfigError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--suite'") from None
+    names = None
+    if models is not None:
+        from simlidar.models.registry import load_recipe
+
+        names = [m.strip() for m in models.split(",") if m.strip()]
+        try:
+            for name in names or [models]:
+                load_recipe(name)
+        except ConfigError as exc:
+            raise click.BadParameter(str(exc), param_hint="'--models'") from None
+    out = out if out is not None else Path("bench") / chosen.name
+    results = run_suite(chosen, out, models=names, dataset=dataset, progress=not as_json)
+    if as_json:
+        click.echo(json.dumps(results))
+        return
+    click.echo(f"{len(results['cells'])} cells in {out}: results.json, report.md")
+    for cell in results["cells"]:
+        click.echo(f"  {cell['dataset']}  {cell['model']:<14} seed {cell['seed']}  accuracy "
+                   f"{cell['accuracy']:.4f}  latency {cell['latency_ms']:.2f} ms")  # fmt: skip
 
 
 @main.command()

@@ -26,6 +26,10 @@ def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
     names = zipfile.ZipFile(wheel).namelist()
     assert "simlidar/_content/scenes/catalog.toml" in names
     assert "simlidar/_content/scenes/layouts/tunnel.toml" in names
+    for folder in ("baselines", "benchmark"):  # every recipe and suite, and nothing else
+        shipped = {n.split("/")[-1] for n in names if n.startswith(f"simlidar/_content/{folder}/")}
+        assert {p.name for p in (ROOT / folder).glob("*.toml")} <= shipped
+    assert not [n for n in names if "benchmark/results" in n]
 
     env_dir = tmp_path / "venv"
     venv.EnvBuilder(system_site_packages=True, with_pip=False).create(env_dir)

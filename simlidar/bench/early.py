@@ -11,31 +11,47 @@ from simlidar.models import ttfs
 from simlidar.models.events import ALPHAS_PJ, decide
 
 
-def early_decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test") -> dict:
-    """Run :func:`simlidar.models.events.decide` on every sample of a split; summarise.
+def decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test"):
+    """Run :func:`simlidar.models.events.decide` on every sample of a split.
 
     The model must be a dense spiking network (``SpikingNet`` of dense layers).
+    returns : list of Decision, labels (N,), time of flight at delay 1 in ns (None if the
+        dataset is not a time-of-flight one)
     """
     x, y = load_split(dataset, split)
     with h5py.File(split_path(dataset, split)) as f:
-        tof_max_ns = float(f.attrs["tof_max_ns"])
+        tof_max_ns = float(f.attrs["tof_max_ns"]) if "tof_max_ns" in f.attrs else None
     weights = [m.weight.detach().double().numpy() for m in model.layers]
     z = ttfs.encode(torch.from_numpy(x.astype(np.float64)).flatten(1), model.scale).numpy()
-    runs = [decide(weights, sample) for sample in z]
+    return [decide(weights, sample) for sample in z], y, tof_max_ns
+
+
+def early_decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test",
+                    per_sample: bool = False) -> dict:  # fmt: skip
+    """Summarise :func:`decisions` over a split (means over samples); with ``per_sample``,
+    also the decision time (ns, None if undecided) and input spikes consumed of each sample."""
+    runs, y, tof_max_ns = decisions(model, dataset, split)
     decided = [d for d in runs if d.label >= 0]
     spikes = np.array([d.spikes for d in runs])
-    return {
+    times_ns = [d.time_ns(model.scale, tof_max_ns) if d.label >= 0 and tof_max_ns else None
+                for d in runs]  # fmt: skip
+    known = [t for t in times_ns if t is not None]
+    summary = {
         "samples": len(runs),
         "accuracy": float(np.mean([d.label == t for d, t in zip(runs, y)])),
         "no_decision": len(runs) - len(decided),
-        "decision_time_ns_mean": float(np.mean([d.time_ns(model.scale, tof_max_ns)
-                                                for d in decided])) if decided else None,
+        "decision_time_mean": float(np.mean([d.time for d in decided])) if decided else None,
+        "decision_time_ns_mean": float(np.mean(known)) if known else None,
         "input_spikes_mean": float(np.mean([d.input_spikes for d in runs])),
         "input_spikes_total_mean": float(np.mean([d.input_total for d in runs])),
         "data_ratio_mean": float(np.mean([d.data_ratio for d in runs])),
         "hidden_spikes_mean": float(np.mean([d.hidden_spikes for d in runs])),
         "energy_pj_mean": {str(a): float(spikes.mean() * a) for a in ALPHAS_PJ},
-    }  # fmt: skip
+    }
+    if per_sample:
+        summary["per_sample"] = {"decision_time_ns": times_ns,
+                                 "input_spikes": [d.input_spikes for d in runs]}  # fmt: skip
+    return summary
 
 
 def format_early(e: dict) -> str:

@@ -33,10 +33,24 @@ def _optimizer(params, training: dict):
     raise ConfigError(f"[training] optimizer={kind!r}: expected 'sgd' or 'adam'")
 
 
+def is_spiking(model: torch.nn.Module) -> bool:
+    """Spiking models output first-spike times (z domain); conventional ones output logits."""
+    return getattr(model, "spiking", False)
+
+
+def logits(model: torch.nn.Module, out: torch.Tensor) -> torch.Tensor:
+    """Logits for the cross-entropy loss: -z of a spiking model's outputs, or ``out`` itself."""
+    return ttfs.output_logits(out) if is_spiking(model) else out
+
+
 def predictions(model: torch.nn.Module, x: torch.Tensor, batch: int = 500) -> torch.Tensor:
-    """Predicted classes (-1: no output spike) of a spiking model, in batches."""
+    """Predicted classes of any registered model, in batches (-1: no output spike)."""
+    model.eval()
     with torch.no_grad():
-        return torch.cat([ttfs.predict(model(x[i : i + batch])) for i in range(0, len(x), batch)])
+        outs = [model(x[i : i + batch]) for i in range(0, len(x), batch)]
+    if is_spiking(model):
+        return torch.cat([ttfs.predict(o) for o in outs])
+    return torch.cat([o.argmax(1) for o in outs])
 
 
 def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None = None,
@@ -69,8 +83,10 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
         for i in range(0, len(order), batch):
             rows = order[i : i + batch]
             out = model(x_train[rows])
-            loss = torch.nn.functional.cross_entropy(ttfs.output_logits(out), y_train[rows])
-            total = loss + training.get("weight_sum_penalty", 0.0) * model.penalty()
+            loss = torch.nn.functional.cross_entropy(logits(model, out), y_train[rows])
+            total = loss
+            if is_spiking(model):
+                total = total + training.get("weight_sum_penalty", 0.0) * model.penalty()
             total = total + training.get("l2", 0.0) * sum((p**2).sum() for p in model.parameters())
             optimizer.zero_grad()
             total.backward()
@@ -78,7 +94,6 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
                 torch.nn.utils.clip_grad_norm_(model.parameters(), training["clip_grad_norm"])
             optimizer.step()
             losses.append(loss.item())
-        model.eval()
         accuracy = (predictions(model, x_test) == y_test).float().mean().item()
         seconds = time.perf_counter() - start
         history.append({"epoch": epoch, "loss": float(np.mean(losses)),

@@ -1,3 +1,3 @@
-"""Spiking (time-to-first-spike) layers and networks, and the model registry."""
+"""Spiking (time-to-first-spike) and conventional networks, and the model registry."""
 
-from simlidar.models import networks  # noqa: F401  (registers the models)
+from simlidar.models import conventional, networks  # noqa: F401  (registers the models)

@@ -17,6 +17,8 @@ class SpikingNet(nn.Module):
     scale : input spike time t = scale * delay (a missing return is no spike)
     """
 
+    spiking = True  # outputs are first-spike times (z domain), not logits
+
     def __init__(self, layers: list[nn.Module], scale: float):
         if not 0.0 < scale <= MAX_SCALE:
             raise ConfigError(f"scale={scale!r}: expected a value in (0, {MAX_SCALE}] so that "

@@ -1,0 +1,250 @@
+"""report.md and pictures from a benchmark's results, beside the paper's reported numbers."""
+
+import json
+import tomllib
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from simlidar.content import content_dir
+
+PAPER_FILE = "reported/wang2020.toml"
+
+
+def paper_numbers() -> dict:
+    """What Wang et al. (2020) reported (``baselines/reported/wang2020.toml``)."""
+    return tomllib.loads((content_dir("baselines") / PAPER_FILE).read_text())
+
+
+def _stats(values: list[float]) -> tuple[float, float, int]:
+    return float(np.mean(values)), float(np.std(values)), len(values)
+
+
+def _pct(values: list[float]) -> str:
+    mean, std, n = _stats([100 * v for v in values])
+    return f"{mean:.2f} ± {std:.2f}" if n > 1 else f"{mean:.2f}"
+
+
+def _num(value, fmt: str = "{:.3g}") -> str:
+    return "–" if value is None else fmt.format(value)
+
+
+def _groups(cells: list[dict], *keys: str) -> dict:
+    groups = defaultdict(list)
+    for c in cells:
+        groups[tuple(c[k] for k in keys)].append(c)
+    return groups
+
+
+def _mean(cells: list[dict], get) -> float | None:
+    values = [get(c) for c in cells]
+    values = [v for v in values if v is not None]
+    return float(np.mean(values)) if values else None
+
+
+def accuracy_by_noise(cells: list[dict], paper: dict) -> list[str]:
+    """Generated datasets: accuracy (%) of each model at each noise level, the paper's SNN."""
+    sim = [c for c in cells if c["source"] == "simlidar-generator"]
+    if not sim:
+        return []
+    levels = sorted({c["noise"] for c in sim})
+    models = sorted({c["model"] for c in sim})
+    by = _groups(sim, "model", "noise")
+    lines = ["## Sim LiDAR: accuracy (%) by noise level", "",
+             "Mean ± standard deviation over seeds (number of seeds in brackets).", "",
+             "| model | " + " | ".join(f"noise {v:g}" for v in levels) + " |",
+             "|---" * (len(levels) + 1) + "|"]  # fmt: skip
+    for m in models:
+        row = [f"{_pct([c['accuracy'] for c in by[m, v]])} ({len(by[m, v])})" if by[m, v]
+               else "–" for v in levels]  # fmt: skip
+        lines.append(f"| {m} | " + " | ".join(row) + " |")
+    reported = dict(zip(paper["simlidar"]["noise"], paper["simlidar"]["snn_accuracy"]))
+    row = [f"{reported[v]:.2f}" if v in reported else "–" for v in levels]
+    lines.append("| *paper: SNN 256-400-32* | " + " | ".join(row) + " |")
+    return lines + [""]
+
+
+def by_model(cells: list[dict], paper: dict) -> list[str]:
+    """Per dataset: accuracy, decision time, data ratio, energy, latency, size by model."""
+    lines = []
+    kitti = paper["kitti"]["accuracy"]
+    for (dataset,), group in sorted(_groups(cells, "dataset").items()):
+        source = group[0]["source"]
+        lines += [f"## {dataset}", "",
+                  f"{group[0]['train_size']} train / {group[0]['test_size']} test samples, "
+                  f"input {' x '.join(map(str, group[0]['input_shape']))}, "
+                  f"{group[0]['classes']} classes, noise {group[0]['noise']:g}.", "",
+                  "| model | accuracy % | decision ns | input spikes used | R_data | "
+                  "hidden spikes | energy pJ (0.37 / 45 pJ/spike; 4.6 pJ/MAC) | MACs | "
+                  "latency ms | samples/s | params | footprint MB | epochs |",
+                  "|---" * 13 + "|"]  # fmt: skip
+        for (model,), runs in sorted(_groups(group, "model").items()):
+            early = [c for c in runs if c.get("early")]
+            if early:
+
+                def e(key, early=early):
+                    return _mean(early, lambda cell, key=key: cell["early"][key])
+
+                pj = [_mean(early, lambda c, a=a: c["early"]["energy_pj_mean"][a])
+                      for a in ("0.37", "45.0")]  # fmt: skip
+                energy = f"{pj[0]:.3g} / {pj[1]:.3g}"
+                spikes = f"{e('input_spikes_mean'):.1f} of {e('input_spikes_total_mean'):.1f}"
+                timing = [_num(e("decision_time_ns_mean"), "{:.0f}"), spikes,
+                          _num(e("data_ratio_mean"), "{:.3f}"),
+                          _num(e("hidden_spikes_mean"), "{:.1f}"), energy, "–"]  # fmt: skip
+            elif runs[0]["kind"] == "conventional":
+                energy = _num(_mean(runs, lambda c: c["energy_pj_mac"]), "{:.3g}")
+                timing = ["–", "–", "–", "–", energy,
+                          _num(_mean(runs, lambda c: c["macs"]), "{:.3g}")]  # fmt: skip
+            else:
+                timing = ["–"] * 6  # a spiking CNN: no event-driven evaluator yet
+            lines.append(
+                f"| {model} | {_pct([c['accuracy'] for c in runs])} | " + " | ".join(timing)
+                + f" | {_mean(runs, lambda c: c['latency_ms']):.3f}"
+                f" | {_mean(runs, lambda c: c['throughput_per_s']):.0f}"
+                f" | {runs[0]['params']:,} | {runs[0]['footprint'] / 1e6:.2f}"
+                f" | {_num(_mean(runs, lambda c: c['epochs']), '{:.0f}')} |"
+            )  # fmt: skip
+        if source == "kitti":
+            lines += ["", "The paper on KITTI (32,456 / 8,000 crops): " + ", ".join(
+                f"{k} {v:.2f} %" for k, v in kitti.items()) + f"; the SCNN used "
+                f"{paper['kitti']['data_ratio_scnn']:.0%} of the input spikes."]  # fmt: skip
+        lines.append("")
+    return lines
+
+
+def plot_accuracy(cells: list[dict], paper: dict, path: Path) -> bool:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    sim = [c for c in cells if c["source"] == "simlidar-generator"]
+    if not sim:
+        return False
+    fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
+    for (model,), runs in sorted(_groups(sim, "model").items()):
+        by = _groups(runs, "noise")
+        levels = sorted(k[0] for k in by)
+        stats = [_stats([100 * c["accuracy"] for c in by[(v,)]]) for v in levels]
+        ax.errorbar(levels, [s[0] for s in stats], yerr=[s[1] for s in stats], marker="o",
+                    capsize=3, label=model)  # fmt: skip
+    ax.plot(paper["simlidar"]["noise"], paper["simlidar"]["snn_accuracy"], "k--", marker="x",
+            label="paper: SNN")  # fmt: skip
+    chance = 100 / sim[0]["classes"]
+    ax.axhline(chance, color="grey", lw=0.8, ls=":", label=f"chance ({chance:.1f} %)")
+    ax.set_xlabel("noise level a (U(0, a) added to every delay)")
+    ax.set_ylabel("test accuracy (%)")
+    ax.set_ylim(0, 100)
+    ax.legend(fontsize=7)
+    ax.set_title("Sim LiDAR: accuracy vs noise (mean ± std over seeds)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, metadata={"Software": None})
+    plt.close(fig)
+    return True
+
+
+def plot_decisions(out: Path, path: Path) -> bool:
+    """Histograms of decision times and input spikes consumed (dense spiking networks)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs = defaultdict(lambda: {"decision_time_ns": [], "input_spikes": []})
+    for file in sorted((out / "cells").glob("*.json")):
+        cell = json.loads(file.read_text())
+        if "per_sample" in cell:
+            key = f"{cell['model']} @ {cell['dataset']}"
+            for name in runs[key]:
+                runs[key][name] += [v for v in cell["per_sample"][name] if v is not None]
+    if not runs:
+        return False
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.5), dpi=100)
+    for key, values in sorted(runs.items()):
+        if values["decision_time_ns"]:
+            axes[0].hist(values["decision_time_ns"], bins=40, histtype="step", label=key)
+        axes[1].hist(values["input_spikes"], bins=40, histtype="step", label=key)
+    axes[0].set_xlabel("decision time after the first pulse left (ns)")
+    axes[1].set_xlabel("input spikes consumed before the decision")
+    for ax in axes:
+        ax.set_ylabel("test samples")
+    axes[1].legend(fontsize=6)
+    fig.suptitle("When the spiking network decides (event-driven, all seeds)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, metadata={"Software": None})
+    plt.close(fig)
+    return True
+
+
+def plot_confusions(cells: list[dict], path: Path) -> bool:
+    """Row-normalised confusion matrices, one per model, at each model's first dataset."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if not cells:
+        return False
+    first = sorted({c["dataset"] for c in cells})[0]
+    group = _groups([c for c in cells if c["dataset"] == first], "model")
+    fig, axes = plt.subplots(1, len(group), figsize=(3 * len(group), 3.2), dpi=100,
+                             squeeze=False)  # fmt: skip
+    for ax, ((model,), runs) in zip(axes[0], sorted(group.items())):
+        matrix = np.sum([np.array(c["confusion"]) for c in runs], axis=0).astype(float)
+        matrix /= np.maximum(matrix.sum(axis=1, keepdims=True), 1)
+        ax.imshow(matrix, cmap="viridis", vmin=0, vmax=1)
+        ax.set_title(model, fontsize=8)
+        ax.set_xlabel("predicted (last column: none)", fontsize=6)
+        ax.set_ylabel("true", fontsize=6)
+        ax.tick_params(labelsize=5)
+    fig.suptitle(f"Confusion matrices on {first} (rows normalised, all seeds)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, metadata={"Software": None})
+    plt.close(fig)
+    return True
+
+
+def write_report(results: dict, out: Path) -> Path:
+    """Write ``<out>/report.md`` and its pictures from results.json's content."""
+    paper = paper_numbers()
+    cells = results["cells"]
+    m = results["machine"]
+    lines = [
+        f"# Benchmark report: suite {results['suite']['name']}", "",
+        results["suite"]["description"], "",
+        f"simlidar {results['simlidar_version']}; {len(cells)} cells; "
+        f"{results['seconds'] / 60:.1f} min of training and measuring on {m['cpu']} "
+        f"({m['cores']} cores, torch {m['torch']}, {m['torch_threads']} threads).", "",
+        "All models were trained from scratch here: no pretrained weights exist for these "
+        "inputs. Training budgets are in each cell of `results.json`. The paper's numbers come "
+        f"from `baselines/{PAPER_FILE}` ({paper['citation']}).", "",
+    ]  # fmt: skip
+    lines += accuracy_by_noise(cells, paper)
+    pictures = [
+        ("accuracy_vs_noise.png", plot_accuracy(cells, paper, out / "accuracy_vs_noise.png"),
+         "accuracy vs noise"),
+        ("decisions.png", plot_decisions(out, out / "decisions.png"),
+         "decision times and input spikes consumed"),
+        ("confusion.png", plot_confusions(cells, out / "confusion.png"), "confusion matrices"),
+    ]  # fmt: skip
+    lines += [f"![{alt}]({name})\n" for name, made, alt in pictures if made]
+    lines += by_model(cells, paper)
+    lines += [
+        "## How the figures are measured", "",
+        "* accuracy: test split; a spiking network whose outputs never fire counts as wrong.",
+        "* decision ns, input spikes used, R_data, hidden spikes: the event-driven evaluator "
+        "(dense spiking networks), means over test samples; R_data = input spikes consumed "
+        "before the decision / all input spikes of the sample.",
+        "* energy: spiking networks, spikes (input consumed + hidden + output) x alpha at "
+        f"{paper['energy']['alpha_pj'][0]} and {paper['energy']['alpha_pj'][1]} pJ per spike, "
+        "as the paper estimates it; conventional networks, multiply-accumulates x 4.6 pJ "
+        "(32-bit float at 45 nm, Horowitz 2014).",
+        "* latency: batch 1, median of 30 runs on this CPU; samples/s: one batch of 512.",
+        "* params, footprint (bytes of parameters and buffers), connection and activation "
+        "sparsity, synaptic operations: NeuroBench names, in `results.json`.", "",
+    ]  # fmt: skip
+    path = out / "report.md"
+    path.write_text("\n".join(lines))
+    return path

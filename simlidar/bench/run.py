@@ -1,0 +1,196 @@
+"""Run a suite: train and score every (dataset, model, seed) cell, write results and report.
+
+Output directory layout::
+
+    <out>/suite.json          which suite (name, sha256 of its file) owns the directory
+    <out>/datasets/...        datasets generated on the fly by the suite
+    <out>/cells/<id>.json     one finished cell (written atomically): a rerun skips it
+    <out>/results.json        every finished cell plus suite, versions, machine, time taken
+    <out>/report.md, *.png    tables beside the paper's numbers, and pictures
+"""
+
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from simlidar import __version__
+from simlidar.bench import metrics
+from simlidar.bench.early import early_decisions
+from simlidar.bench.suite import Suite
+from simlidar.bench.train import is_spiking, predictions, train
+from simlidar.data import load_split
+from simlidar.dataset.h5 import dataset_splits
+from simlidar.errors import DatasetError
+from simlidar.models.registry import load_recipe
+
+RECORD_KEYS = ("dataset", "source", "noise", "model", "seed", "accuracy", "latency_ms", "params")
+
+
+def _write_json(path: Path, data, indent: int | None = 1) -> None:
+    tmp = path.with_name(f".{path.name}.partial")
+    tmp.write_text(json.dumps(data, indent=indent) + "\n")
+    tmp.replace(path)
+
+
+def machine() -> dict:
+    """CPU model, cores, torch version and threads: what the timings depend on."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"cpu": cpu, "cores": os.cpu_count(), "torch": torch.__version__,
+            "torch_threads": torch.get_num_threads(), "python": platform.python_version(),
+            "platform": platform.platform()}  # fmt: skip
+
+
+def claim(out: Path, suite: Suite) -> None:
+    """Make ``out`` the suite's output directory, or refuse one that belongs to another suite
+    (nothing in it is touched)."""
+    marker = out / "suite.json"
+    if marker.is_file():
+        try:
+            owner = json.loads(marker.read_text())
+        except (OSError, ValueError):
+            owner = {}
+        if owner.get("sha256") != suite.sha256:
+            raise DatasetError(
+                f"--out {out}: belongs to suite {owner.get('name', '?')!r} "
+                f"(sha256 {str(owner.get('sha256'))[:12]}), not to {suite.name!r} (sha256 "
+                f"{suite.sha256[:12]}); expected a new directory or one of this suite"
+            )
+        return
+    if out.exists() and any(out.iterdir()):
+        raise DatasetError(f"--out {out}: not empty and not a benchmark output directory; "
+                           "expected a new or empty directory")  # fmt: skip
+    (out / "cells").mkdir(parents=True, exist_ok=True)
+    _write_json(marker, {"name": suite.name, "sha256": suite.sha256, "path": str(suite.path)})
+
+
+def resolve_datasets(suite: Suite, out: Path, dataset: Path | None, progress: bool) -> list[Path]:
+    """The dataset directories of the run: ``dataset`` if given, the suite's paths, or the
+    suite's generated datasets (made under ``<out>/datasets`` the first time)."""
+    if dataset is not None:
+        paths = [dataset]
+    elif suite.generate is None:
+        paths = list(suite.datasets)
+    else:
+        from simlidar.dataset.generate import dataset_name, generate
+        from simlidar.scene.recipe import load_catalog
+
+        root = out / "datasets"
+        missing = [n for n in suite.noise
+                   if not (root / dataset_name(suite.generate.with_noise(n))).is_dir()]  # fmt: skip
+        if missing:
+            generate(suite.generate, missing, load_catalog(), root, progress=progress)
+        paths = [root / dataset_name(suite.generate.with_noise(n)) for n in suite.noise]
+    for path in paths:
+        dataset_splits(path)  # a dataset in the schema, or a one-line error
+    return paths
+
+
+def cell_id(dataset: Path, model: str, seed: int) -> str:
+    return f"{dataset.name}__{Path(model).stem}__seed{seed}"
+
+
+def run_cell(dataset: Path, model: str, seed: int, suite: Suite) -> dict:
+    """Train one model on one dataset with one seed and measure it (see README of bench)."""
+    recipe = load_recipe(model)
+    budget = suite.budget_for(model)
+    splits = dataset_splits(dataset)
+    attrs = splits["test"].attrs
+    result = train(recipe, dataset, seed=seed, epochs=budget.get("epochs"),
+                   max_seconds=budget.get("max_seconds"), progress=False)  # fmt: skip
+    model_ = result.model
+    x, y = load_split(dataset, "test")
+    x = torch.from_numpy(x)[:, None]
+    predicted = predictions(model_, x).numpy()
+    classes = len(attrs["class_names"])
+    record = {
+        "dataset": dataset.name,
+        "source": attrs.get("source", "simlidar-generator"),
+        "noise": float(attrs["noise"]),
+        "model": recipe["name"],
+        "seed": seed,
+        "accuracy": float(np.mean(predicted == y)),
+        "kind": "spiking" if is_spiking(model_) else "conventional",
+        "family": recipe["model"],
+        "classes": classes,
+        "train_size": splits["train"].size,
+        "test_size": splits["test"].size,
+        "input_shape": list(x.shape[1:]),
+        "epochs": result.epochs,
+        "train_seconds": round(result.seconds, 2),
+        "budget": budget,
+        **metrics.footprint(model_),
+    }
+    if record["kind"] == "spiking":
+        early = None
+        if recipe["model"] == "snn":  # the event-driven evaluator runs dense networks
+            early = early_decisions(model_, dataset, per_sample=True)
+            record["per_sample"] = early.pop("per_sample")
+            record["early"] = early
+        figures = metrics.spiking_figures(model_, x, early)
+    else:
+        figures = metrics.conventional_figures(model_, x, suite.board_power_w)
+    record.update(figures)
+    record["confusion"] = metrics.confusion_matrix(y, predicted, classes).tolist()
+    return record
+
+
+def run_suite(suite: Suite, out: Path, models: list[str] | None = None,
+              dataset: Path | None = None, progress: bool = True) -> dict:  # fmt: skip
+    """Run every unfinished cell of the suite into ``out``; write results.json and the report.
+
+    returns : the results (what results.json holds)
+    """
+    from tqdm import tqdm
+
+    from simlidar.bench.report import write_report
+
+    models = list(models or suite.models)
+    for model in models:
+        load_recipe(model)  # unknown recipes fail before anything is written
+    if dataset is not None:
+        dataset_splits(dataset)
+    claim(out, suite)
+    datasets = resolve_datasets(suite, out, dataset, progress)
+    cells = [(d, m, s) for d in datasets for m in models for s in suite.seeds]
+    todo = [c for c in cells if not (out / "cells" / f"{cell_id(*c)}.json").is_file()]
+    bar = tqdm(todo, desc=f"bench {suite.name}", unit="cell", disable=not progress,
+               dynamic_ncols=True)  # fmt: skip
+    for d, m, s in bar:
+        bar.set_postfix_str(cell_id(d, m, s))
+        start = time.perf_counter()
+        record = run_cell(d, m, s, suite)
+        record["seconds"] = round(time.perf_counter() - start, 2)
+        _write_json(out / "cells" / f"{cell_id(d, m, s)}.json", record, indent=None)
+    results = collect(out, suite)
+    write_report(results, out)
+    return results
+
+
+def collect(out: Path, suite: Suite) -> dict:
+    """results.json from every finished cell in ``out`` (per-sample arrays stay in cells/)."""
+    records = []
+    for path in sorted((out / "cells").glob("*.json")):
+        record = json.loads(path.read_text())
+        record.pop("per_sample", None)
+        records.append(record)
+    results = {
+        "suite": {"name": suite.name, "sha256": suite.sha256, "description": suite.description},
+        "simlidar_version": __version__,
+        "machine": machine(),
+        "seconds": round(sum(r["seconds"] for r in records), 1),
+        "cells": records,
+    }
+    _write_json(out / "results.json", results)
+    return results

@@ -1,0 +1,146 @@
+"""Benchmark suites: which models, on which datasets, with which seeds and training budget.
+
+A suite is a TOML file (``benchmark/<name>.toml`` or any path)::
+
+    name = "quick"
+    description = "..."
+    models = ["snn_simlidar", "cnn"]     # recipes in baselines/ (or .toml paths)
+    seeds = [0]
+    board_power_w = 65.0                 # optional: the paper's energy estimate, power x latency
+
+    [generate]                           # datasets made on the fly (GeneratorConfig fields) ...
+    noise = [0.1, 0.5]                   # ... one per noise level
+    train_size = 640
+
+    # datasets = ["data/my-dataset"]     # ... or dataset directories instead of [generate]
+
+    [budget]                             # per (dataset, model, seed) cell
+    epochs = 5
+    max_seconds = 60
+    [budget.snn_simlidar]                # per model, overriding the defaults above
+    epochs = 10
+"""
+
+import hashlib
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from simlidar.content import content_dir
+from simlidar.dataset.config import GeneratorConfig
+from simlidar.errors import ConfigError
+from simlidar.models.registry import load_recipe
+
+KEYS = {"name", "description", "models", "seeds", "board_power_w", "generate", "datasets",
+        "budget"}  # fmt: skip
+BUDGET_KEYS = {"epochs", "max_seconds"}
+
+
+@dataclass(frozen=True)
+class Suite:
+    name: str
+    path: Path
+    sha256: str  # of the suite file's bytes: an output directory belongs to one suite
+    description: str
+    models: tuple[str, ...]
+    seeds: tuple[int, ...]
+    generate: GeneratorConfig | None  # datasets made on the fly, one per noise level ...
+    noise: tuple[float, ...]
+    datasets: tuple[Path, ...]  # ... or existing dataset directories
+    budget: dict = field(default_factory=dict)  # model -> {"epochs", "max_seconds"}
+    board_power_w: float | None = None
+
+    def budget_for(self, model: str) -> dict:
+        return {**self.budget.get("*", {}), **self.budget.get(model, {})}
+
+
+def suite_names() -> list[str]:
+    return sorted(p.stem for p in content_dir("benchmark").glob("*.toml"))
+
+
+def _fail(path: Path, key: str, expected: str, got) -> ConfigError:
+    return ConfigError(f"suite {path}: key '{key}': expected {expected}, got {got!r}")
+
+
+def _number(value, low: float, integer: bool = False) -> bool:
+    kinds = int if integer else int | float
+    return isinstance(value, kinds) and not isinstance(value, bool) and value >= low
+
+
+def _budget(path: Path, table: dict, key: str) -> dict:
+    for name, value in table.items():
+        if name not in BUDGET_KEYS:
+            raise _fail(path, f"{key}.{name}", f"one of {sorted(BUDGET_KEYS)}", value)
+        if not _number(value, 1 if name == "epochs" else 0, integer=name == "epochs"):
+            kind = "an integer >= 1" if name == "epochs" else "a number of seconds >= 0"
+            raise _fail(path, f"{key}.{name}", kind, value)
+    return dict(table)
+
+
+def load_suite(name_or_path: str | Path) -> Suite:
+    """A suite by name (``benchmark/<name>.toml``) or path, every key checked."""
+    path = Path(name_or_path)
+    if not path.suffix:
+        path = content_dir("benchmark") / f"{name_or_path}.toml"
+    if not path.is_file():
+        raise ConfigError(f"suite {str(name_or_path)!r}: expected one of {suite_names()} or a "
+                          ".toml file")  # fmt: skip
+    raw = path.read_bytes()
+    try:
+        data = tomllib.loads(raw.decode())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"suite {path}: not valid TOML ({exc})") from None
+    for key in data:
+        if key not in KEYS:
+            raise ConfigError(f"suite {path}: unknown key '{key}': expected one of "
+                              f"{sorted(KEYS)}")  # fmt: skip
+    models = data.get("models")
+    if not isinstance(models, list) or not models or not all(isinstance(m, str) for m in models):
+        raise _fail(path, "models", "a non-empty list of recipe names", models)
+    for model in models:
+        load_recipe(model)  # an unknown recipe is named here, before any work
+    seeds = data.get("seeds", [0])
+    if not isinstance(seeds, list) or not seeds or not all(_number(s, 0, True) for s in seeds):
+        raise _fail(path, "seeds", "a non-empty list of integers >= 0", seeds)
+    if ("generate" in data) == ("datasets" in data):
+        raise ConfigError(f"suite {path}: expected exactly one of 'generate' (datasets made on "
+                          "the fly) or 'datasets' (dataset directories)")  # fmt: skip
+    config, noise, datasets = None, (), ()
+    if "generate" in data:
+        table = dict(data["generate"])
+        levels = table.pop("noise", None)
+        if not isinstance(levels, list) or not levels:
+            raise _fail(path, "generate.noise", "a non-empty list of noise levels", levels)
+        unknown = set(table) - set(GeneratorConfig.__dataclass_fields__) - {"noise"}
+        if unknown or "sensor" in table:
+            bad = sorted(unknown | ({"sensor"} & set(table)))[0]
+            raise _fail(path, f"generate.{bad}", "a GeneratorConfig field", table[bad])
+        try:
+            config = GeneratorConfig(**table)
+            for level in levels:
+                config.with_noise(level)
+        except ConfigError as exc:
+            raise ConfigError(f"suite {path}: [generate] {exc}") from None
+        noise = tuple(float(v) for v in levels)
+    else:
+        paths = data["datasets"]
+        if not isinstance(paths, list) or not paths or not all(isinstance(p, str) for p in paths):
+            raise _fail(path, "datasets", "a non-empty list of dataset directories", paths)
+        datasets = tuple(Path(p) for p in paths)
+    budget = {"*": {}}
+    for key, value in data.get("budget", {}).items():
+        if isinstance(value, dict):
+            if key not in models:
+                raise _fail(path, f"budget.{key}", f"a model of the suite {models}", key)
+            budget[key] = _budget(path, value, f"budget.{key}")
+        else:
+            budget["*"].update(_budget(path, {key: value}, "budget"))
+    power = data.get("board_power_w")
+    if power is not None and not _number(power, 0):
+        raise _fail(path, "board_power_w", "watts >= 0", power)
+    return Suite(
+        name=str(data.get("name", path.stem)), path=path,
+        sha256=hashlib.sha256(raw).hexdigest(), description=str(data.get("description", "")),
+        models=tuple(models), seeds=tuple(seeds), generate=config, noise=noise,
+        datasets=datasets, budget=budget, board_power_w=power,
+    )  # fmt: skip

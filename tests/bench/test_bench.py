@@ -1,0 +1,164 @@
+"""simlidar bench end to end on small datasets: suites, cells, reruns, reports, bad input."""
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from simlidar.bench.run import run_suite
+from simlidar.bench.suite import load_suite, suite_names
+from simlidar.cli import main
+from simlidar.errors import ConfigError
+
+TINY = """
+name = "tiny"
+description = "a test suite"
+models = ["snn_simlidar", "cnn"]
+seeds = [0]
+datasets = [{paths}]
+
+[budget]
+epochs = 1
+"""
+RESNET = """
+model = "resnet"
+[architecture]
+plan = "resnet18"
+width = 4
+[training]
+optimizer = "adam"
+lr = 1e-3
+batch_size = 32
+epochs = 1
+"""
+
+
+@pytest.fixture
+def tiny_suite(tmp_path, datasets):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY.format(paths=", ".join(f'"{p}"' for p in datasets.values())))
+    return path
+
+
+def test_shipped_suites_load():
+    assert {"quick", "paper"} <= set(suite_names())
+    paper = load_suite("paper")
+    assert paper.noise == (0.1, 0.2, 0.33, 0.5) and paper.seeds == (0, 1, 2)
+    assert paper.generate.train_size == 3000 and paper.generate.test_size == 600
+    assert {"snn_simlidar", "cnn", "vgg16", "resnet50"} <= set(paper.models)
+    quick = load_suite("quick")
+    assert quick.budget_for("resnet18")["epochs"] < quick.budget_for("cnn")["epochs"]
+
+
+def test_a_suite_runs_reruns_and_reports(tiny_suite, tmp_path, datasets):
+    out = tmp_path / "out"
+    suite = load_suite(tiny_suite)
+    results = run_suite(suite, out, progress=False)
+    cells = results["cells"]
+    assert len(cells) == 4  # 2 datasets x 2 models x 1 seed
+    for cell in cells:
+        for key in ("dataset", "noise", "model", "seed", "accuracy", "latency_ms", "params"):
+            assert key in cell
+        assert 0.0 <= cell["accuracy"] <= 1.0
+        confusion = cell["confusion"]
+        assert sum(map(sum, confusion)) == 64  # every test sample once
+        assert cell["accuracy"] == pytest.approx(sum(r[i] for i, r in enumerate(confusion)) / 64)
+    snn = [c for c in cells if c["model"] == "snn_simlidar"]
+    cnn = [c for c in cells if c["model"] == "cnn"]
+    for c in snn:  # event-driven figures agree with the batched accuracy
+        assert c["early"]["accuracy"] == pytest.approx(c["accuracy"])
+        assert 0.0 < c["early"]["data_ratio_mean"] <= 1.0
+        assert c["kind"] == "spiking" and "macs" not in c
+    for c in cnn:
+        assert c["kind"] == "conventional" and c["macs"] == 644_096  # see test_metrics
+        assert c["energy_pj_mac"] == pytest.approx(c["macs"] * 4.6)
+    assert {c["noise"] for c in cells} == {0.1, 0.5}
+    written = json.loads((out / "results.json").read_text())
+    assert written["machine"]["cores"] and written["suite"]["name"] == "tiny"
+    report = (out / "report.md").read_text()
+    assert "| *paper: SNN 256-400-32* | 99.83 | 68.16 |" in report
+    assert "no pretrained weights" in report
+    for picture in ("accuracy_vs_noise.png", "decisions.png", "confusion.png"):
+        assert (out / picture).stat().st_size > 1000
+        assert f"]({picture})" in report
+
+    # a rerun skips the finished cells; a new model (a recipe file) runs only its own cells
+    before = {p.name: p.read_bytes() for p in (out / "cells").iterdir()}
+    small = tmp_path / "small_resnet.toml"
+    small.write_text(RESNET)
+    again = run_suite(suite, out, models=["snn_simlidar", "cnn", str(small)], progress=False)
+    after = {p.name: p.read_bytes() for p in (out / "cells").iterdir()}
+    assert all(after[name] == data for name, data in before.items())
+    assert len(after) == 6 and len(again["cells"]) == 6
+
+
+def test_one_cell_is_seeded(tiny_suite, tmp_path, datasets):
+    suite = load_suite(tiny_suite)
+    one = run_suite(suite, tmp_path / "a", ["cnn"], datasets[0.1], progress=False)["cells"]
+    two = run_suite(suite, tmp_path / "b", ["cnn"], datasets[0.1], progress=False)["cells"]
+    assert [c["confusion"] for c in one] == [c["confusion"] for c in two]
+
+
+def test_generated_datasets_are_made_once(tmp_path):
+    path = tmp_path / "gen.toml"
+    path.write_text('models = ["cnn"]\n[generate]\nnoise = [0.2]\ntrain_size = 32\n'
+                    "test_size = 32\n[budget]\nepochs = 1\n")  # fmt: skip
+    out = tmp_path / "out"
+    results = run_suite(load_suite(path), out, progress=False)
+    assert results["cells"][0]["dataset"] == "simlidar-32c-noise0.2-v1.0.0"
+    assert (out / "datasets" / "simlidar-32c-noise0.2-v1.0.0" / "train.h5").is_file()
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ('modles = ["cnn"]', "unknown key 'modles': expected one of"),
+        ('models = ["nope"]', "model recipe 'nope': expected one of"),
+        ("models = []", "key 'models': expected a non-empty list"),
+        ('models = ["cnn"]\nseeds = [-1]\ndatasets = ["x"]', "key 'seeds'"),
+        ('models = ["cnn"]', "expected exactly one of 'generate'"),
+        ('models = ["cnn"]\n[generate]\nnoise = [2.0]', r"noise=2.0: expected a level in \[0, 1\]"),
+        ('models = ["cnn"]\n[generate]\nnoise = [0.1]\ncolour = 1', "key 'generate.colour'"),
+        ('models = ["cnn"]\ndatasets = ["x"]\n[budget]\nepochs = 0', "key 'budget.epochs'"),
+        ('models = ["cnn"]\ndatasets = ["x"]\n[budget.vgg16]\nepochs = 2', "key 'budget.vgg16'"),
+        ('models = ["cnn"', "not valid TOML"),
+    ],
+)
+def test_bad_suites_are_named(tmp_path, text, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=message):
+        load_suite(path)
+
+
+def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets):
+    runner = CliRunner()
+    out = tmp_path / "out"
+    ok = runner.invoke(main, ["bench", "--suite", str(tiny_suite), "--models", "cnn",
+                              "--dataset", str(datasets[0.1]), "--out", str(out)])  # fmt: skip
+    assert ok.exit_code == 0, ok.output
+    assert "1 cells in" in ok.output and "cnn" in ok.output
+    results = (out / "results.json").read_bytes()
+
+    def fails(args, code, text):
+        result = runner.invoke(main, ["bench", *args])
+        assert result.exit_code == code, result.output
+        assert text in result.output and "Traceback" not in result.output
+        errors = [line for line in result.output.splitlines() if line.startswith("Error")]
+        assert len(errors) == 1 and text in errors[0]  # one line says it
+
+    fails(["--suite", "nope"], 2, "expected one of ['paper', 'quick'] or a .toml file")
+    fails(["--suite", str(tiny_suite), "--models", "cnn,nope"], 2, "model recipe 'nope'")
+    fails(["--suite", str(tiny_suite), "--dataset", str(tmp_path / "missing"),
+           "--out", str(out)], 1, "expected a dataset directory")  # fmt: skip
+    not_schema = tmp_path / "junk"
+    not_schema.mkdir()
+    (not_schema / "train.h5").write_text("not hdf5")
+    (not_schema / "test.h5").write_text("not hdf5")
+    fails(["--suite", str(tiny_suite), "--dataset", str(not_schema), "--out", str(out)], 1,
+          "cannot read as HDF5")  # fmt: skip
+    fails(["--suite", "quick", "--out", str(out)], 1, "belongs to suite 'tiny'")
+    fails(["--suite", str(tiny_suite), "--out", str(not_schema)], 1,
+          "not a benchmark output directory")  # fmt: skip
+    assert (out / "results.json").read_bytes() == results  # nothing touched
+    assert (not_schema / "train.h5").read_text() == "not hdf5"
