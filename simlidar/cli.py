@@ -420,6 +420,133 @@ def bench(suite, models, dataset, out, as_json):
                    f"{cell['accuracy']:.4f}  latency {cell['latency_ms']:.2f} ms")  # fmt: skip
 
 
+@main.group()
+def convert():
+    """Convert real data into the simlidar schema (KITTI front view, DVS barrel events)."""
+
+
+def _converted(path: Path, as_json: bool) -> None:
+    from simlidar.dataset.h5 import dataset_splits
+
+    splits = dataset_splits(path)
+    sizes = {name: info.size for name, info in splits.items()}
+    if as_json:
+        click.echo(json.dumps({"path": str(path), "splits": sizes}))
+    else:
+        click.echo(f"wrote {path} (train {sizes['train']}, test {sizes['test']})")
+
+
+_convert_options = [
+    click.option(
+        "--out",
+        type=click.Path(file_okay=False, path_type=Path),
+        default=Path("data"),
+        show_default=True,
+        help="Folder for the dataset directory.",
+    ),
+    click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True,
+                 help="Seed of the train/test split."),
+    click.option("--force", is_flag=True, help="Replace an existing dataset of the same name."),
+    click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout."),
+]  # fmt: skip
+
+
+def _with_convert_options(command):
+    for option in reversed(_convert_options):
+        command = option(command)
+    return command
+
+
+@convert.command("kitti")
+@click.argument("root", type=click.Path(path_type=Path))
+@click.option(
+    "--crop",
+    type=(click.IntRange(1), click.IntRange(1)),
+    default=(50, 118),
+    show_default=True,
+    help="Crop size: rows columns (front-view cells).",
+)
+@click.option(
+    "--res-h",
+    type=click.FloatRange(min=0, min_open=True),
+    default=0.18,
+    show_default=True,
+    help="Horizontal front-view resolution, degrees.",
+)
+@click.option(
+    "--res-v",
+    type=click.FloatRange(min=0, min_open=True),
+    default=0.4,
+    show_default=True,
+    help="Vertical front-view resolution, degrees.",
+)
+@click.option(
+    "--max-range",
+    type=click.FloatRange(min=0, min_open=True),
+    default=100.0,
+    show_default=True,
+    help="Range (m) whose time of flight is delay 1.",
+)
+@click.option(
+    "--test-fraction",
+    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    default=0.2,
+    show_default=True,
+    help="Fraction of frames in the test split.",
+)
+@_with_convert_options
+def convert_kitti(root, crop, res_h, res_v, max_range, test_fraction, out, seed, force,
+                  as_json):  # fmt: skip
+    """KITTI 3D object benchmark (ROOT: training/ with velodyne/, label_2/, calib/, or its
+    parent) -> front-view pulse crops around every labelled object, 8 classes, split by frame.
+    See docs/converters.md."""
+    from simlidar.convert import convert_kitti as run
+
+    path = run(root, out, crop=crop, res_h_deg=res_h, res_v_deg=res_v, max_range_m=max_range,
+               test_fraction=test_fraction, seed=seed, force=force,
+               progress=not as_json)  # fmt: skip
+    _converted(path, as_json)
+
+
+@convert.command("dvs-barrel")
+@click.argument("mat_file", type=click.Path(path_type=Path))
+@click.option("--labels", default=None,
+              help="One class character (0-9, A-Z) per recording, e.g. 0123...; default: the "
+                   "ROI struct's 'label' field.")  # fmt: skip
+@click.option(
+    "--window-us",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    help="Time window (us) whose end is delay 1 (default: longest recording + 1).",
+)
+@click.option(
+    "--address-base",
+    type=click.Choice(["0", "1"]),
+    default="1",
+    show_default=True,
+    help="Whether x and y addresses count from 0 or from 1 (MATLAB).",
+)
+@click.option(
+    "--test-fraction",
+    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    default=0.5,
+    show_default=True,
+    help="Fraction of each class's recordings in test.",
+)
+@_with_convert_options
+def convert_dvs(mat_file, labels, window_us, address_base, test_fraction, out, seed, force,
+                as_json):  # fmt: skip
+    """DVS barrel MATLAB file (struct array ROI: x, y, polarity, timestamps in us; 32 x 32
+    pixels, 36 characters) -> first-spike times per pixel, raw events kept alongside. See
+    docs/converters.md."""
+    from simlidar.convert import convert_dvs_barrel as run
+
+    path = run(mat_file, out, labels=tuple(labels) if labels else None, window_us=window_us,
+               address_base=int(address_base), test_fraction=test_fraction, seed=seed,
+               force=force, progress=not as_json)  # fmt: skip
+    _converted(path, as_json)
+
+
 @main.command()
 @_scenes_option
 @click.option(

@@ -28,8 +28,8 @@ def split_path(path: str | Path, split: str) -> Path:
 def load_split(path: str | Path, split: str = "train", field: str = "delays"):
     """A whole split as numpy arrays.
 
-    returns : x (N, 16, W) float32 (``field``: "delays" with noise, or "clean_delays"),
-        y (N,) int64 class labels
+    returns : x (N, H, W) float32 (``field``: "delays" with noise, or "clean_delays" of a
+        generated dataset; H = 16 there), y (N,) int64 class labels
     """
     arrays = load_arrays(split_path(path, split), (field, "labels"))
     return arrays[field], arrays["labels"]
@@ -41,7 +41,7 @@ class _PulseSplit:
     The HDF5 file is opened lazily, once in each process that reads from it, so a
     ``DataLoader`` with ``num_workers > 0`` works (h5py handles do not survive a fork).
 
-    transform : optional callable applied to the (16, W) float tensor
+    transform : optional callable applied to the (H, W) float tensor
     field : "delays" (with noise, the default) or "clean_delays"
     """
 
@@ -90,15 +90,15 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def sensor_size(width: int) -> tuple[int, int, int]:
-    """Tonic's ``sensor_size`` of a sample: (W columns, 16 rows, 1 polarity)."""
-    return (width, 16, 1)
+def sensor_size(width: int, height: int = 16) -> tuple[int, int, int]:
+    """Tonic's ``sensor_size`` of a sample: (W columns, H rows, 1 polarity)."""
+    return (width, height, 1)
 
 
 def to_events(delays: np.ndarray, tof_max_ns: float, no_return: float = 1.0) -> np.ndarray:
     """One sample as spike events in the Tonic convention, sorted by time.
 
-    delays : (16, W) normalised delays of one sample
+    delays : (H, W) normalised delays of one sample
     tof_max_ns : the split's ``tof_max_ns`` attribute (667.13 ns for 100 m)
     returns : structured array with fields x (column), y (row), t (arrival time in
         picoseconds, so the 2 mm range step of 13 ps survives), p (always 1: a pulse).

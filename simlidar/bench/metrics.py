@@ -76,9 +76,11 @@ def macs(model: nn.Module, sample: torch.Tensor) -> dict:
     return {"macs": counts["macs"], "activation_sparsity": sparsity}
 
 
-def latency(model: nn.Module, x: torch.Tensor, repeats: int = 30, big_batch: int = 512) -> dict:
+def latency(model: nn.Module, x: torch.Tensor, repeats: int = 30, big_batch: int = 512,
+            max_seconds: float = 5.0) -> dict:  # fmt: skip
     """Inference latency at batch 1 (median of ``repeats`` runs over different samples, after
-    warm-up) in milliseconds, and throughput at a large batch in samples per second.
+    warm-up; fewer, but at least 5, once they take ``max_seconds``) in milliseconds, and
+    throughput at a large batch in samples per second.
 
     x : (N, C, H, W) test inputs
     """
@@ -90,6 +92,8 @@ def latency(model: nn.Module, x: torch.Tensor, repeats: int = 30, big_batch: int
             model(x[i % len(x)][None])
             if i >= 3:  # warm-up
                 times.append(time.perf_counter() - start)
+                if len(times) >= 5 and sum(times) > max_seconds:
+                    break
         batch = x[:big_batch]
         model(batch)
         start = time.perf_counter()
@@ -97,6 +101,7 @@ def latency(model: nn.Module, x: torch.Tensor, repeats: int = 30, big_batch: int
         seconds = time.perf_counter() - start
     return {
         "latency_ms": statistics.median(times) * 1e3,
+        "latency_runs": len(times),
         "throughput_per_s": len(batch) / seconds,
         "throughput_batch": len(batch),
     }

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from simlidar.content import content_dir
+from simlidar.dataset.version import GENERATOR
 
 PAPER_FILE = "reported/wang2020.toml"
 
@@ -45,7 +46,7 @@ def _mean(cells: list[dict], get) -> float | None:
 
 def accuracy_by_noise(cells: list[dict], paper: dict) -> list[str]:
     """Generated datasets: accuracy (%) of each model at each noise level, the paper's SNN."""
-    sim = [c for c in cells if c["source"] == "simlidar-generator"]
+    sim = [c for c in cells if c["source"] == GENERATOR]
     if not sim:
         return []
     levels = sorted({c["noise"] for c in sim})
@@ -120,7 +121,7 @@ def plot_accuracy(cells: list[dict], paper: dict, path: Path) -> bool:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    sim = [c for c in cells if c["source"] == "simlidar-generator"]
+    sim = [c for c in cells if c["source"] == GENERATOR]
     if not sim:
         return False
     fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
@@ -241,7 +242,8 @@ def write_report(results: dict, out: Path) -> Path:
         f"{paper['energy']['alpha_pj'][0]} and {paper['energy']['alpha_pj'][1]} pJ per spike, "
         "as the paper estimates it; conventional networks, multiply-accumulates x 4.6 pJ "
         "(32-bit float at 45 nm, Horowitz 2014).",
-        "* latency: batch 1, median of 30 runs on this CPU; samples/s: one batch of 512.",
+        "* latency: batch 1, median of up to 30 runs on this CPU; samples/s: one batch of up to "
+        "512.",
         "* params, footprint (bytes of parameters and buffers), connection and activation "
         "sparsity, synaptic operations: NeuroBench names, in `results.json`.", "",
     ]  # fmt: skip

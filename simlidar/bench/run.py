@@ -25,6 +25,7 @@ from simlidar.bench.suite import Suite
 from simlidar.bench.train import is_spiking, predictions, train
 from simlidar.data import load_split
 from simlidar.dataset.h5 import dataset_splits
+from simlidar.dataset.version import GENERATOR
 from simlidar.errors import DatasetError
 from simlidar.models.registry import load_recipe
 
@@ -102,7 +103,7 @@ def cell_id(dataset: Path, model: str, seed: int) -> str:
 
 
 def run_cell(dataset: Path, model: str, seed: int, suite: Suite) -> dict:
-    """Train one model on one dataset with one seed and measure it (see README of bench)."""
+    """Train one model on one dataset with one seed and measure it (docs/benchmark.md)."""
     recipe = load_recipe(model)
     budget = suite.budget_for(model)
     splits = dataset_splits(dataset)
@@ -116,7 +117,7 @@ def run_cell(dataset: Path, model: str, seed: int, suite: Suite) -> dict:
     classes = len(attrs["class_names"])
     record = {
         "dataset": dataset.name,
-        "source": attrs.get("source", "simlidar-generator"),
+        "source": attrs.get("source", GENERATOR),
         "noise": float(attrs["noise"]),
         "model": recipe["name"],
         "seed": seed,

@@ -65,7 +65,7 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
     training = recipe["training"]
     x_train, y_train = (torch.from_numpy(a) for a in load_split(dataset, "train"))
     x_test, y_test = (torch.from_numpy(a) for a in load_split(dataset, "test"))
-    x_train, x_test = x_train[:, None], x_test[:, None]  # (N, 1, 16, W)
+    x_train, x_test = x_train[:, None], x_test[:, None]  # (N, 1, H, W)
     classes = len(read_split_info(split_path(dataset, "train")).attrs["class_names"])
     generator = torch.Generator().manual_seed(seed)
     model = build_model(recipe, tuple(x_train.shape[1:]), classes, generator)

@@ -23,7 +23,7 @@ from simlidar.dataset.about import (
 from simlidar.dataset.config import GeneratorConfig
 from simlidar.dataset.h5 import SCHEMA, SPLITS, dataset_splits
 from simlidar.dataset.info import dataset_info
-from simlidar.dataset.version import RELEASE_DATES, RELEASE_NOTES
+from simlidar.dataset.version import GENERATOR, RELEASE_DATES, RELEASE_NOTES
 from simlidar.errors import DatasetError
 
 CARD = "README.md"
@@ -137,6 +137,10 @@ def render_card(path: str | Path) -> str:
     """The whole card of a dataset directory, from its files alone."""
     path = Path(path)
     splits = dataset_splits(path)
+    if splits["train"].source != GENERATOR:  # converted real data: its own card
+        from simlidar.convert.release import render_card as render_converted
+
+        return render_converted(path)
     attrs = splits["train"].attrs
     config = GeneratorConfig.from_dict(attrs["config"])
     names = attrs["class_names"]

@@ -11,6 +11,8 @@ import json
 import os
 import shutil
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -158,3 +160,29 @@ def _move_into_place(temp: Path, final: Path) -> None:
     temp.rename(final)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+
+
+@contextmanager
+def building(out: str | Path, name: str, force: bool = False) -> Iterator[Path]:
+    """A hidden folder ``out/.<name>.partial-<pid>`` to build a dataset in; it becomes
+    ``out/<name>`` when the block ends without error and is removed on any error (with ``out``
+    too, if this call created it and it is left empty). An existing ``out/<name>`` stops the
+    build before anything is written, unless ``force``: then it is replaced only at the end.
+
+    Used by the converters (``simlidar.convert``); :func:`generate` builds several at once.
+    """
+    out = Path(out)
+    final = out / name
+    if final.exists() and not force:
+        raise DatasetError(f"{final} already exists: pass --force to overwrite it")
+    created = _make_out(out)
+    temp = out / f".{name}.partial-{os.getpid()}"
+    try:
+        temp.mkdir(exist_ok=True)
+        yield temp
+        _move_into_place(temp, final)
+    except BaseException:
+        shutil.rmtree(temp, ignore_errors=True)
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        raise

@@ -1,8 +1,8 @@
-"""HDF5 split files: the schema, a streaming writer, and a checked reader.
+"""HDF5 split files: the schemas, a streaming writer, and a checked reader.
 
-Every dataset and attribute is described in ``docs/dataset-format.md``; keep the two in step.
-Files are written deterministically: no timestamps, fixed chunking, gzip (level 1), shuffle
-where it pays.
+Every dataset and attribute is described in ``docs/dataset-format.md`` (the generator's) and
+``docs/converters.md`` (converted real data); keep them in step. Files are written
+deterministically: no timestamps, fixed chunking, gzip (level 1), shuffle where it pays.
 Level 1 because the noisy delays barely compress and higher levels cost time for ~1 %.
 """
 
@@ -14,7 +14,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from simlidar.dataset.version import DATASET_VERSION, RELEASE_NOTES, major
+from simlidar.dataset.version import GENERATOR, SOURCES, major
 from simlidar.errors import DatasetError
 from simlidar.pulses import add_noise
 from simlidar.simulate import Samples
@@ -43,40 +43,84 @@ SHUFFLED = {"delays", "phase", "shift", "object_pose"}
 REQUIRED_ATTRS = ("dataset_version", "simlidar_version", "config", "seed", "noise", "split",
                   "class_names", "class_mode", "sensor")  # fmt: skip
 
+# Converted real data (simlidar.convert), by the split's `source` attribute:
+# name -> (dtype, shape), a shape's letters being N samples, E events, H rows, W columns.
+CONVERTED_SCHEMAS: dict[str, dict[str, tuple[str, tuple]]] = {
+    "kitti": {
+        "delays": ("float32", ("N", "H", "W")),
+        "labels": ("int64", ("N",)),
+        "frame": ("int64", ("N",)),
+        "crop_origin": ("int32", ("N", 2)),
+        "box_corners_m": ("float32", ("N", 8, 3)),
+        "box_points": ("int32", ("N",)),
+        "truncated": ("float32", ("N",)),
+        "occluded": ("uint8", ("N",)),
+    },
+    "dvs-barrel": {
+        "delays": ("float32", ("N", "H", "W")),
+        "labels": ("int64", ("N",)),
+        "recording": ("int64", ("N",)),
+        "event_start": ("int64", ("N",)),
+        "event_count": ("int64", ("N",)),
+        "event_x": ("uint8", ("E",)),
+        "event_y": ("uint8", ("E",)),
+        "event_p": ("int8", ("E",)),
+        "event_t_us": ("int64", ("E",)),
+    },
+}
 
-class SplitWriter:
-    """Appends blocks of samples to one split file; peak memory is a block plus one chunk.
 
+def split_source(attrs) -> str:
+    """The ``source`` of a split from its attributes; the generator's files carry none."""
+    return _decode(attrs.get("source", GENERATOR))
+
+
+def expected_shapes(source: str, n: int, h: int, w: int, e: int = 0) -> dict[str, tuple]:
+    """name -> (dtype, full shape) of every dataset a split of ``source`` must hold."""
+    if source == GENERATOR:
+        return {name: (dtype, (n, *tail(w))) for name, (dtype, tail, _) in SCHEMA.items()}
+    if source not in CONVERTED_SCHEMAS:
+        known = ", ".join([GENERATOR, *CONVERTED_SCHEMAS])
+        raise DatasetError(f"source {source!r}: expected one of {known}")
+    dims = {"N": n, "E": e, "H": h, "W": w}
+    return {
+        name: (dtype, tuple(dims.get(d, d) for d in shape))
+        for name, (dtype, shape) in CONVERTED_SCHEMAS[source].items()
+    }
+
+
+class RowWriter:
+    """Appends blocks of rows to the datasets of one HDF5 file; peak memory is a block plus
+    one chunk.
+
+    shapes : name -> (dtype, trailing shape); every dataset gets ``size`` rows
     Rows are written one whole chunk at a time, every dataset in turn, so the file's layout
     (and therefore its bytes) does not depend on the size of the blocks handed in.
     """
 
-    def __init__(self, path: Path, size: int, width: int, noise: float, attrs: dict):
-        self.noise = noise
+    def __init__(self, path: Path, size: int, shapes: dict[str, tuple[str, tuple]],
+                 attrs: dict, shuffled: frozenset[str] = frozenset()):  # fmt: skip
         self.size = size
         self.chunk = min(CHUNK_SAMPLES, size)
         self.written = 0
-        self.pending: dict[str, list[np.ndarray]] = {name: [] for name in SCHEMA}
+        self.pending: dict[str, list[np.ndarray]] = {name: [] for name in shapes}
         self.file = h5py.File(path, "w", libver=("earliest", "v110"), track_order=False)
-        for name, (dtype, tail, _) in SCHEMA.items():
-            shape = (size, *tail(width))
+        for name, (dtype, tail) in shapes.items():
+            shape = (size, *tail)
             self.file.create_dataset(
                 name, shape=shape, dtype=dtype, chunks=(self.chunk, *shape[1:]),
-                compression="gzip", compression_opts=1, shuffle=name in SHUFFLED,
+                compression="gzip", compression_opts=1, shuffle=name in shuffled,
                 track_times=False,
             )  # fmt: skip
         for key, value in attrs.items():
             self.file.attrs[key] = value
 
-    def append(self, samples: Samples) -> None:
-        """Add the next block of samples (in split order)."""
-        for name, (_, _, source) in SCHEMA.items():
-            if source is None:
-                value = add_noise(samples.clean_delays, self.noise, samples.noise_u)
-            else:
-                value = getattr(samples, source)
-            self.pending[name].append(value)
-        ready = sum(len(v) for v in self.pending["labels"])
+    def append(self, block: dict[str, np.ndarray]) -> None:
+        """Add the next rows (in file order): one array per dataset, equally long."""
+        for name in self.pending:
+            self.pending[name].append(block[name])
+        first = next(iter(self.pending))
+        ready = sum(len(v) for v in self.pending[first])
         while ready >= self.chunk or (ready and self.written + ready == self.size):
             rows = min(self.chunk, ready)
             for name, parts in self.pending.items():
@@ -86,11 +130,41 @@ class SplitWriter:
             self.written += rows
             ready -= rows
 
+    def add_rows(self, name: str, values: np.ndarray, dtype: str, chunk: int = 65_536) -> None:
+        """A whole dataset with its own number of rows (e.g. one per event), written at once."""
+        values = np.asarray(values, dtype=dtype)
+        if not len(values):  # HDF5 has no chunks for an empty dataset
+            self.file.create_dataset(name, data=values, track_times=False)
+            return
+        self.file.create_dataset(
+            name, data=values, chunks=(min(chunk, len(values)),), compression="gzip",
+            compression_opts=1, shuffle=True, track_times=False,
+        )  # fmt: skip
+
     def close(self) -> None:
         if self.written != self.size:
             self.file.close()
             raise RuntimeError(f"{self.file.filename}: {self.written} of {self.size} rows")
         self.file.close()
+
+
+class SplitWriter(RowWriter):
+    """Appends blocks of generated samples to one split file (the generator's schema)."""
+
+    def __init__(self, path: Path, size: int, width: int, noise: float, attrs: dict):
+        self.noise = noise
+        shapes = {name: (dtype, tail(width)) for name, (dtype, tail, _) in SCHEMA.items()}
+        super().__init__(path, size, shapes, attrs, frozenset(SHUFFLED))
+
+    def append(self, samples: Samples) -> None:
+        """Add the next block of samples (in split order)."""
+        block = {}
+        for name, (_, _, source) in SCHEMA.items():
+            if source is None:
+                block[name] = add_noise(samples.clean_delays, self.noise, samples.noise_u)
+            else:
+                block[name] = getattr(samples, source)
+        super().append(block)
 
 
 @dataclass(frozen=True)
@@ -99,6 +173,11 @@ class SplitInfo:
     size: int
     width: int
     attrs: dict  # JSON attributes decoded
+    height: int = 16  # rows H of a sample
+
+    @property
+    def source(self) -> str:
+        return self.attrs.get("source", GENERATOR)
 
 
 def _decode(value):
@@ -123,22 +202,30 @@ def read_split_info(path: Path) -> SplitInfo:
                 raise DatasetError(f"{path}: not a simlidar split (missing {', '.join(missing)})")
             if f["delays"].ndim != 3:
                 raise DatasetError(f"{path}: 'delays' has shape {f['delays'].shape}, expected "
-                                   "(N, 16, W)")  # fmt: skip
+                                   "(N, H, W)")  # fmt: skip
             attrs = {k: _decode(v) for k, v in f.attrs.items()}
-            info = SplitInfo(path, f["delays"].shape[0], f["delays"].shape[2], attrs)
+            size, height, width = f["delays"].shape
+            info = SplitInfo(path, size, width, attrs, height)
     except OSError as exc:
         raise DatasetError(f"{path}: cannot read as HDF5 ({exc})") from None
-    check_version(path, attrs["dataset_version"])
+    check_version(path, attrs["dataset_version"], info.source)
     return info
 
 
-_warned: set[str] = set()
+_warned: set[tuple[str, str]] = set()
 
 
-def check_version(path: Path, version: str) -> None:
-    """Refuse a dataset from a newer MAJOR version; warn once about an older one."""
+def check_version(path: Path, version: str, source: str = GENERATOR) -> None:
+    """Refuse a dataset from a newer MAJOR version; warn once about an older one.
+
+    source : the split's ``source``; each source has its own version line
+    """
+    if source not in SOURCES:
+        known = ", ".join(SOURCES)
+        raise DatasetError(f"{path}: source {source!r}: expected one of {known}")
+    current, _, notes = SOURCES[source]
     try:
-        theirs, ours = major(version), major(DATASET_VERSION)
+        theirs, ours = major(version), major(current)
     except ValueError:
         raise DatasetError(
             f"{path}: dataset version {version!r}: expected MAJOR.MINOR.PATCH"
@@ -148,11 +235,11 @@ def check_version(path: Path, version: str) -> None:
             f"{path}: dataset version {version} is newer than this simlidar reads "
             f"(MAJOR {ours}); expected a dataset of version {ours}.x.x: upgrade simlidar"
         )
-    if theirs < ours and version not in _warned:
-        _warned.add(version)
+    if theirs < ours and (source, version) not in _warned:
+        _warned.add((source, version))
         warnings.warn(
-            f"{path}: dataset version {version}, this simlidar writes {DATASET_VERSION} "
-            f"(records changed): {RELEASE_NOTES[DATASET_VERSION]}",
+            f"{path}: dataset version {version}, this simlidar writes {current} "
+            f"(records changed): {notes[current]}",
             stacklevel=3,
         )
 

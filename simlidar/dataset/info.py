@@ -6,13 +6,15 @@ from pathlib import Path
 import numpy as np
 
 from simlidar.dataset.h5 import dataset_splits, load_arrays
-from simlidar.dataset.version import RELEASE_NOTES
+from simlidar.dataset.version import GENERATOR, SOURCES
 
 
 def dataset_info(path: str | Path) -> dict:
     """Summarise the dataset directory ``path`` (raises DatasetError if it is not one)."""
     splits = dataset_splits(path)
     first = splits["train"].attrs
+    source = splits["train"].source
+    notes = SOURCES.get(source, ("", {}, {}))[2]
     names = first["class_names"]
     counts = {}
     for split, info in splits.items():
@@ -21,12 +23,14 @@ def dataset_info(path: str | Path) -> dict:
     return {
         "path": str(Path(path)),
         "dataset_version": first["dataset_version"],
-        "release_notes": RELEASE_NOTES.get(first["dataset_version"], "unknown to this build"),
+        "release_notes": notes.get(first["dataset_version"], "unknown to this build"),
         "simlidar_version": first["simlidar_version"],
         "classes": len(names),
         "class_mode": first["class_mode"],
         "noise": first["noise"],
         "seed": first["seed"],
+        "source": source,
+        "height": splits["train"].height,
         "width": splits["train"].width,
         "splits": {s: info.size for s, info in splits.items()},
         "counts": counts,
@@ -36,12 +40,13 @@ def dataset_info(path: str | Path) -> dict:
 
 def format_info(summary: dict) -> str:
     """The text form of :func:`dataset_info` (what ``simlidar info`` prints)."""
+    source = summary.get("source", GENERATOR)
     lines = [
-        summary["path"],
+        summary["path"] + ("" if source == GENERATOR else f" ({source})"),
         f"  dataset version {summary['dataset_version']}, simlidar {summary['simlidar_version']}",
         f"  release notes: {summary['release_notes']}",
         f"  {summary['classes']} classes ({summary['class_mode']}), noise {summary['noise']:g}, "
-        f"seed {summary['seed']}, 16 x {summary['width']} pulses",
+        f"seed {summary['seed']}, {summary.get('height', 16)} x {summary['width']} pulses",
     ]
     for split, size in summary["splits"].items():
         counts = summary["counts"][split].values()

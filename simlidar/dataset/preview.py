@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from simlidar.dataset.h5 import dataset_splits, load_arrays
+from simlidar.dataset.version import GENERATOR
 
 
 def first_of_each_class(labels: np.ndarray, classes: int) -> np.ndarray:
@@ -40,11 +41,12 @@ def write_preview(dataset: str | Path, out: str | Path, split: str = "test",
         if rows[c] >= 0:
             ax.imshow(delays[rows[c]], cmap="gray", vmin=0.0, vmax=1.0, interpolation="nearest")
         ax.set_title(name.replace("_", " "), fontsize=8)
-    fig.suptitle(
-        f"{title or Path(dataset).name}: {split} split, noisy delays "
-        f"(black = 0, white = 1 = no return), noise {info.attrs['noise']}",
-        fontsize=9,
+    what = (
+        f"noisy delays (black = 0, white = 1 = no return), noise {info.attrs['noise']}"
+        if info.source == GENERATOR
+        else "delays (black = 0, white = 1 = nothing in the window)"
     )
+    fig.suptitle(f"{title or Path(dataset).name}: {split} split, {what}", fontsize=9)
     out = Path(out)
     fig.savefig(out, dpi=80, metadata={"Software": None})
     return out

@@ -7,7 +7,14 @@ import numpy as np
 
 from simlidar.dataset.card import read_front_matter
 from simlidar.dataset.checksums import check_sums
-from simlidar.dataset.h5 import REQUIRED_ATTRS, SCHEMA, SPLITS, _decode, check_version
+from simlidar.dataset.h5 import (
+    REQUIRED_ATTRS,
+    SPLITS,
+    _decode,
+    check_version,
+    expected_shapes,
+    split_source,
+)
 from simlidar.errors import DatasetError
 
 _BLOCK = 65_536  # rows read at a time: memory stays flat whatever the split size
@@ -23,26 +30,32 @@ def _check_split(path: Path, expected_size: int | None) -> list[str]:
         missing = [k for k in REQUIRED_ATTRS if k not in f.attrs]
         problems += [f"{path}: attribute '{k}' missing" for k in missing]
         size = f["labels"].shape[0] if "labels" in f else None
-        width = f["delays"].shape[2] if "delays" in f and f["delays"].ndim == 3 else None
+        height, width = f["delays"].shape[1:] if "delays" in f and f["delays"].ndim == 3 else (
+            None, None)  # fmt: skip
         if "delays" in f and width is None:
             problems.append(f"{path}: 'delays' has shape {f['delays'].shape}, expected "
-                            "(N, 16, W)")  # fmt: skip
+                            "(N, H, W)")  # fmt: skip
+        source = split_source(f.attrs)
         version = f.attrs.get("dataset_version")
         if version is not None:
             try:
-                check_version(path, _decode(version))
+                check_version(path, _decode(version), source)
             except DatasetError as exc:
                 problems.append(str(exc))
-        for name, (dtype, tail, _) in SCHEMA.items():
+        events = f["event_t_us"].shape[0] if "event_t_us" in f else 0
+        try:
+            shapes = expected_shapes(source, size, height, width, events)
+        except DatasetError as exc:  # an unknown source
+            return problems + [f"{path}: {exc}"]
+        for name, (dtype, shape) in shapes.items():
             if name not in f:
                 problems.append(f"{path}: dataset '{name}' missing")
                 continue
             ds = f[name]
             if ds.dtype != np.dtype(dtype):
                 problems.append(f"{path}: '{name}' is {ds.dtype}, expected {dtype}")
-            if size is not None and width is not None and ds.shape != (size, *tail(width)):
-                problems.append(f"{path}: '{name}' has shape {ds.shape}, expected "
-                                f"{(size, *tail(width))}")  # fmt: skip
+            if size is not None and width is not None and ds.shape != shape:
+                problems.append(f"{path}: '{name}' has shape {ds.shape}, expected {shape}")
         if problems or size is None or width is None:  # not readable as the schema says
             return problems
         if expected_size is not None and size != expected_size:
@@ -52,15 +65,32 @@ def _check_split(path: Path, expected_size: int | None) -> list[str]:
             for start in range(0, size, _BLOCK):
                 rows = slice(start, start + _BLOCK)
                 for name in ("delays", "clean_delays"):
+                    if name not in shapes:
+                        continue
                     block = f[name][rows]
                     if not ((block >= 0) & (block <= 1)).all():
                         problems.append(f"{path}: '{name}' has values outside [0, 1]")
                 labels = f["labels"][rows]
                 if labels.size and not (0 <= labels.min() and labels.max() < classes):
                     problems.append(f"{path}: labels outside 0..{classes - 1}")
+            if "event_count" in shapes:
+                problems += _check_events(path, f)
         except OSError as exc:  # a chunk that does not decompress
             problems.append(f"{path}: unreadable data ({exc})")
     return sorted(set(problems), key=problems.index)
+
+
+def _check_events(path: Path, f: h5py.File) -> list[str]:
+    """Each sample's events are the rows event_start .. event_start + event_count, in order."""
+    start, count = f["event_start"][:], f["event_count"][:]
+    total = f["event_t_us"].shape[0]
+    if (
+        (count < 0).any()
+        or (start != np.concatenate([[0], np.cumsum(count)[:-1]])).any()
+        or (count.sum() != total)
+    ):
+        return [f"{path}: 'event_start' and 'event_count' do not tile the {total} events in order"]
+    return []
 
 
 def verify(path: str | Path) -> list[str]:

@@ -1,0 +1,275 @@
+"""KITTI 3D object benchmark -> front-view pulse crops in the simlidar schema.
+
+Each scan is projected into the expanded front view (Wang et al. 2020, after Chen et al.'s
+MV3D), with the Velodyne frame's x forward, y left, z up:
+
+    x_front = floor(atan2(-y, x) * 180 / (pi * res_h))      column, left to right
+    y_front = floor(-atan2(z, d) * 180 / (pi * res_v))      row, top to bottom
+    d = sqrt(x^2 + y^2)
+
+A cell keeps its nearest point, whose range r = sqrt(x^2 + y^2 + z^2) gives the round-trip time
+of flight 2 r / c; the delay is that over the time of flight at ``max_range_m`` (100 m, as the
+generator's VLP-16), and 1.0 where the cell is empty or the point is that far or farther.
+``docs/converters.md`` has the details; :func:`convert_kitti` is the entry point.
+"""
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from simlidar.convert.common import (
+    check_common,
+    choose_test,
+    delays_from_times,
+    split_attrs,
+    stream,
+)
+from simlidar.convert.kitti_files import (
+    CLASSES,
+    Frame,
+    box_corners_cam,
+    inside_box,
+    read_frames,
+    read_velodyne,
+    to_velo,
+)
+from simlidar.convert.release import write_release_files
+from simlidar.dataset.checksums import sha256_file
+from simlidar.dataset.generate import building
+from simlidar.dataset.h5 import CONVERTED_SCHEMAS, SPLITS, RowWriter, expected_shapes
+from simlidar.dataset.version import SOURCES
+from simlidar.errors import ConfigError, DatasetError
+from simlidar.sensor.vlp16 import tof_ns
+
+SOURCE = "kitti"
+
+
+@dataclass(frozen=True)
+class KittiConfig:
+    """Everything that decides a converted KITTI dataset's bytes (with the input and version)."""
+
+    crop: tuple[int, int] = (50, 118)  # rows H x columns W of a crop (the paper's 50 x 118)
+    res_h_deg: float = 0.18  # azimuth step of a column: the HDL-64E's at KITTI's 10 Hz
+    res_v_deg: float = 0.4  # elevation step of a row: the HDL-64E's ~0.4 deg laser spacing
+    max_range_m: float = 100.0  # delay normalisation range (the generator's VLP-16 maximum)
+    test_fraction: float = 0.2  # of the frames with objects (the paper: 8,000 of 40,456 crops)
+    seed: int = 0  # root of the frame split's random stream
+
+    def __post_init__(self) -> None:
+        crop = self.crop
+        if not (
+            isinstance(crop, tuple | list)
+            and len(crop) == 2
+            and all(isinstance(c, int) and 1 <= c <= 4096 for c in crop)
+        ):
+            raise ConfigError(f"crop={crop!r}: expected (rows, columns), integers in [1, 4096]")
+        object.__setattr__(self, "crop", tuple(crop))
+        if not 0.0 < self.res_v_deg <= 10.0:
+            raise ConfigError(f"res_v_deg={self.res_v_deg!r}: expected degrees in (0, 10]")
+        columns = 360.0 / self.res_h_deg if 0.0 < self.res_h_deg <= 10.0 else 0.5
+        if abs(columns - round(columns)) > 1e-9 * columns:
+            raise ConfigError(
+                f"res_h_deg={self.res_h_deg!r}: expected degrees in (0, 10] dividing 360 (0.08, "
+                "0.09, 0.1, 0.12, 0.15, 0.16, 0.18, 0.2, ...), so that the front view closes"
+            )
+        if self.crop[1] > self.columns:
+            raise ConfigError(f"crop={self.crop}: wider than the {self.columns} columns of 360 deg")
+        if not 0.0 < self.max_range_m <= 1000.0:
+            raise ConfigError(f"max_range_m={self.max_range_m!r}: expected metres in (0, 1000]")
+        check_common(self.test_fraction, self.seed)
+
+    @property
+    def columns(self) -> int:
+        """Columns of the full 360 degree front view."""
+        return round(360.0 / self.res_h_deg)
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), sort_keys=True)
+
+
+def front_view(points: np.ndarray, res_h_deg: float, res_v_deg: float):
+    """The front-view cell of every point.
+
+    points : (n, 3) float x, y, z in the Velodyne frame, metres
+    returns : rows y_front (n,) int64, columns x_front (n,) int64
+    """
+    x, y, z = points[:, 0], points[:, 1], points[:, 2]
+    d = np.sqrt(x**2 + y**2)
+    cols = np.floor(np.arctan2(-y, x) * 180 / (np.pi * res_h_deg)).astype(np.int64)
+    rows = np.floor(-np.arctan2(z, d) * 180 / (np.pi * res_v_deg)).astype(np.int64)
+    return rows, cols
+
+
+def crop_ranges(
+    rows: np.ndarray,
+    cols: np.ndarray,
+    range_m: np.ndarray,
+    origin: tuple[int, int],
+    shape: tuple[int, int],
+    columns: int,
+) -> np.ndarray:
+    """The nearest range in every cell of one crop.
+
+    rows, cols, range_m : (n,) the points' cells and ranges
+    origin : front-view (row, column) of the crop's top-left cell; columns wrap modulo
+        ``columns`` (the 360 degree view closes on itself)
+    returns : (H, W) float64 metres, NaN where no point fell
+    """
+    height, width = shape
+    i = rows - origin[0]
+    j = (cols - origin[1]) % columns
+    inside = (i >= 0) & (i < height) & (j < width)
+    nearest = np.full(height * width, np.inf)
+    np.minimum.at(nearest, i[inside] * width + j[inside], range_m[inside])
+    nearest[np.isinf(nearest)] = np.nan
+    return nearest.reshape(height, width)
+
+
+def crop_origin(centre: np.ndarray, config: KittiConfig) -> tuple[int, int]:
+    """Top-left front-view cell (row, column) of the crop centred on ``centre`` (3,), the
+    column brought into [-columns / 2, columns / 2)."""
+    row, col = (int(v[0]) for v in front_view(centre[None], config.res_h_deg, config.res_v_deg))
+    half = config.columns // 2
+    return row - config.crop[0] // 2, (col - config.crop[1] // 2 + half) % config.columns - half
+
+
+def frame_crops(frame: Frame, points: np.ndarray, config: KittiConfig) -> dict[str, np.ndarray]:
+    """Every labelled object of one frame as a crop, with its records (the KITTI schema).
+
+    points : (n, 3) the frame's scan, Velodyne frame, metres
+    returns : name -> (objects, ...) array, one row per label in file order
+    """
+    rows, cols = front_view(points, config.res_h_deg, config.res_v_deg)
+    range_m = np.sqrt((points**2).sum(axis=1))
+    tof_max = tof_ns(config.max_range_m)
+    out: dict[str, list] = {name: [] for name in CONVERTED_SCHEMAS[SOURCE]}
+    for label in frame.labels:
+        corners = to_velo(box_corners_cam(label.box), frame.cam_to_velo)  # (8, 3)
+        origin = crop_origin(corners.mean(axis=0), config)
+        nearest = crop_ranges(rows, cols, range_m, origin, config.crop, config.columns)
+        out["delays"].append(delays_from_times(tof_ns(nearest), tof_max))
+        out["labels"].append(CLASSES.index(label.kind))
+        out["frame"].append(frame.number)
+        out["crop_origin"].append(origin)
+        out["box_corners_m"].append(corners)
+        out["box_points"].append(int(inside_box(points, corners).sum()))
+        out["truncated"].append(label.truncated)
+        out["occluded"].append(label.occluded)
+    shapes = expected_shapes(SOURCE, len(frame.labels), *config.crop)
+    return {
+        name: np.array(out[name], dtype=d).reshape(shape) for name, (d, shape) in shapes.items()
+    }
+
+
+def split_frames(frames: list[Frame], config: KittiConfig) -> dict[str, list[Frame]]:
+    """Train and test frames: a seeded choice among the frames with labelled objects (frames
+    without any join neither split). DatasetError with fewer than two such frames."""
+    useful = [f for f in frames if f.labels]
+    if len(useful) < 2:
+        raise DatasetError(
+            f"{len(useful)} frame(s) with labelled objects: expected at least 2, so that train "
+            "and test get different frames"
+        )
+    test = choose_test(len(useful), config.test_fraction, stream(config.seed))
+    return {
+        "train": [f for f, t in zip(useful, test) if not t],
+        "test": [f for f, t in zip(useful, test) if t],
+    }
+
+
+def dataset_name(config: KittiConfig) -> str:
+    """``kitti-front-<H>x<W>-v<version>``."""
+    return f"kitti-front-{config.crop[0]}x{config.crop[1]}-v{SOURCES[SOURCE][0]}"
+
+
+def convert_kitti(
+    root: str | Path,
+    out: str | Path,
+    *,
+    crop: tuple[int, int] = (50, 118),
+    res_h_deg: float = 0.18,
+    res_v_deg: float = 0.4,
+    max_range_m: float = 100.0,
+    test_fraction: float = 0.2,
+    seed: int = 0,
+    force: bool = False,
+    progress: bool = True,
+    preview: bool = True,
+) -> Path:
+    """Convert the KITTI 3D object benchmark's training frames (ROOT: the folder with label_2/,
+    calib/ and velodyne/, or its parent) into front-view pulse crops, one per labelled object
+    (8 classes, DontCare skipped), written to OUT/kitti-front-<H>x<W>-v<version>/.
+
+    Every scan is projected into the expanded front view (res_h_deg x res_v_deg cells); a cell's
+    nearest point becomes a pulse delay, its time of flight over that at max_range_m (1.0 = no
+    return). Crops of crop = (rows, columns) cells are centred on each 3D box. Frames are split
+    between train and test (test_fraction of them, seeded; at least one each, so at least two
+    frames with objects are needed). Returns the dataset directory.
+    """
+    config = KittiConfig(crop, res_h_deg, res_v_deg, max_range_m, test_fraction, seed)
+    base, frames = read_frames(root)
+    splits = split_frames(frames, config)
+    name = dataset_name(config)
+    with building(out, name, force) as temp:
+        write_splits(temp, base, frames, splits, config, progress)
+        write_release_files(temp, name, preview)
+    return Path(out) / name
+
+
+def write_splits(folder: Path, base: Path, frames: list[Frame], splits: dict[str, list[Frame]],
+                 config: KittiConfig, progress: bool = True) -> None:  # fmt: skip
+    """Read every scan once, in split order, and write train.h5 and test.h5 into ``folder``.
+
+    base : the training folder (paths in the input's hash are relative to it)
+    """
+    from tqdm import tqdm
+
+    shapes = {n: (d, s[1:]) for n, (d, s) in expected_shapes(SOURCE, 0, *config.crop).items()}
+    writers: dict[str, RowWriter] = {}
+    try:
+        hashes = _small_file_hashes(base, frames)
+        for split in SPLITS:
+            size = sum(len(f.labels) for f in splits[split])
+            writers[split] = RowWriter(folder / f"{split}.h5", size, shapes, {},
+                                       frozenset({"delays", "box_corners_m"}))  # fmt: skip
+        bar = tqdm(total=len(frames), unit="frame", disable=not progress, desc="kitti")
+        for split in SPLITS:
+            for frame in splits[split]:
+                points, hashes[frame.velodyne.relative_to(base)] = read_velodyne(frame.velodyne)
+                writers[split].append(frame_crops(frame, points, config))
+                bar.update()
+        for frame in frames:  # frames without objects count in the input's hash too
+            if frame.velodyne.relative_to(base) not in hashes:
+                hashes[frame.velodyne.relative_to(base)] = sha256_file(frame.velodyne)
+                bar.update()
+        bar.close()
+        # the text `sha256sum calib/* label_2/* velodyne/*` prints in the training folder
+        manifest = "".join(f"{h}  {p.as_posix()}\n" for p, h in sorted(hashes.items()))
+        sensor = {"name": "Velodyne HDL-64E (KITTI, 10 Hz)", "res_h_deg": config.res_h_deg,
+                  "res_v_deg": config.res_v_deg, "max_range_m": config.max_range_m}  # fmt: skip
+        for split, writer in writers.items():
+            attrs = split_attrs(SOURCE, split, config, CLASSES, "object", sensor,
+                                hashlib.sha256(manifest.encode()).hexdigest())  # fmt: skip
+            attrs["tof_max_ns"] = tof_ns(config.max_range_m)
+            attrs["frames_without_objects"] = np.array(
+                [f.number for f in frames if not f.labels], dtype=np.int64
+            )
+            for key, value in attrs.items():
+                writer.file.attrs[key] = value
+            writer.close()
+    finally:
+        for writer in writers.values():
+            writer.file.close()
+
+
+def _small_file_hashes(base: Path, frames: list[Frame]) -> dict[Path, str]:
+    """sha256 of every frame's label and calibration file, by path relative to ``base``."""
+    hashes = {}
+    for frame in frames:
+        for folder, suffix in (("label_2", ".txt"), ("calib", ".txt")):
+            path = base / folder / f"{frame.velodyne.stem}{suffix}"
+            hashes[path.relative_to(base)] = sha256_file(path)
+    return hashes

@@ -1,0 +1,273 @@
+"""The card (``README.md``), ``croissant.json``, preview and checksums of a converted dataset,
+made from its split files and the source's :class:`~simlidar.convert.about.About`.
+
+The generator's datasets get theirs from :mod:`simlidar.dataset.card` and
+:mod:`simlidar.dataset.croissant`; the table and Croissant helpers are shared with them.
+"""
+
+import json
+from pathlib import Path
+
+import yaml
+
+from simlidar.convert.about import ABOUT, WANG2020
+from simlidar.dataset.card import _size_category, _table, write_card
+from simlidar.dataset.checksums import sha256_file, write_sums
+from simlidar.dataset.croissant import CONTEXT, CROISSANT
+from simlidar.dataset.h5 import CONVERTED_SCHEMAS, SPLITS, dataset_splits, load_arrays
+from simlidar.dataset.info import dataset_info
+from simlidar.dataset.preview import write_preview
+from simlidar.dataset.version import SOURCES
+
+_DATA_TYPES = {
+    "float32": "sc:Float",
+    "int64": "sc:Integer",
+    "int32": "sc:Integer",
+    "uint8": "sc:Integer",
+    "int8": "sc:Integer",
+}
+# source -> (library function, its first argument), for the card's "Regenerate" section
+_CALLS = {
+    "kitti": ("convert_kitti", "ROOT"),  # the benchmark's training folder
+    "dvs-barrel": ("convert_dvs_barrel", "FILE.mat"),
+}
+_DOCS = {  # one line per dataset; the full tables are in docs/converters.md
+    "delays": "normalised delays (1.0 = nothing in the window): the network input",
+    "labels": "class index",
+    "frame": "KITTI frame number (the file name's digits)",
+    "crop_origin": "front-view row y_front and column x_front of the crop's top-left cell",
+    "box_corners_m": "the 3D box's 8 corners in the Velodyne frame, m",
+    "box_points": "Velodyne points inside the 3D box",
+    "truncated": "KITTI truncation, 0 (none) to 1",
+    "occluded": "KITTI occlusion, 0 (visible) to 3 (unknown)",
+    "recording": "index of the recording in the ROI struct array (0-based)",
+    "event_start": "row of the sample's first event in the event_* datasets",
+    "event_count": "number of events of the sample",
+    "event_x": "event x address, 0-based (column)",
+    "event_y": "event y address, 0-based (row)",
+    "event_p": "event polarity as recorded",
+    "event_t_us": "event timestamp as recorded, microseconds",
+}
+
+
+def _shape(shape: tuple, height: int, width: int) -> tuple:
+    return tuple({"H": height, "W": width}.get(d, d) for d in shape)
+
+
+def _shape_text(shape: tuple, info) -> str:
+    return str(_shape(shape, info.height, info.width)).replace("'", "")
+
+
+def _source_rows(splits: dict) -> list[list]:
+    """The card's summary rows that only some sources have."""
+    attrs = splits["train"].attrs
+    rows = []
+    if "tof_max_ns" in attrs:
+        rows.append(["`tof_max_ns`", f"{attrs['tof_max_ns']:.3f} ns: the delay 1.0"])
+    if "time_window_us" in attrs:
+        rows.append(["`time_window_us`", f"{attrs['time_window_us']:g} us: the delay 1.0"])
+    if "frame" in CONVERTED_SCHEMAS[splits["train"].source]:
+        frames = {s: len(set(load_arrays(i.path, ("frame",))["frame"])) for s, i in splits.items()}
+        empty = len(attrs.get("frames_without_objects", []))
+        rows.append(
+            [
+                "frames",
+                ", ".join(f"{s} {n}" for s, n in frames.items())
+                + f" ({empty} without objects, in neither)",
+            ]
+        )
+    return rows
+
+
+def front_matter(path: Path) -> dict:
+    """The YAML front matter (Hugging Face dataset card metadata) of a converted dataset."""
+    splits = dataset_splits(path)
+    info = splits["train"]
+    about = ABOUT[info.source]
+    features = []
+    for name, (dtype, shape) in CONVERTED_SCHEMAS[info.source].items():
+        tail = list(_shape(shape, info.height, info.width)[1:])
+        if shape[0] != "N":
+            continue  # per-event datasets are not features of a sample
+        if name == "labels":
+            names = {str(k): n for k, n in enumerate(info.attrs["class_names"])}
+            features.append({"name": name, "dtype": {"class_label": {"names": names}}})
+        elif len(tail) == 2:
+            features.append({"name": name, "array2_d": {"shape": tail, "dtype": dtype}})
+        elif tail:
+            features.append({"name": name, "sequence": dtype, "length": tail[0]})
+        else:
+            features.append({"name": name, "dtype": dtype})
+    nbytes = {s: i.path.stat().st_size for s, i in splits.items()}
+    return {
+        "license": about.license,
+        "pretty_name": f"{about.name}, {len(info.attrs['class_names'])} classes",
+        "task_categories": ["image-classification"],
+        "size_categories": [_size_category(sum(i.size for i in splits.values()))],
+        "tags": list(about.tags),
+        "configs": [
+            {
+                "config_name": "default",
+                "data_files": [{"split": s, "path": f"{s}.h5"} for s in SPLITS],
+            }
+        ],
+        "dataset_info": {
+            "config_name": "default",
+            "features": features,
+            "splits": [
+                {"name": s, "num_bytes": nbytes[s], "num_examples": splits[s].size} for s in SPLITS
+            ],
+            "download_size": sum(nbytes.values()),
+            "dataset_size": sum(nbytes.values()),
+        },
+    }
+
+
+def regenerate_call(source: str, config: dict) -> str:
+    """The Python call that converts the same input into the same bytes."""
+    function, first = _CALLS[source]
+    args = ", ".join(f"{k}={tuple(v) if isinstance(v, list) else v!r}" for k, v in config.items())
+    return f"from simlidar.convert import {function}\n{function}({first!r}, 'data', {args})"
+
+
+def render_card(path: str | Path) -> str:
+    """The whole card of a converted dataset directory, from its files alone."""
+    path = Path(path)
+    splits = dataset_splits(path)
+    info = splits["train"]
+    attrs, about = info.attrs, ABOUT[info.source]
+    names = attrs["class_names"]
+    counts = dataset_info(path)["counts"]
+    version = attrs["dataset_version"]
+    _, dates, notes = SOURCES[info.source]
+    meta = yaml.safe_dump(front_matter(path), sort_keys=False, allow_unicode=True, width=1000)
+    sample = f"{info.height} x {info.width} float32 delays in [0, 1]"
+    sections = [
+        f"---\n{meta}---\n",
+        f"# {about.name}: {len(names)} classes\n",
+        "![one example per class (test split)](preview.png)\n"
+        if (path / "preview.png").exists()
+        else "",
+        f"{about.description}\n",
+        _table(
+            ["", ""],
+            [
+                ["source", f"`{info.source}` (input sha256 `{attrs['input_sha256']}`)"],
+                ["dataset version", version],
+                ["simlidar version", attrs["simlidar_version"]],
+                ["classes", f"{len(names)} ({attrs['class_mode']})"],
+                ["samples", ", ".join(f"{s} {i.size}" for s, i in splits.items())],
+                ["sample", sample],
+                ["seed", attrs["seed"]],
+                *_source_rows(splits),
+            ],
+        )
+        + "\n",
+        "## Composition\n",
+        f"What a value means: {about.delay_meaning}\n",
+        _table(
+            ["class", "name", *splits],
+            [[k, name, *(counts[s][name] for s in splits)] for k, name in enumerate(names)],
+        )
+        + "\n",
+        "Each split file holds these datasets (N samples, E events):\n",
+        _table(
+            ["dataset", "dtype", "shape", "meaning"],
+            [
+                [f"`{name}`", dtype, _shape_text(shape, info), _DOCS[name]]
+                for name, (dtype, shape) in CONVERTED_SCHEMAS[info.source].items()
+            ],
+        )
+        + "\n",
+        f"## Conversion\n\n{about.conversion}\n",
+        _table(["parameter", "value"], [[f"`{k}`", v] for k, v in attrs["config"].items()]) + "\n",
+        _table(["sensor", "value"], [[f"`{k}`", v] for k, v in attrs["sensor"].items()]) + "\n",
+        f"## Uses\n\n{about.uses}\n\n### Out-of-scope uses\n\n{about.out_of_scope}\n",
+        f"## License\n\nThe source data's: `{about.license}` ({about.license_url}); source: "
+        f"{about.homepage}.\n",
+        "## Regenerate\n",
+        f"With simlidar {attrs['simlidar_version']} (dataset version {version}) and the same "
+        "input (its sha256 above):\n",
+        "```python\n" + regenerate_call(info.source, attrs["config"]) + "\n```\n",
+        "## Versions\n",
+        "\n".join(f"* {v} ({dates.get(v, 'unreleased')}): {n}" for v, n in notes.items()) + "\n",
+        "## Loading\n",
+        "```python\nfrom simlidar.data import load_split\n"
+        f"x, y = load_split('.', 'train')  # x: (N, {info.height}, {info.width}) float32, "
+        "y: (N,) int64\n```\n",
+        "## Citation\n\nPlease cite the source data and the paper whose pipeline this follows:\n",
+        f"```bibtex\n{about.source_citation}\n\n{WANG2020}\n```\n",
+    ]
+    return "\n".join(s for s in sections if s)
+
+
+def croissant(path: str | Path, name: str | None = None) -> dict:
+    """The Croissant 1.0 description of a converted dataset directory."""
+    path = Path(path)
+    splits = dataset_splits(path)
+    info = splits["train"]
+    about = ABOUT[info.source]
+    version = info.attrs["dataset_version"]
+    schema = CONVERTED_SCHEMAS[info.source]
+
+    def record_set(split: str, rows: str) -> dict:
+        fields = [n for n, (_, shape) in schema.items() if shape[0] == rows]
+        what = "samples" if rows == "N" else "events"
+        return {
+            "@type": "cr:RecordSet",
+            "@id": split if rows == "N" else f"{split}_events",
+            "name": split if rows == "N" else f"{split}_events",
+            "description": f"The {what} of the {split} split, one record per row.",
+            "field": [
+                {
+                    "@type": "cr:Field",
+                    "@id": f"{split}/{n}" if rows == "N" else f"{split}_events/{n}",
+                    "name": n,
+                    "description": f"HDF5 dataset `{n}`, {schema[n][0]} "
+                    f"{_shape(schema[n][1], info.height, info.width)}: {_DOCS[n]}".replace("'", ""),
+                    "dataType": _DATA_TYPES[schema[n][0]],
+                    "source": {"fileObject": {"@id": f"{split}.h5"}, "extract": {"column": n}},
+                }
+                for n in fields
+            ],
+        }
+
+    rows = sorted({shape[0] for _, shape in schema.values()}, key="NE".index)
+    return {
+        "@context": CONTEXT,
+        "@type": "sc:Dataset",
+        "conformsTo": "http://mlcommons.org/croissant/1.0",
+        "name": name or path.name,
+        "alternateName": about.name,
+        "description": about.description,
+        "license": about.license_url,
+        "url": about.homepage,
+        "creator": {"@type": "sc:Organization", "name": "simlidar developers"},
+        "datePublished": SOURCES[info.source][1].get(version, "1970-01-01"),
+        "version": version,
+        "citeAs": about.source_citation,
+        "keywords": list(about.tags),
+        "distribution": [
+            {
+                "@type": "cr:FileObject",
+                "@id": f"{s}.h5",
+                "name": f"{s}.h5",
+                "description": f"The {s} split (HDF5).",
+                "contentUrl": f"{s}.h5",
+                "contentSize": f"{splits[s].path.stat().st_size} B",
+                "encodingFormat": "application/x-hdf5",
+                "sha256": sha256_file(splits[s].path),
+            }
+            for s in SPLITS
+        ],
+        "recordSet": [record_set(s, r) for s in SPLITS for r in rows],
+    }
+
+
+def write_release_files(path: Path, name: str, preview: bool = True) -> None:
+    """Preview, ``croissant.json``, card and ``SHA256SUMS`` of a dataset whose splits exist."""
+    if preview:
+        write_preview(path, path / "preview.png", title=name)
+    (path / CROISSANT).write_text(json.dumps(croissant(path, name), indent=2) + "\n")
+    write_card(path)  # dispatches to render_card above by the splits' source
+    write_sums(path)
