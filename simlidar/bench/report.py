@@ -7,8 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
+from simlidar.bench.metrics import MAC_PJ
 from simlidar.content import content_dir
 from simlidar.dataset.version import GENERATOR
+from simlidar.models.events import ALPHAS_PJ
 
 PAPER_FILE = "reported/wang2020.toml"
 
@@ -19,7 +21,9 @@ def paper_numbers() -> dict:
 
 
 def _stats(values: list[float]) -> tuple[float, float, int]:
-    return float(np.mean(values)), float(np.std(values)), len(values)
+    """Mean, sample standard deviation (ddof 1; 0 for one value) and count."""
+    std = float(np.std(values, ddof=1)) if len(values) > 1 else 0.0
+    return float(np.mean(values)), std, len(values)
 
 
 def _pct(values: list[float]) -> str:
@@ -53,7 +57,7 @@ def accuracy_by_noise(cells: list[dict], paper: dict) -> list[str]:
     models = sorted({c["model"] for c in sim})
     by = _groups(sim, "model", "noise")
     lines = ["## Sim LiDAR: accuracy (%) by noise level", "",
-             "Mean ± standard deviation over seeds (number of seeds in brackets).", "",
+             "Mean ± sample standard deviation over seeds (number of seeds in brackets).", "",
              "| model | " + " | ".join(f"noise {v:g}" for v in levels) + " |",
              "|---" * (len(levels) + 1) + "|"]  # fmt: skip
     for m in models:
@@ -77,7 +81,8 @@ def by_model(cells: list[dict], paper: dict) -> list[str]:
                   f"input {' x '.join(map(str, group[0]['input_shape']))}, "
                   f"{group[0]['classes']} classes, noise {group[0]['noise']:g}.", "",
                   "| model | accuracy % | decision ns | input spikes used | R_data | "
-                  "hidden spikes | energy pJ (0.37 / 45 pJ/spike; 4.6 pJ/MAC) | MACs | "
+                  f"hidden spikes | energy pJ ({' / '.join(f'{a:g}' for a in ALPHAS_PJ)} pJ/spike; "
+                  f"{MAC_PJ:g} pJ/MAC) | MACs | "
                   "latency ms | samples/s | params | footprint MB | epochs |",
                   "|---" * 13 + "|"]  # fmt: skip
         for (model,), runs in sorted(_groups(group, "model").items()):
@@ -87,9 +92,9 @@ def by_model(cells: list[dict], paper: dict) -> list[str]:
                 def e(key, early=early):
                     return _mean(early, lambda cell, key=key: cell["early"][key])
 
-                pj = [_mean(early, lambda c, a=a: c["early"]["energy_pj_mean"][a])
-                      for a in ("0.37", "45.0")]  # fmt: skip
-                energy = f"{pj[0]:.3g} / {pj[1]:.3g}"
+                pj = [_mean(early, lambda c, a=a: c["early"]["energy_pj_mean"][str(a)])
+                      for a in ALPHAS_PJ]  # fmt: skip
+                energy = " / ".join(f"{v:.3g}" for v in pj)
                 spikes = f"{e('input_spikes_mean'):.1f} of {e('input_spikes_total_mean'):.1f}"
                 timing = [_num(e("decision_time_ns_mean"), "{:.0f}"), spikes,
                           _num(e("data_ratio_mean"), "{:.3f}"),
@@ -108,7 +113,8 @@ def by_model(cells: list[dict], paper: dict) -> list[str]:
                 f" | {_num(_mean(runs, lambda c: c['epochs']), '{:.0f}')} |"
             )  # fmt: skip
         if source == "kitti":
-            lines += ["", "The paper on KITTI (32,456 / 8,000 crops): " + ", ".join(
+            lines += ["", f"The paper on KITTI ({paper['kitti']['train_size']:,} / "
+                      f"{paper['kitti']['test_size']:,} crops): " + ", ".join(
                 f"{k} {v:.2f} %" for k, v in kitti.items()) + f"; the SCNN used "
                 f"{paper['kitti']['data_ratio_scnn']:.0%} of the input spikes."]  # fmt: skip
         lines.append("")
@@ -207,17 +213,26 @@ def plot_confusions(cells: list[dict], path: Path) -> bool:
     return True
 
 
+def _machine(m: dict) -> str:
+    return f"{m['cpu']} ({m['cores']} cores, torch {m['torch']}, {m['torch_threads']} threads)"
+
+
 def write_report(results: dict, out: Path) -> Path:
     """Write ``<out>/report.md`` and its pictures from results.json's content."""
     paper = paper_numbers()
     cells = results["cells"]
     m = results["machine"]
+    seen = {json.dumps(c["machine"], sort_keys=True) for c in cells if "machine" in c}
+    unrecorded = sum("machine" not in c for c in cells)
+    where = "; ".join(_machine(json.loads(k)) for k in sorted(seen)) or _machine(m)
+    if unrecorded:
+        where += (f" ({unrecorded} cells do not record their machine; results.json was written "
+                  f"on {_machine(m)})")  # fmt: skip
     lines = [
         f"# Benchmark report: suite {results['suite']['name']}", "",
         results["suite"]["description"], "",
         f"simlidar {results['simlidar_version']}; {len(cells)} cells; "
-        f"{results['seconds'] / 60:.1f} min of training and measuring on {m['cpu']} "
-        f"({m['cores']} cores, torch {m['torch']}, {m['torch_threads']} threads).", "",
+        f"{results['seconds'] / 60:.1f} min of training and measuring on {where}.", "",
         "All models were trained from scratch here: no pretrained weights exist for these "
         "inputs. Training budgets are in each cell of `results.json`. The paper's numbers come "
         f"from `baselines/{PAPER_FILE}` ({paper['citation']}).", "",
@@ -239,9 +254,12 @@ def write_report(results: dict, out: Path) -> Path:
         "(dense spiking networks), means over test samples; R_data = input spikes consumed "
         "before the decision / all input spikes of the sample.",
         "* energy: spiking networks, spikes (input consumed + hidden + output) x alpha at "
-        f"{paper['energy']['alpha_pj'][0]} and {paper['energy']['alpha_pj'][1]} pJ per spike, "
-        "as the paper estimates it; conventional networks, multiply-accumulates x 4.6 pJ "
-        "(32-bit float at 45 nm, Horowitz 2014).",
+        f"{' and '.join(f'{a:g}' for a in ALPHAS_PJ)} pJ per spike, as the paper estimates it; "
+        f"conventional networks, multiply-accumulates x {MAC_PJ:g} pJ (32-bit float at 45 nm, "
+        "Horowitz 2014). The paper's own estimate for conventional networks, board power x "
+        "latency, needs the suite's `board_power_w`"
+        + (" (set)." if any(c.get("energy_pj_board") for c in cells) else
+           ": not set, as this machine's power draw is not known (column left out)."),
         "* latency: batch 1, median of up to 30 runs on this CPU; samples/s: one batch of up to "
         "512.",
         "* params, footprint (bytes of parameters and buffers), connection and activation "

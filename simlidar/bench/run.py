@@ -9,6 +9,7 @@ Output directory layout::
     <out>/report.md, *.png    tables beside the paper's numbers, and pictures
 """
 
+import hashlib
 import json
 import os
 import platform
@@ -28,8 +29,6 @@ from simlidar.dataset.h5 import dataset_splits
 from simlidar.dataset.version import GENERATOR
 from simlidar.errors import DatasetError
 from simlidar.models.registry import load_recipe
-
-RECORD_KEYS = ("dataset", "source", "noise", "model", "seed", "accuracy", "latency_ms", "params")
 
 
 def _write_json(path: Path, data, indent: int | None = 1) -> None:
@@ -102,6 +101,36 @@ def cell_id(dataset: Path, model: str, seed: int) -> str:
     return f"{dataset.name}__{Path(model).stem}__seed{seed}"
 
 
+def cell_inputs(dataset: Path, model: str) -> dict:
+    """Fingerprints of what a cell was made from: the dataset (sha256 of its SHA256SUMS, which
+    lists every file's sha256) and the recipe (sha256 of its content)."""
+    sums = dataset / "SHA256SUMS"
+    recipe = load_recipe(model)
+    return {
+        "dataset_sha256": hashlib.sha256(sums.read_bytes()).hexdigest() if sums.is_file() else None,
+        "recipe_sha256": hashlib.sha256(json.dumps(recipe, sort_keys=True).encode()).hexdigest(),
+    }
+
+
+def finished(out: Path, dataset: Path, model: str, seed: int) -> bool:
+    """Whether the cell is done in ``out``; a cell made from another dataset or recipe of the
+    same name is refused (results are never silently reused for different inputs)."""
+    path = out / "cells" / f"{cell_id(dataset, model, seed)}.json"
+    if not path.is_file():
+        return False
+    recorded = json.loads(path.read_text()).get("inputs")
+    if recorded is not None:  # cells of runs before fingerprints were recorded lack them
+        current = cell_inputs(dataset, model)
+        for key, value in current.items():
+            if recorded.get(key) != value:
+                raise DatasetError(
+                    f"--out {out}: cell {path.stem} was made from another "
+                    f"{key.split('_')[0]} ({key} {str(recorded.get(key))[:12]}, now "
+                    f"{str(value)[:12]}); expected the same inputs: use a new --out"
+                )
+    return True
+
+
 def run_cell(dataset: Path, model: str, seed: int, suite: Suite) -> dict:
     """Train one model on one dataset with one seed and measure it (docs/benchmark.md)."""
     recipe = load_recipe(model)
@@ -129,6 +158,7 @@ def run_cell(dataset: Path, model: str, seed: int, suite: Suite) -> dict:
         "test_size": splits["test"].size,
         "input_shape": list(x.shape[1:]),
         "epochs": result.epochs,
+        "stopped_by_time": result.epochs < budget.get("epochs", recipe["training"]["epochs"]),
         "train_seconds": round(result.seconds, 2),
         "budget": budget,
         **metrics.footprint(model_),
@@ -160,12 +190,12 @@ def run_suite(suite: Suite, out: Path, models: list[str] | None = None,
     models = list(models or suite.models)
     for model in models:
         load_recipe(model)  # unknown recipes fail before anything is written
-    if dataset is not None:
-        dataset_splits(dataset)
+    for path in [dataset] if dataset is not None else suite.datasets:
+        dataset_splits(path)  # every given dataset is one, before anything is written
     claim(out, suite)
     datasets = resolve_datasets(suite, out, dataset, progress)
     cells = [(d, m, s) for d in datasets for m in models for s in suite.seeds]
-    todo = [c for c in cells if not (out / "cells" / f"{cell_id(*c)}.json").is_file()]
+    todo = [c for c in cells if not finished(out, *c)]
     bar = tqdm(todo, desc=f"bench {suite.name}", unit="cell", disable=not progress,
                dynamic_ncols=True)  # fmt: skip
     for d, m, s in bar:
@@ -173,6 +203,7 @@ def run_suite(suite: Suite, out: Path, models: list[str] | None = None,
         start = time.perf_counter()
         record = run_cell(d, m, s, suite)
         record["seconds"] = round(time.perf_counter() - start, 2)
+        record.update(inputs=cell_inputs(d, m), machine=machine(), simlidar_version=__version__)
         _write_json(out / "cells" / f"{cell_id(d, m, s)}.json", record, indent=None)
     results = collect(out, suite)
     write_report(results, out)
@@ -188,8 +219,8 @@ def collect(out: Path, suite: Suite) -> dict:
         records.append(record)
     results = {
         "suite": {"name": suite.name, "sha256": suite.sha256, "description": suite.description},
-        "simlidar_version": __version__,
-        "machine": machine(),
+        "simlidar_version": __version__,  # of the run that wrote this file; cells record theirs
+        "machine": machine(),  # that wrote this file; each cell records the one it ran on
         "seconds": round(sum(r["seconds"] for r in records), 1),
         "cells": records,
     }

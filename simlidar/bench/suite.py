@@ -102,6 +102,12 @@ def load_suite(name_or_path: str | Path) -> Suite:
     seeds = data.get("seeds", [0])
     if not isinstance(seeds, list) or not seeds or not all(_number(s, 0, True) for s in seeds):
         raise _fail(path, "seeds", "a non-empty list of integers >= 0", seeds)
+    for key, values in (("models", models), ("seeds", seeds)):
+        if len(set(values)) != len(values):
+            raise _fail(path, key, "distinct values", values)
+    for key in ("generate", "budget"):
+        if key in data and not isinstance(data[key], dict):
+            raise _fail(path, key, "a table ([" + key + "])", data[key])
     if ("generate" in data) == ("datasets" in data):
         raise ConfigError(f"suite {path}: expected exactly one of 'generate' (datasets made on "
                           "the fly) or 'datasets' (dataset directories)")  # fmt: skip
@@ -109,8 +115,9 @@ def load_suite(name_or_path: str | Path) -> Suite:
     if "generate" in data:
         table = dict(data["generate"])
         levels = table.pop("noise", None)
-        if not isinstance(levels, list) or not levels:
-            raise _fail(path, "generate.noise", "a non-empty list of noise levels", levels)
+        if not isinstance(levels, list) or not levels or len(set(levels)) != len(levels):
+            raise _fail(path, "generate.noise", "a non-empty list of distinct noise levels",
+                        levels)  # fmt: skip
         unknown = set(table) - set(GeneratorConfig.__dataclass_fields__) - {"noise"}
         if unknown or "sensor" in table:
             bad = sorted(unknown | ({"sensor"} & set(table)))[0]

@@ -122,6 +122,11 @@ def test_generated_datasets_are_made_once(tmp_path):
         ('models = ["cnn"]\ndatasets = ["x"]\n[budget]\nepochs = 0', "key 'budget.epochs'"),
         ('models = ["cnn"]\ndatasets = ["x"]\n[budget.vgg16]\nepochs = 2', "key 'budget.vgg16'"),
         ('models = ["cnn"', "not valid TOML"),
+        ('models = ["cnn"]\ngenerate = 5', r"key 'generate': expected a table"),
+        ('models = ["cnn"]\ndatasets = ["x"]\nbudget = [1]', r"key 'budget': expected a table"),
+        ('models = ["cnn", "cnn"]\ndatasets = ["x"]', "key 'models': expected distinct"),
+        ('models = ["cnn"]\nseeds = [1, 1]\ndatasets = ["x"]', "key 'seeds': expected distinct"),
+        ('models = ["cnn"]\n[generate]\nnoise = [0.1, 0.1]', "distinct noise levels"),
     ],
 )
 def test_bad_suites_are_named(tmp_path, text, message):
@@ -162,3 +167,37 @@ def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets):
           "not a benchmark output directory")  # fmt: skip
     assert (out / "results.json").read_bytes() == results  # nothing touched
     assert (not_schema / "train.h5").read_text() == "not hdf5"
+
+
+def test_a_cell_from_other_inputs_is_refused_not_reused(tiny_suite, tmp_path, datasets, catalog):
+    from simlidar.dataset.config import GeneratorConfig
+    from simlidar.dataset.generate import generate
+    from simlidar.errors import DatasetError
+
+    suite = load_suite(tiny_suite)
+    out = tmp_path / "out"
+    recipe = tmp_path / "mycnn.toml"
+    recipe.write_text('model = "cnn"\n[architecture]\ndense = [8]\n[training]\n'
+                      'optimizer = "adam"\nlr = 1e-3\nbatch_size = 32\nepochs = 1\n')  # fmt: skip
+    run_suite(suite, out, [str(recipe)], datasets[0.1], progress=False)
+    before = (out / "results.json").read_bytes()
+    # the same directory name, other samples (another seed)
+    other = generate(GeneratorConfig(train_size=32, test_size=32, seed=7), [0.1], catalog,
+                     tmp_path / "other", progress=False)[0].path  # fmt: skip
+    assert other.name == datasets[0.1].name
+    with pytest.raises(DatasetError, match="was made from another dataset"):
+        run_suite(suite, out, [str(recipe)], other, progress=False)
+    recipe.write_text(recipe.read_text().replace("dense = [8]", "dense = [9]"))
+    with pytest.raises(DatasetError, match="was made from another recipe"):
+        run_suite(suite, out, [str(recipe)], datasets[0.1], progress=False)
+    assert (out / "results.json").read_bytes() == before
+
+
+def test_a_suite_with_a_missing_dataset_claims_nothing(tmp_path):
+    from simlidar.errors import DatasetError
+
+    path = tmp_path / "s.toml"
+    path.write_text(f'models = ["cnn"]\ndatasets = ["{tmp_path / "missing"}"]\n')
+    with pytest.raises(DatasetError, match="expected a dataset directory"):
+        run_suite(load_suite(path), tmp_path / "out", progress=False)
+    assert not (tmp_path / "out").exists()
