@@ -224,10 +224,12 @@ def write_report(results: dict, out: Path) -> Path:
     m = results["machine"]
     seen = {json.dumps(c["machine"], sort_keys=True) for c in cells if "machine" in c}
     unrecorded = sum("machine" not in c for c in cells)
-    where = "; ".join(_machine(json.loads(k)) for k in sorted(seen)) or _machine(m)
+    where = "; ".join(_machine(json.loads(k)) for k in sorted(seen))
     if unrecorded:
-        where += (f" ({unrecorded} cells do not record their machine; results.json was written "
-                  f"on {_machine(m)})")  # fmt: skip
+        where += ("; " if where else "") + (
+            f"{_machine(m)}, the machine that wrote results.json ({unrecorded} cells do not "
+            "record their own)"
+        )
     lines = [
         f"# Benchmark report: suite {results['suite']['name']}", "",
         results["suite"]["description"], "",

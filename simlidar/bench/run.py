@@ -13,6 +13,7 @@ import hashlib
 import json
 import os
 import platform
+import re
 import time
 from pathlib import Path
 
@@ -30,10 +31,17 @@ from simlidar.dataset.version import GENERATOR
 from simlidar.errors import DatasetError
 from simlidar.models.registry import load_recipe
 
+_NUMBERS = re.compile(r"\[[-0-9.eE+,\s]*\]")  # a list of numbers spread over lines
+
 
 def _write_json(path: Path, data, indent: int | None = 1) -> None:
+    """Write atomically; with ``indent``, lists of numbers stay on one line each."""
+    text = json.dumps(data, indent=indent)
+    if indent is not None:
+        text = _NUMBERS.sub(lambda m: "[" + ", ".join(m[0][1:-1].replace(",", " ").split())
+                            + "]", text)  # fmt: skip
     tmp = path.with_name(f".{path.name}.partial")
-    tmp.write_text(json.dumps(data, indent=indent) + "\n")
+    tmp.write_text(text + "\n")
     tmp.replace(path)
 
 
