@@ -26,7 +26,7 @@ def test_plans_match_torchvision_parameter_counts():
     assert _params(vgg) == features + (512 * 512 + 512) + (512 * 32 + 32)
 
 
-@pytest.mark.parametrize("name", ["cnn", "vgg16", "resnet18", "resnet50"])
+@pytest.mark.parametrize("name", ["cnn", "vgg16", "resnet18", "resnet50", "mlp"])
 @pytest.mark.parametrize("shape", [(1, 16, 16), (1, 5, 3)])  # KITTI crops: the CNN test
 def test_every_baseline_takes_any_input_size(name, shape):
     model = build_model(load_recipe(name), shape, 8, torch.Generator().manual_seed(0))
@@ -43,6 +43,11 @@ def test_cnn_has_the_papers_layers_and_a_seed_fixes_the_weights():
     # conv 5x5/2 x48, conv 5x5/2 x24 (50 x 118 -> 25 x 59 -> 13 x 30), dense 256, dense 8
     assert shapes == [(48, 1, 5, 5), (24, 48, 5, 5), (256, 24 * 13 * 30), (8, 256)]
     assert all(torch.equal(p, q) for p, q in zip(a.parameters(), b.parameters()))
+
+
+def test_the_mlp_reference_has_the_dense_snns_shape():
+    mlp = build_model(load_recipe("mlp"), (1, 16, 16), 32)
+    assert [tuple(p.shape) for p in mlp.parameters() if p.dim() > 1] == [(400, 256), (32, 400)]
 
 
 def test_unknown_plans_are_named(tmp_path):
