@@ -38,9 +38,15 @@ def is_spiking(model: torch.nn.Module) -> bool:
     return getattr(model, "spiking", False)
 
 
-def logits(model: torch.nn.Module, out: torch.Tensor) -> torch.Tensor:
-    """Logits for the cross-entropy loss: -z of a spiking model's outputs, or ``out`` itself."""
-    return ttfs.output_logits(out) if is_spiking(model) else out
+LOGITS = ("z", "time")  # a spiking model's logits: -z (the paper's) or -t = -ln z
+
+
+def logits(model: torch.nn.Module, out: torch.Tensor, kind: str = "z") -> torch.Tensor:
+    """Logits for the cross-entropy loss: a spiking model's -z (``kind`` "z", the paper's) or
+    -ln z = -t (``kind`` "time"; output times are not scaled by exp), or ``out`` itself."""
+    if not is_spiking(model):
+        return out
+    return ttfs.output_logits(out if kind == "z" else torch.log(out))
 
 
 def predictions(model: torch.nn.Module, x: torch.Tensor, batch: int = 500) -> torch.Tensor:
@@ -73,6 +79,10 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
     epochs = epochs if epochs is not None else training.get("epochs", 100)
     budget = max_seconds if max_seconds is not None else training.get("max_seconds", np.inf)
     batch = training["batch_size"]
+    kind = training.get("logits", "z")
+    if kind not in LOGITS:
+        raise ConfigError(f"recipe {recipe.get('name', '?')}: key 'training.logits': expected "
+                          f"one of {list(LOGITS)}, got {kind!r}")  # fmt: skip
     start = time.perf_counter()
     history = []
     bar = tqdm(range(epochs), desc=f"train {recipe.get('name', '')}", disable=not progress)
@@ -83,7 +93,7 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
         for i in range(0, len(order), batch):
             rows = order[i : i + batch]
             out = model(x_train[rows])
-            loss = torch.nn.functional.cross_entropy(logits(model, out), y_train[rows])
+            loss = torch.nn.functional.cross_entropy(logits(model, out, kind), y_train[rows])
             total = loss
             if is_spiking(model):
                 total = total + training.get("weight_sum_penalty", 0.0) * model.penalty()

@@ -58,6 +58,23 @@ def test_the_train_command(datasets, tmp_path):
     assert (tmp_path / "snn_simlidar-seed0.pt").is_file()
 
 
+def test_time_logits_are_minus_ln_z_and_the_choice_is_checked(datasets):
+    from simlidar.bench.train import logits
+    from simlidar.errors import ConfigError
+    from simlidar.models.registry import build_model
+
+    model = build_model(_small_recipe(), (1, 16, 16), 32)
+    z = torch.tensor([[1.0, torch.e, torch.inf], [torch.e**2, 1.0, 4.0]])
+    assert torch.allclose(logits(model, z, "time")[1], -torch.log(z[1]))
+    assert torch.allclose(logits(model, z, "z")[1], -z[1])
+    silent = logits(model, z, "time")[0]
+    assert silent[2] < silent[:2].min()  # the silent output ranks below every firing one
+    recipe = _small_recipe()
+    recipe["training"]["logits"] = "exp"
+    with pytest.raises(ConfigError, match=r"training.logits': expected one of \['z', 'time'\]"):
+        train(recipe, datasets[0.1], epochs=1, progress=False)
+
+
 def test_train_errors_are_one_line(tmp_path):
     runner = CliRunner()
     bad = runner.invoke(main, ["train", "--model", "nope", "--dataset", str(tmp_path)])
