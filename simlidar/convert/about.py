@@ -19,15 +19,6 @@ class About:
     source_citation: str  # BibTeX of the source data
 
 
-WANG2020 = """@article{wang2020temporal,
-  title   = {Temporal Pulses Driven Spiking Neural Network for Fast Object Recognition in
-             Autonomous Driving},
-  author  = {Wang, Wei and Zhou, Shibo and Li, Jingxi and Li, Xiaohua and Yuan, Junsong and
-             Jin, Zhanpeng},
-  journal = {arXiv preprint arXiv:2001.09220},
-  year    = {2020}
-}"""
-
 KITTI = About(
     name="KITTI front-view pulses (simlidar)",
     license="cc-by-nc-sa-3.0",

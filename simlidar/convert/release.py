@@ -10,22 +10,16 @@ from pathlib import Path
 
 import yaml
 
-from simlidar.convert.about import ABOUT, WANG2020
-from simlidar.dataset.card import _size_category, _table, write_card
-from simlidar.dataset.checksums import sha256_file, write_sums
-from simlidar.dataset.croissant import CONTEXT, CROISSANT
+from simlidar.convert.about import ABOUT
+from simlidar.dataset.about import CITATION
+from simlidar.dataset.card import _table, hf_feature, hf_front_matter, write_card
+from simlidar.dataset.checksums import write_sums
+from simlidar.dataset.croissant import CONTEXT, CROISSANT, field, file_objects
 from simlidar.dataset.h5 import CONVERTED_SCHEMAS, SPLITS, dataset_splits, load_arrays
 from simlidar.dataset.info import dataset_info
 from simlidar.dataset.preview import write_preview
 from simlidar.dataset.version import SOURCES
 
-_DATA_TYPES = {
-    "float32": "sc:Float",
-    "int64": "sc:Integer",
-    "int32": "sc:Integer",
-    "uint8": "sc:Integer",
-    "int8": "sc:Integer",
-}
 # source -> (library function, its first argument), for the card's "Regenerate" section
 _CALLS = {
     "kitti": ("convert_kitti", "ROOT"),  # the benchmark's training folder
@@ -84,43 +78,15 @@ def front_matter(path: Path) -> dict:
     splits = dataset_splits(path)
     info = splits["train"]
     about = ABOUT[info.source]
-    features = []
-    for name, (dtype, shape) in CONVERTED_SCHEMAS[info.source].items():
-        tail = list(_shape(shape, info.height, info.width)[1:])
-        if shape[0] != "N":
-            continue  # per-event datasets are not features of a sample
-        if name == "labels":
-            names = {str(k): n for k, n in enumerate(info.attrs["class_names"])}
-            features.append({"name": name, "dtype": {"class_label": {"names": names}}})
-        elif len(tail) == 2:
-            features.append({"name": name, "array2_d": {"shape": tail, "dtype": dtype}})
-        elif tail:
-            features.append({"name": name, "sequence": dtype, "length": tail[0]})
-        else:
-            features.append({"name": name, "dtype": dtype})
-    nbytes = {s: i.path.stat().st_size for s, i in splits.items()}
-    return {
-        "license": about.license,
-        "pretty_name": f"{about.name}, {len(info.attrs['class_names'])} classes",
-        "task_categories": ["image-classification"],
-        "size_categories": [_size_category(sum(i.size for i in splits.values()))],
-        "tags": list(about.tags),
-        "configs": [
-            {
-                "config_name": "default",
-                "data_files": [{"split": s, "path": f"{s}.h5"} for s in SPLITS],
-            }
-        ],
-        "dataset_info": {
-            "config_name": "default",
-            "features": features,
-            "splits": [
-                {"name": s, "num_bytes": nbytes[s], "num_examples": splits[s].size} for s in SPLITS
-            ],
-            "download_size": sum(nbytes.values()),
-            "dataset_size": sum(nbytes.values()),
-        },
-    }
+    features = [
+        hf_feature(
+            name, dtype, _shape(shape, info.height, info.width)[1:], info.attrs["class_names"]
+        )  # fmt: skip
+        for name, (dtype, shape) in CONVERTED_SCHEMAS[info.source].items()
+        if shape[0] == "N"  # per-event datasets are not features of a sample
+    ]
+    pretty = f"{about.name}, {len(info.attrs['class_names'])} classes"
+    return hf_front_matter(splits, features, about.license, pretty, about.tags, "default")
 
 
 def regenerate_call(source: str, config: dict) -> str:
@@ -196,7 +162,7 @@ def render_card(path: str | Path) -> str:
         f"x, y = load_split('.', 'train')  # x: (N, {info.height}, {info.width}) float32, "
         "y: (N,) int64\n```\n",
         "## Citation\n\nPlease cite the source data and the paper whose pipeline this follows:\n",
-        f"```bibtex\n{about.source_citation}\n\n{WANG2020}\n```\n",
+        f"```bibtex\n{about.source_citation}\n\n{CITATION}\n```\n",
     ]
     return "\n".join(s for s in sections if s)
 
@@ -213,21 +179,21 @@ def croissant(path: str | Path, name: str | None = None) -> dict:
     def record_set(split: str, rows: str) -> dict:
         fields = [n for n, (_, shape) in schema.items() if shape[0] == rows]
         what = "samples" if rows == "N" else "events"
+        set_id = split if rows == "N" else f"{split}_events"
         return {
             "@type": "cr:RecordSet",
-            "@id": split if rows == "N" else f"{split}_events",
-            "name": split if rows == "N" else f"{split}_events",
+            "@id": set_id,
+            "name": set_id,
             "description": f"The {what} of the {split} split, one record per row.",
             "field": [
-                {
-                    "@type": "cr:Field",
-                    "@id": f"{split}/{n}" if rows == "N" else f"{split}_events/{n}",
-                    "name": n,
-                    "description": f"HDF5 dataset `{n}`, {schema[n][0]} "
-                    f"{_shape(schema[n][1], info.height, info.width)}: {_DOCS[n]}".replace("'", ""),
-                    "dataType": _DATA_TYPES[schema[n][0]],
-                    "source": {"fileObject": {"@id": f"{split}.h5"}, "extract": {"column": n}},
-                }
+                field(
+                    set_id,
+                    split,
+                    n,
+                    schema[n][0],
+                    _shape(schema[n][1], info.height, info.width),
+                    _DOCS[n],
+                )  # fmt: skip
                 for n in fields
             ],
         }
@@ -247,19 +213,7 @@ def croissant(path: str | Path, name: str | None = None) -> dict:
         "version": version,
         "citeAs": about.source_citation,
         "keywords": list(about.tags),
-        "distribution": [
-            {
-                "@type": "cr:FileObject",
-                "@id": f"{s}.h5",
-                "name": f"{s}.h5",
-                "description": f"The {s} split (HDF5).",
-                "contentUrl": f"{s}.h5",
-                "contentSize": f"{splits[s].path.stat().st_size} B",
-                "encodingFormat": "application/x-hdf5",
-                "sha256": sha256_file(splits[s].path),
-            }
-            for s in SPLITS
-        ],
+        "distribution": file_objects(splits, "HDF5"),
         "recordSet": [record_set(s, r) for s in SPLITS for r in rows],
     }
 

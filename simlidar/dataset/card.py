@@ -51,32 +51,28 @@ def _size_category(n: int) -> str:
     return "n>1M"
 
 
-def front_matter(path: Path) -> dict:
-    """The YAML front matter (Hugging Face dataset card metadata) of a dataset directory."""
-    splits = dataset_splits(path)
-    attrs = splits["train"].attrs
-    width = splits["train"].width
-    total = sum(s.size for s in splits.values())
-    config_name = f"noise{float(attrs['noise'])!r}"
-    features = []
-    for name, (dtype, tail, _) in SCHEMA.items():
-        shape = list(tail(width))
-        if name == "labels":
-            names = {str(k): n for k, n in enumerate(attrs["class_names"])}
-            features.append({"name": name, "dtype": {"class_label": {"names": names}}})
-        elif len(shape) == 2:
-            features.append({"name": name, "array2_d": {"shape": shape, "dtype": dtype}})
-        elif shape:
-            features.append({"name": name, "sequence": dtype, "length": shape[0]})
-        else:
-            features.append({"name": name, "dtype": dtype})
+def hf_feature(name: str, dtype: str, shape: tuple, class_names) -> dict:
+    """One Hugging Face ``features`` entry of a per-sample dataset; shape without N."""
+    if name == "labels":
+        names = {str(k): n for k, n in enumerate(class_names)}
+        return {"name": name, "dtype": {"class_label": {"names": names}}}
+    if len(shape) == 2:
+        return {"name": name, "array2_d": {"shape": list(shape), "dtype": dtype}}
+    if shape:
+        return {"name": name, "sequence": dtype, "length": shape[0]}
+    return {"name": name, "dtype": dtype}
+
+
+def hf_front_matter(splits: dict, features: list[dict], license: str, pretty_name: str,
+                    tags: list[str], config_name: str) -> dict:  # fmt: skip
+    """The Hugging Face card metadata of a dataset directory's splits (generated or converted)."""
     nbytes = {s: info.path.stat().st_size for s, info in splits.items()}
     return {
-        "license": LICENSE,
-        "pretty_name": f"{NAME}, {attrs['classes']} classes, noise {attrs['noise']}",
+        "license": license,
+        "pretty_name": pretty_name,
         "task_categories": ["image-classification"],
-        "size_categories": [_size_category(total)],
-        "tags": TAGS,
+        "size_categories": [_size_category(sum(i.size for i in splits.values()))],
+        "tags": list(tags),
         "configs": [
             {
                 "config_name": config_name,
@@ -93,6 +89,19 @@ def front_matter(path: Path) -> dict:
             "dataset_size": sum(nbytes.values()),
         },
     }
+
+
+def front_matter(path: Path) -> dict:
+    """The YAML front matter (Hugging Face dataset card metadata) of a dataset directory."""
+    splits = dataset_splits(path)
+    attrs = splits["train"].attrs
+    width = splits["train"].width
+    features = [hf_feature(name, dtype, tail(width), attrs["class_names"])
+                for name, (dtype, tail, _) in SCHEMA.items()]  # fmt: skip
+    return hf_front_matter(
+        splits, features, LICENSE, f"{NAME}, {attrs['classes']} classes, noise {attrs['noise']}",
+        TAGS, f"noise{float(attrs['noise'])!r}",
+    )  # fmt: skip
 
 
 def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:

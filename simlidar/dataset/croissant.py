@@ -48,8 +48,8 @@ CONTEXT = {
     "subField": "cr:subField",
     "transform": "cr:transform",
 }
-_DATA_TYPES = {"float32": "sc:Float", "int64": "sc:Integer", "int32": "sc:Integer",
-               "uint8": "sc:Integer"}  # fmt: skip
+DATA_TYPES = {"float32": "sc:Float", "int64": "sc:Integer", "int32": "sc:Integer",
+              "uint8": "sc:Integer", "int8": "sc:Integer"}  # fmt: skip
 RECORD_FIELDS = ("delays", "labels", "clean_delays", "tof_ns", "surface", "layout", "object")
 
 
@@ -62,19 +62,7 @@ def croissant(path: str | Path, name: str | None = None) -> dict:
     splits = dataset_splits(path)
     attrs = splits["train"].attrs
     version = attrs["dataset_version"]
-    distribution = [
-        {
-            "@type": "cr:FileObject",
-            "@id": f"{split}.h5",
-            "name": f"{split}.h5",
-            "description": f"The {split} split (HDF5, one row per sample).",
-            "contentUrl": f"{split}.h5",
-            "contentSize": f"{splits[split].path.stat().st_size} B",
-            "encodingFormat": "application/x-hdf5",
-            "sha256": sha256_file(splits[split].path),
-        }
-        for split in SPLITS
-    ]
+    distribution = file_objects(splits, "HDF5, one row per sample")
     record_sets = [
         {
             "@type": "cr:RecordSet",
@@ -82,15 +70,13 @@ def croissant(path: str | Path, name: str | None = None) -> dict:
             "name": split,
             "description": f"{splits[split].size} samples of the {split} split.",
             "field": [
-                {
-                    "@type": "cr:Field",
-                    "@id": f"{split}/{name}",
-                    "name": name,
-                    "description": f"HDF5 dataset `{name}`, {SCHEMA[name][0]} "
-                    f"{('N', *SCHEMA[name][1](splits[split].width))}".replace("'", ""),
-                    "dataType": _DATA_TYPES[SCHEMA[name][0]],
-                    "source": {"fileObject": {"@id": f"{split}.h5"}, "extract": {"column": name}},
-                }
+                field(
+                    split,
+                    split,
+                    name,
+                    SCHEMA[name][0],
+                    ("N", *SCHEMA[name][1](splits[split].width)),
+                )  # fmt: skip
                 for name in RECORD_FIELDS
             ],
         }
@@ -112,6 +98,37 @@ def croissant(path: str | Path, name: str | None = None) -> dict:
         "keywords": ["LiDAR", "spiking neural networks", "temporal pulses", "synthetic data"],
         "distribution": distribution,
         "recordSet": record_sets,
+    }
+
+
+def file_objects(splits: dict, kind: str) -> list[dict]:
+    """The Croissant FileObjects of a dataset's split files (with their sha256)."""
+    return [
+        {
+            "@type": "cr:FileObject",
+            "@id": f"{split}.h5",
+            "name": f"{split}.h5",
+            "description": f"The {split} split ({kind}).",
+            "contentUrl": f"{split}.h5",
+            "contentSize": f"{splits[split].path.stat().st_size} B",
+            "encodingFormat": "application/x-hdf5",
+            "sha256": sha256_file(splits[split].path),
+        }
+        for split in SPLITS
+    ]
+
+
+def field(record_set: str, split: str, name: str, dtype: str, shape: tuple,
+          doc: str | None = None) -> dict:  # fmt: skip
+    """A Croissant Field: column ``name`` of ``split``.h5, of ``dtype`` and ``shape``."""
+    shape_text = str(tuple(shape)).replace("'", "")
+    return {
+        "@type": "cr:Field",
+        "@id": f"{record_set}/{name}",
+        "name": name,
+        "description": f"HDF5 dataset `{name}`, {dtype} {shape_text}" + (f": {doc}" if doc else ""),
+        "dataType": DATA_TYPES[dtype],
+        "source": {"fileObject": {"@id": f"{split}.h5"}, "extract": {"column": name}},
     }
 
 
