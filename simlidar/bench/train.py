@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 
 from simlidar.data import load_split, split_path
 from simlidar.dataset.h5 import read_split_info
@@ -40,13 +41,61 @@ def is_spiking(model: torch.nn.Module) -> bool:
 
 LOGITS = ("z", "time")  # a spiking model's logits: -z (the paper's) or -t = -ln z
 
+TRAINING_KEYS = {  # every key a recipe's [training] table may hold
+    "optimizer", "lr", "momentum", "batch_size", "l2", "clip_grad_norm", "epochs",
+    "max_seconds", "weight_sum_penalty", "logits", "logit_scale", "fire_penalty", "fire_margin",
+    "lr_schedule",
+}  # fmt: skip
+SCHEDULES = ("constant", "cosine")  # cosine: from lr down to 0 over the run's epochs
 
-def logits(model: torch.nn.Module, out: torch.Tensor, kind: str = "z") -> torch.Tensor:
+
+def logits(model: torch.nn.Module, out: torch.Tensor, kind: str = "z",
+           scale: float = 1.0) -> torch.Tensor:  # fmt: skip
     """Logits for the cross-entropy loss: a spiking model's -z (``kind`` "z", the paper's) or
-    -ln z = -t (``kind`` "time"; output times are not scaled by exp), or ``out`` itself."""
+    -ln z = -t (``kind`` "time"; output times are not scaled by exp), times ``scale`` (an
+    inverse softmax temperature), or ``out`` itself."""
     if not is_spiking(model):
         return out
-    return ttfs.output_logits(out if kind == "z" else torch.log(out))
+    return scale * ttfs.output_logits(out if kind == "z" else torch.log(out))
+
+
+def _check_training(recipe: dict) -> dict:
+    training = recipe["training"]
+    name = recipe.get("name", "?")
+    unknown = sorted(set(training) - TRAINING_KEYS)
+    if unknown:
+        raise ConfigError(f"recipe {name}: key 'training.{unknown[0]}': expected one of "
+                          f"{sorted(TRAINING_KEYS)}")  # fmt: skip
+    if training.get("logits", "z") not in LOGITS:
+        raise ConfigError(f"recipe {name}: key 'training.logits': expected one of "
+                          f"{list(LOGITS)}, got {training['logits']!r}")  # fmt: skip
+    if training.get("lr_schedule", "constant") not in SCHEDULES:
+        raise ConfigError(f"recipe {name}: key 'training.lr_schedule': expected one of "
+                          f"{list(SCHEDULES)}, got {training['lr_schedule']!r}")  # fmt: skip
+    for key in ("logit_scale", "fire_penalty", "fire_margin", "weight_sum_penalty", "l2"):
+        value = training.get(key, 0.0 if key != "logit_scale" else 1.0)
+        if not isinstance(value, int | float) or isinstance(value, bool) or value < 0:
+            raise ConfigError(f"recipe {name}: key 'training.{key}': expected a number >= 0, "
+                              f"got {value!r}")  # fmt: skip
+    return training
+
+
+def _loss(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training: dict):
+    """(cross-entropy, cross-entropy plus the recipe's penalties) on one batch."""
+    kind, scale = training.get("logits", "z"), training.get("logit_scale", 1.0)
+    if is_spiking(model):
+        spikes = model.spikes(x)
+        loss = F.cross_entropy(logits(model, spikes[-1], kind, scale), y)
+        total = loss + training.get("weight_sum_penalty", 0.0) * model.penalty()
+        if training.get("fire_penalty", 0.0):
+            last = model.layers[-1].weight
+            fire = ttfs.target_fire_penalty(spikes[-2].flatten(1), last, y,
+                                            training.get("fire_margin", 0.1))  # fmt: skip
+            total = total + training["fire_penalty"] * fire
+    else:
+        loss = total = F.cross_entropy(model(x), y)
+    total = total + training.get("l2", 0.0) * sum((p**2).sum() for p in model.parameters())
+    return loss, total
 
 
 def predictions(model: torch.nn.Module, x: torch.Tensor, batch: int = 500) -> torch.Tensor:
@@ -68,7 +117,7 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
     """
     from tqdm import tqdm
 
-    training = recipe["training"]
+    training = _check_training(recipe)
     x_train, y_train = (torch.from_numpy(a) for a in load_split(dataset, "train"))
     x_test, y_test = (torch.from_numpy(a) for a in load_split(dataset, "test"))
     x_train, x_test = x_train[:, None], x_test[:, None]  # (N, 1, H, W)
@@ -79,10 +128,9 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
     epochs = epochs if epochs is not None else training.get("epochs", 100)
     budget = max_seconds if max_seconds is not None else training.get("max_seconds", np.inf)
     batch = training["batch_size"]
-    kind = training.get("logits", "z")
-    if kind not in LOGITS:
-        raise ConfigError(f"recipe {recipe.get('name', '?')}: key 'training.logits': expected "
-                          f"one of {list(LOGITS)}, got {kind!r}")  # fmt: skip
+    schedule = None
+    if training.get("lr_schedule", "constant") == "cosine":
+        schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, max(epochs, 1))
     start = time.perf_counter()
     history = []
     bar = tqdm(range(epochs), desc=f"train {recipe.get('name', '')}", disable=not progress)
@@ -92,18 +140,15 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
         losses = []
         for i in range(0, len(order), batch):
             rows = order[i : i + batch]
-            out = model(x_train[rows])
-            loss = torch.nn.functional.cross_entropy(logits(model, out, kind), y_train[rows])
-            total = loss
-            if is_spiking(model):
-                total = total + training.get("weight_sum_penalty", 0.0) * model.penalty()
-            total = total + training.get("l2", 0.0) * sum((p**2).sum() for p in model.parameters())
+            loss, total = _loss(model, x_train[rows], y_train[rows], training)
             optimizer.zero_grad()
             total.backward()
             if training.get("clip_grad_norm"):
                 torch.nn.utils.clip_grad_norm_(model.parameters(), training["clip_grad_norm"])
             optimizer.step()
             losses.append(loss.item())
+        if schedule is not None:
+            schedule.step()
         accuracy = (predictions(model, x_test) == y_test).float().mean().item()
         seconds = time.perf_counter() - start
         history.append({"epoch": epoch, "loss": float(np.mean(losses)),

@@ -28,10 +28,14 @@ class SpikingNet(nn.Module):
         self.scale = scale
 
     def forward(self, delays: torch.Tensor) -> torch.Tensor:
-        z = ttfs.encode(delays, self.scale)
+        return self.spikes(delays)[-1]
+
+    def spikes(self, delays: torch.Tensor) -> list[torch.Tensor]:
+        """The input spikes and every layer's output spikes, in the z domain (inf = none)."""
+        out = [ttfs.encode(delays, self.scale)]
         for layer in self.layers:
-            z = layer(z)
-        return z
+            out.append(layer(out[-1]))
+        return out
 
     def penalty(self) -> torch.Tensor:
         """Mean weight-sum penalty over layers (keeps every neuron able to fire)."""

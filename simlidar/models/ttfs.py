@@ -45,23 +45,26 @@ def _first_spikes(z: torch.Tensor, w: torch.Tensor):
     """Forward of the dense layer. z (B, N) with inf = silent, w (N, M).
 
     returns z_out (B, M) (inf = silent), and what the backward needs: the time order of the
-    inputs (B, N), the index of the last input of the causal set (B, M) and its weight excess
-    sum_C w - 1 (B, M).
+    inputs (B, N), the index of the last input of the causal set (B, M) (-1 if silent) and its
+    weight excess sum_C w - 1 (B, M) (1 if silent).
+
+    Work is done in place on the (B, N, M) prefix tensors (the layer's cost). Silent inputs sort
+    last and their weights are not masked: a prefix that reaches one is never valid (its
+    ``zs`` is inf), so what they add to the sums is never used.
     """
     order = torch.argsort(z, dim=1)  # silent inputs (inf) sort last
     zs = torch.gather(z, 1, order)  # (B, N)
-    arrived = torch.isfinite(zs)
-    zs0 = torch.where(arrived, zs, 0.0)
-    ws = w[order] * arrived[..., None]  # (B, N, M), silent inputs weigh nothing
-    excess = torch.cumsum(ws, dim=1) - 1.0  # (B, N, M): sum of the first k+1 weights - 1
-    num = torch.cumsum(ws * zs0[..., None], dim=1)
-    ok = (excess > MIN_EXCESS) & arrived[..., None]
-    cand = num / torch.where(ok, excess, 1.0)
+    zs0 = torch.where(torch.isfinite(zs), zs, 0.0)
+    ws = w[order]  # (B, N, M)
+    excess = torch.cumsum(ws, dim=1).sub_(1.0)  # sum of the first k+1 weights - 1
+    cand = torch.cumsum(ws.mul_(zs0[..., None]), dim=1).div_(excess)  # candidate z_out
     nxt = torch.cat([zs[:, 1:], torch.full_like(zs[:, :1], torch.inf)], dim=1)  # (B, N)
-    valid = ok & (cand >= zs0[..., None]) & (cand < nxt[..., None])
-    fired = valid.any(dim=1)  # (B, M)
-    last = torch.argmax(valid.to(torch.uint8), dim=1)  # first valid prefix (0 if none)
+    valid = excess > MIN_EXCESS
+    valid &= cand >= zs[..., None]  # not before the prefix's last input (silent: never)
+    valid &= cand < nxt[..., None]  # strictly before the next input
+    last = torch.argmax(valid.view(torch.uint8), dim=1)  # first valid prefix (0 if none)
     pick = last[:, None, :]
+    fired = torch.gather(valid, 1, pick).squeeze(1)  # (B, M)
     z_out = torch.where(fired, torch.gather(cand, 1, pick).squeeze(1), torch.inf)
     excess_at = torch.where(fired, torch.gather(excess, 1, pick).squeeze(1), 1.0)
     return z_out, order, torch.where(fired, last, -1), excess_at
@@ -78,21 +81,18 @@ class _DenseTTFS(torch.autograd.Function):
     def backward(ctx, grad_out):
         z, w, z_out, order, last, excess = ctx.saved_tensors
         fired = last >= 0
-        zs = torch.gather(z, 1, order)
-        zs0 = torch.where(torch.isfinite(zs), zs, 0.0)
-        rank = torch.arange(z.shape[1], device=z.device)[None, :, None]
-        causal = rank <= last[:, None, :]  # (B, N, M): input (in time order) is in C
         g = torch.where(fired, grad_out, 0.0) / excess  # (B, M), excess is 1 when silent
-        zo = torch.where(fired, z_out, 0.0)
-        coeff = torch.where(causal, g[:, None, :], 0.0)  # (B, N, M)
+        rank = torch.empty_like(order).scatter_(  # each input's place in time order
+            1, order, torch.arange(z.shape[1], device=z.device).expand_as(order))  # fmt: skip
+        causal = rank[:, :, None] <= last[:, None, :]  # (B, N, M): input in C (none if silent)
+        coeff = torch.where(causal, g[:, None, :], 0.0)
         grad_z = grad_w = None
         if ctx.needs_input_grad[0]:
-            grad_sorted = (coeff * w[order]).sum(dim=2)  # (B, N)
-            grad_z = torch.zeros_like(z).scatter_(1, order, grad_sorted)
+            grad_z = (coeff * w).sum(dim=2)
         if ctx.needs_input_grad[1]:
-            per = coeff * (zs0[..., None] - zo[:, None, :])  # (B, N, M)
-            grad_w = torch.zeros_like(w).index_add_(0, order.reshape(-1),
-                                                    per.reshape(-1, w.shape[1]))  # fmt: skip
+            z0 = torch.where(torch.isfinite(z), z, 0.0)
+            zo = torch.where(fired, z_out, 0.0)
+            grad_w = coeff.mul_(z0[:, :, None] - zo[:, None, :]).sum(dim=0)
         return grad_z, grad_w
 
 
@@ -133,6 +133,21 @@ def weight_sum_penalty(w: torch.Tensor) -> torch.Tensor:
     threshold so that it can fire (Mostafa 2018). w : (N, M) or (C_out, C_in, k, k)."""
     per_neuron = w.sum(dim=0) if w.dim() == 2 else w.flatten(1).sum(dim=1)
     return torch.relu(1.0 - per_neuron).mean()
+
+
+def target_fire_penalty(z_in: torch.Tensor, w: torch.Tensor, target: torch.Tensor,
+                        margin: float = 0.1) -> torch.Tensor:  # fmt: skip
+    """mean_b max(0, 1 + margin - sum_{i spiked} w_{i, target_b}): keeps each sample's correct
+    output neuron able to fire.
+
+    A neuron fires eventually iff the weights of the inputs that spiked sum above the
+    threshold 1 (its potential tends to that sum), so a silent correct output is pushed towards
+    firing; without this a silent output gets no gradient and stays silent (not in the paper).
+    z_in : (B, N) the layer's input spikes (inf = none), w : (N, M), target : (B,) in [0, M).
+    """
+    spiked = torch.isfinite(z_in).to(w.dtype)
+    reach = (spiked @ w).gather(1, target[:, None])  # (B, 1)
+    return torch.relu(1.0 + margin - reach).mean()
 
 
 def output_logits(z_out: torch.Tensor) -> torch.Tensor:

@@ -75,6 +75,39 @@ def test_time_logits_are_minus_ln_z_and_the_choice_is_checked(datasets):
         train(recipe, datasets[0.1], epochs=1, progress=False)
 
 
+def test_logit_scale_fire_penalty_and_cosine_schedule_train(datasets):
+    from simlidar.bench.train import logits
+    from simlidar.models.registry import build_model
+
+    model = build_model(_small_recipe(), (1, 16, 16), 32)
+    z = torch.tensor([[1.0, torch.e, torch.inf]])
+    assert torch.allclose(logits(model, z, "time", 10.0)[0, :2], torch.tensor([0.0, -10.0]))
+    recipe = _small_recipe()
+    recipe["training"].update(logits="time", logit_scale=10.0, fire_penalty=10.0,
+                              fire_margin=0.1, lr_schedule="cosine", lr=1e-3)  # fmt: skip
+    result = train(recipe, datasets[0.1], seed=0, epochs=6, progress=False)
+    assert result.history[-1]["loss"] < result.history[0]["loss"]
+    assert result.test_accuracy > 2.0 / 32
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "message"),
+    [
+        ("lr_schdule", "cosine", r"key 'training.lr_schdule': expected one of \['batch_size'"),
+        ("lr_schedule", "step", r"training.lr_schedule': expected one of \['constant', 'cosine'\]"),
+        ("fire_penalty", -1.0, r"training.fire_penalty': expected a number >= 0, got -1.0"),
+        ("logit_scale", "10", r"training.logit_scale': expected a number >= 0, got '10'"),
+    ],
+)
+def test_training_keys_are_checked(datasets, key, value, message):
+    from simlidar.errors import ConfigError
+
+    recipe = _small_recipe()
+    recipe["training"][key] = value
+    with pytest.raises(ConfigError, match=message):
+        train(recipe, datasets[0.1], epochs=1, progress=False)
+
+
 def test_train_errors_are_one_line(tmp_path):
     runner = CliRunner()
     bad = runner.invoke(main, ["train", "--model", "nope", "--dataset", str(tmp_path)])

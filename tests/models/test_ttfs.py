@@ -115,3 +115,24 @@ def test_encoding_and_prediction():
     assert torch.allclose(z[0, :2], torch.tensor([1.0, np.e])) and torch.isinf(z[0, 2])
     out = torch.tensor([[3.0, 2.0, torch.inf], [torch.inf, torch.inf, torch.inf]])
     assert ttfs.predict(out).tolist() == [1, -1]  # silence is no answer, never class 0
+
+
+def test_target_fire_penalty_pushes_a_silent_correct_output_to_fire():
+    # sample 0: inputs 0 and 1 spiked; sample 1: only input 2
+    z = torch.tensor([[1.0, 2.0, torch.inf], [torch.inf, torch.inf, 1.5]])
+    w = torch.tensor([[0.3, 2.0], [0.4, 0.0], [3.0, 0.2]], requires_grad=True)
+    target = torch.tensor([0, 1])
+    out = ttfs.dense(z, w)
+    assert torch.isinf(out[0, 0]) and torch.isinf(out[1, 1])  # both correct outputs silent
+    penalty = ttfs.target_fire_penalty(z, w, target, margin=0.1)
+    # sample 0: 1.1 - (0.3 + 0.4) = 0.4; sample 1: 1.1 - 0.2 = 0.9
+    assert penalty.item() == pytest.approx((0.4 + 0.9) / 2)
+    penalty.backward()
+    expected = torch.zeros(3, 2)
+    expected[0, 0] = expected[1, 0] = expected[2, 1] = -0.5  # only spiked inputs, target column
+    assert torch.equal(w.grad, expected)
+    with torch.no_grad():  # a descent step along it makes both correct outputs fire
+        w -= 2.0 * w.grad
+    assert torch.isfinite(ttfs.dense(z, w)[[0, 1], [0, 1]]).all()
+    firing = torch.tensor([[1.0, 2.0, torch.inf]])
+    assert ttfs.target_fire_penalty(firing, torch.full((3, 2), 1.0), torch.tensor([0])) == 0
