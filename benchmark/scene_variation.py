@@ -1,11 +1,12 @@
 """How much does the scenes' variation make Sim LiDAR hard? Accuracy vs parameter spread.
 
-For each factor f, every uniform parameter range [lo, hi] of the scene catalog (layout
-parameters and object placement and size) is shrunk around its centre to
-[c - f (hi - lo) / 2, c + f (hi - lo) / 2], integer ranges likewise (rounded); f = 1 is the
-shipped catalog. A dataset is generated from each catalog and the benchmark harness trains the
-same models with the same budget on it. The printed table (and ``<out>/variation.json``) shows
-how the accuracy of the spiking network and of the CNN depends on the within-class variation.
+For each factor f, the generator's ``variation`` (``simlidar generate --variation f``) shrinks
+every uniform parameter range [lo, hi] of the scene catalog (layout parameters and object
+placement and size) around its centre to [c - f (hi - lo) / 2, c + f (hi - lo) / 2], integer
+ranges likewise (rounded); f = 1 is the shipped catalog as written. A dataset is generated for
+each factor and the benchmark harness trains the same models with the same budget on it. The
+printed table (and ``<out>/variation.json``) shows how the accuracy of the spiking network and
+of the CNN depends on the within-class variation.
 
     python benchmark/scene_variation.py --out /tmp/variation            # f = 1, 0.5, 0.25
     python benchmark/scene_variation.py --factors 1,0.1 --models cnn --out /tmp/v2
@@ -13,50 +14,14 @@ how the accuracy of the spiking network and of the CNN depends on the within-cla
 
 import argparse
 import json
-import re
-import shutil
 import time
 from pathlib import Path
 
 from simlidar.bench.run import run_suite
 from simlidar.bench.suite import load_suite
-from simlidar.content import content_dir
 from simlidar.dataset.config import GeneratorConfig
 from simlidar.dataset.generate import generate
 from simlidar.scene.recipe import load_catalog
-
-RANGE = re.compile(r"^(\s*\w+\s*=\s*)\[\s*(-?[\d.]+)\s*,\s*(-?[\d.]+)\s*\](.*)$")
-INT_RANGE = re.compile(r"^(\s*\w+\s*=\s*\{\s*int\s*=\s*)\[\s*(\d+)\s*,\s*(\d+)\s*\](.*)$")
-SECTIONS = ("[params]", "[placement]")
-
-
-def shrink(text: str, factor: float) -> str:
-    """A recipe's text with every [lo, hi] range of [params] and [placement] shrunk."""
-    out, section = [], ""
-    for line in text.splitlines():
-        if line.startswith("["):
-            section = line.split("#")[0].strip()
-        m = RANGE.match(line) if section in SECTIONS else None
-        n = INT_RANGE.match(line) if section in SECTIONS else None
-        if m:
-            lo, hi = float(m[2]), float(m[3])
-            c, h = (lo + hi) / 2, factor * (hi - lo) / 2
-            line = f"{m[1]}[{c - h!r}, {c + h!r}]{m[4]}"
-        elif n:
-            lo, hi = int(n[2]), int(n[3])
-            c, h = (lo + hi) / 2, factor * (hi - lo) / 2
-            line = f"{n[1]}[{round(c - h)}, {max(round(c - h), round(c + h))}]{n[4]}"
-        out.append(line)
-    return "\n".join(out) + "\n"
-
-
-def catalog_copy(root: Path, factor: float) -> Path:
-    target = root / f"scenes-f{factor:g}"
-    shutil.rmtree(target, ignore_errors=True)
-    shutil.copytree(content_dir("scenes"), target)
-    for recipe in [*target.glob("layouts/*.toml"), *target.glob("objects/*.toml")]:
-        recipe.write_text(shrink(recipe.read_text(), factor))
-    return target
 
 
 def main() -> None:
@@ -75,10 +40,9 @@ def main() -> None:
     rows = []
     for factor in (float(f) for f in args.factors.split(",")):
         start = time.perf_counter()
-        scenes = catalog_copy(args.out, factor)
         config = GeneratorConfig(noise=args.noise, train_size=args.train_size,
-                                 test_size=args.test_size)  # fmt: skip
-        written = generate(config, [args.noise], load_catalog(scenes),
+                                 test_size=args.test_size, variation=factor)  # fmt: skip
+        written = generate(config, [args.noise], load_catalog(),
                            args.out / f"data-f{factor:g}", force=True, progress=False)  # fmt: skip
         dataset = written[0].path
         suite = args.out / f"suite-f{factor:g}.toml"

@@ -112,6 +112,14 @@ def main(ctx: click.Context, debug: bool) -> None:
     help="Delay-shift augmentation: every return of a sample moves by U(-s, s).",
 )
 @click.option(
+    "--variation",
+    type=click.FloatRange(0.0, 1.0, min_open=True),
+    default=1.0,
+    show_default=True,
+    help="Scene variation: every parameter range of the scene catalog shrunk around its "
+    "centre by this factor (1: the recipes as written).",
+)
+@click.option(
     "--out",
     type=click.Path(file_okay=False, path_type=Path),
     default=Path("data"),
@@ -135,8 +143,8 @@ def main(ctx: click.Context, debug: bool) -> None:
 )
 @click.option("--force", is_flag=True, help="Overwrite existing datasets.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-def generate(classes, noise, train_size, test_size, seed, shift, out, width, scenes, batch_size,
-             force, as_json):  # fmt: skip
+def generate(classes, noise, train_size, test_size, seed, shift, variation, out, width, scenes,
+             batch_size, force, as_json):  # fmt: skip
     """Generate Sim LiDAR datasets: per noise level, train/test splits (HDF5), a preview
     picture, the dataset card, Croissant metadata and checksums."""
     from simlidar.dataset.config import GeneratorConfig
@@ -149,8 +157,8 @@ def generate(classes, noise, train_size, test_size, seed, shift, out, width, sce
     except ConfigError as exc:
         raise click.BadParameter(str(exc), param_hint="'--classes'") from None
     config = GeneratorConfig(classes=classes, noise=noise[0], train_size=train_size,
-                             test_size=test_size, seed=seed, width=width,
-                             shift_max=shift)  # fmt: skip
+                             test_size=test_size, seed=seed, width=width, shift_max=shift,
+                             variation=variation)  # fmt: skip
     start = time.perf_counter()
     written = run(config, noise, catalog, out, batch_size=batch_size, force=force)
     seconds = time.perf_counter() - start

@@ -111,6 +111,7 @@ def simulate(config: GeneratorConfig, catalog: Catalog, split: str, start: int, 
     if not 0 < stop - start <= MAX_BATCH:
         raise ConfigError(f"batch of {stop - start} samples: expected 1..{MAX_BATCH}")
     sensor, width = config.sensor, config.width
+    catalog = catalog.with_variation(config.variation)
     plan = class_plan(catalog, config.classes)
     index = np.arange(start, stop)
     n = len(index)

@@ -1,6 +1,7 @@
 """The command line: happy paths and every error path, with click's CliRunner."""
 
 import json
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -79,6 +80,8 @@ def test_version(run):
         (["generate", "--seed", str(2**70)], 2, "--seed"),
         (["generate", "--noise", "0.1,0.1"], 2, "repeats a level"),
         (["generate", "--shift", "1.5"], 2, "--shift"),
+        (["generate", "--variation", "0"], 2, "--variation"),
+        (["generate", "--variation", "1.5"], 2, "--variation"),
         (["generate", "--out", "afile"], 2, "afile"),
         (["generate", "--test-size", "-5"], 2, "test_size=-5"),
         (["generate", "--train-size", "20"], 2, "at least one sample of every class"),
@@ -182,6 +185,28 @@ def test_shift_moves_every_return_of_a_sample(run, tmp_path):
     # a return pushed out of the window reads as no return
     lost = ~np.isnan(unshifted) & (unshifted + expected >= 1.0)
     assert (clean[lost] == 1.0).all()
+
+
+def test_variation_narrows_the_scenes_and_names_the_dataset(run, tmp_path):
+    import h5py
+    import numpy as np
+
+    spread = {}
+    for variation in ("1", "0.1"):
+        result = run("generate", "--train-size", "128", "--test-size", "32", "--variation",
+                     variation, "--out", tmp_path, "--json")  # fmt: skip
+        assert result.exit_code == 0, result.output
+        path = json.loads(result.stdout)["datasets"][0]["path"]
+        with h5py.File(f"{path}/train.h5") as f:
+            pose, labels = f["object_pose"][:], f["labels"][:]
+            config = json.loads(f.attrs["config"])
+        # spread of the object's distance and lateral offset within each class that has one
+        spread[variation] = np.nanmean([np.std(pose[labels == k, :2], axis=0)
+                                        for k in np.unique(labels) if k % 4], axis=0)  # fmt: skip
+        assert np.bincount(labels).tolist() == [4] * 32
+    assert path.endswith("-var0.1-v1.0.0") and config["variation"] == 0.1
+    assert "--variation 0.1" in (Path(path) / "README.md").read_text()
+    assert (spread["0.1"] < 0.2 * spread["1"]).all(), spread
 
 
 def test_debug_shows_the_traceback(run):

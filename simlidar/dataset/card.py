@@ -109,7 +109,8 @@ def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
     from simlidar.scene.recipe import load_catalog
 
     default = GeneratorConfig()
-    cli_fields = {"classes", "noise", "train_size", "test_size", "seed", "width", "shift_max"}
+    cli_fields = {"classes", "noise", "train_size", "test_size", "seed", "width", "shift_max",
+                  "variation"}  # fmt: skip
     other = {k for k, v in config.to_dict().items() if k not in cli_fields}
     if any(config.to_dict()[k] != default.to_dict()[k] for k in other):
         return (
@@ -131,6 +132,8 @@ def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
     ]
     if config.shift_max:
         parts.append(f"--shift {config.shift_max!r}")
+    if config.variation != 1.0:
+        parts.append(f"--variation {config.variation!r}")
     if catalog_sha256 != load_catalog().fingerprint():
         parts.append(f"--scenes CATALOG  # the scene catalog with sha256 {catalog_sha256}")
     return " ".join(parts)
@@ -210,7 +213,14 @@ def render_card(path: str | Path) -> str:
         + "\n",  # fmt: skip
         f"Horizontal field of view {config.fov_deg} deg over {config.width} columns; objects "
         f"must be hit by at least {config.min_object_hits} pulses. Scene catalog sha256 "
-        f"`{attrs['catalog_sha256']}`:\n",
+        f"`{attrs['catalog_sha256']}`"
+        + (
+            f", every parameter range shrunk around its centre by the variation factor "
+            f"{config.variation!r} (less within-class variation than the recipes as written)"
+            if config.variation != 1.0
+            else ""
+        )
+        + ":\n",
         "\n".join(
             [
                 f"* layout `{n}`: {catalog['layouts'][n]['description']}"

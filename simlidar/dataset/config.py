@@ -24,6 +24,10 @@ class GeneratorConfig:
     min_object_hits: int = 4  # k: a labelled object is hit by at least k pulses
     max_attempts: int = 200  # redraws allowed per sample before giving up
     shift_max: float = 0.0  # delay-shift augmentation: each sample's returns move U(-s, s)
+    # scene variation: every parameter range of the catalog shrunk around its centre by this
+    # factor (1: the recipes as written); stored only when not 1, so the files of datasets
+    # made before the option existed stay byte for byte the same
+    variation: float = 1.0
     sensor: VLP16 = field(default_factory=VLP16)
 
     def __post_init__(self) -> None:
@@ -49,6 +53,10 @@ class GeneratorConfig:
             raise ConfigError(f"min_object_hits={self.min_object_hits!r}: expected >= 1")
         if not isinstance(self.max_attempts, int) or self.max_attempts < 1:
             raise ConfigError(f"max_attempts={self.max_attempts!r}: expected >= 1")
+        if not (isinstance(self.variation, float | int) and not isinstance(self.variation, bool)
+                and 0.0 < self.variation <= 1.0):  # fmt: skip
+            raise ConfigError(f"variation={self.variation!r}: expected a factor in (0, 1] "
+                              "(1: the scene catalog's ranges as written)")  # fmt: skip
         if not 0.0 <= self.shift_max < 1.0:
             raise ConfigError(f"shift_max={self.shift_max!r}: expected a value in [0, 1)")
 
@@ -62,6 +70,8 @@ class GeneratorConfig:
     def to_dict(self) -> dict:
         values = asdict(self)
         values["sensor"] = self.sensor.to_dict()
+        if values["variation"] == 1.0:
+            del values["variation"]  # absent means 1 (and keeps older datasets' bytes)
         return values
 
     def to_json(self) -> str:

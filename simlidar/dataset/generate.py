@@ -45,7 +45,8 @@ class Written:
 
 def dataset_name(config: GeneratorConfig) -> str:
     """``simlidar-<classes>c-noise<level>-v<version>``, the level as Python's repr (0.2, 0.33)."""
-    return f"simlidar-{config.classes}c-noise{float(config.noise)!r}-v{DATASET_VERSION}"
+    variation = f"-var{float(config.variation)!r}" if config.variation != 1.0 else ""
+    return f"simlidar-{config.classes}c-noise{float(config.noise)!r}{variation}-v{DATASET_VERSION}"
 
 
 def split_attrs(config: GeneratorConfig, catalog: Catalog, split: str) -> dict:

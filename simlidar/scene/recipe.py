@@ -9,7 +9,7 @@ file, the key and what was expected.
 import hashlib
 import json
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +46,18 @@ class Param:
     @property
     def upper(self) -> float:
         return max(self.values)
+
+    def narrowed(self, factor: float) -> "Param":
+        """This parameter with a uniform or integer range [lo, hi] shrunk around its centre c
+        to [c - f (hi - lo) / 2, c + f (hi - lo) / 2] (integers rounded); others unchanged."""
+        if factor == 1.0 or self.kind not in ("uniform", "int"):
+            return self
+        lo, hi = self.values
+        c, h = (lo + hi) / 2, factor * (hi - lo) / 2
+        if self.kind == "uniform":
+            return replace(self, values=(c - h, c + h))
+        low = round(c - h)
+        return replace(self, values=(float(low), float(max(low, round(c + h)))))
 
 
 @dataclass(frozen=True)
@@ -99,6 +111,21 @@ class Catalog:
     @property
     def object_columns(self) -> int:
         return max(len(r.params) for r in self.objects)
+
+    def with_variation(self, factor: float) -> "Catalog":
+        """The catalog with every uniform and integer parameter range of every layout and
+        object (sizes, spacings, counts, placement) shrunk around its centre by ``factor``
+        (see :meth:`Param.narrowed`); ``factor`` 1 is the catalog itself. The stored catalog
+        (:meth:`to_dict`) stays the recipes as written: the factor is part of the generator's
+        configuration (``GeneratorConfig.variation``)."""
+        if factor == 1.0:
+            return self
+
+        def narrow(recipes):
+            return tuple(replace(r, params=tuple(p.narrowed(factor) for p in r.params))
+                         for r in recipes)  # fmt: skip
+
+        return replace(self, layouts=narrow(self.layouts), objects=narrow(self.objects))
 
     def to_dict(self) -> dict:
         """Plain-JSON form of the whole catalog, as stored in every dataset file."""

@@ -9,7 +9,7 @@ from simlidar.dataset.generate import dataset_name, generate
 from simlidar.dataset.h5 import SCHEMA, dataset_splits
 from simlidar.dataset.info import dataset_info
 from simlidar.dataset.version import DATASET_VERSION
-from simlidar.errors import DatasetError
+from simlidar.errors import ConfigError, DatasetError
 
 
 def test_the_directory_and_its_files(datasets):
@@ -124,3 +124,16 @@ def test_names_encode_classes_noise_and_version():
     assert dataset_name(GeneratorConfig(classes=8, noise=0.33)) == (
         f"simlidar-8c-noise0.33-v{DATASET_VERSION}"
     )
+    assert dataset_name(GeneratorConfig(noise=0.1, variation=0.25)) == (
+        f"simlidar-32c-noise0.1-var0.25-v{DATASET_VERSION}"
+    )
+
+
+def test_variation_is_stored_only_when_it_narrows():
+    assert "variation" not in GeneratorConfig().to_dict()  # older datasets keep their bytes
+    config = GeneratorConfig(variation=0.5)
+    assert GeneratorConfig.from_dict(config.to_dict()) == config
+    assert GeneratorConfig.from_dict(GeneratorConfig().to_dict()).variation == 1.0
+    for bad in (0.0, 1.5, True, "0.5"):
+        with pytest.raises(ConfigError, match=f"variation={bad!r}: expected a factor in"):
+            GeneratorConfig(variation=bad)

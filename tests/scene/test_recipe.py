@@ -166,3 +166,19 @@ def test_parameter_kinds_cover_their_ranges():
     values = Param("w", "uniform", (2.0, 3.0)).sample(u)
     assert values.min() == 2.0 and values.max() < 3.0
     assert (Param("f", "fixed", (7.0,)).sample(u) == 7.0).all()
+
+
+def test_variation_shrinks_ranges_around_their_centre(catalog):
+    assert Param("a", "uniform", (2.0, 6.0)).narrowed(0.5).values == (3.0, 5.0)
+    assert Param("n", "int", (1.0, 9.0)).narrowed(0.5).values == (3.0, 7.0)
+    assert Param("n", "int", (1.0, 9.0)).narrowed(0.1).values == (5.0, 5.0)  # 4.6, 5.4 rounded
+    assert Param("c", "choice", (1.0, 5.0)).narrowed(0.1).values == (1.0, 5.0)
+    assert Param("f", "fixed", (4.0,)).narrowed(0.1).values == (4.0,)
+    assert catalog.with_variation(1.0) is catalog
+    narrow = catalog.with_variation(0.25)
+    assert narrow.to_dict() == catalog.to_dict()  # the stored recipes stay as written
+    for old, new in zip(catalog.layouts + catalog.objects, narrow.layouts + narrow.objects):
+        for p, q in zip(old.params, new.params):
+            if p.kind == "uniform":
+                (a, b), (c, d) = p.values, q.values
+                assert d - c == pytest.approx(0.25 * (b - a)) and c + d == pytest.approx(a + b)
