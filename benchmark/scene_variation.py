@@ -49,9 +49,10 @@ def main() -> None:
         suite.write_text(
             f'name = "variation-f{factor:g}"\nmodels = {json.dumps(models)}\n'
             f'datasets = ["{dataset}"]\n[budget]\nmax_seconds = 600\n'
-            f"[budget.snn_simlidar]\nepochs = {args.snn_epochs}\n"
-            f"[budget.cnn]\nepochs = {args.cnn_epochs}\n"
-        )
+            + "".join(f"[budget.{model}]\nepochs = {epochs}\n"
+                      for model, epochs in (("snn_simlidar", args.snn_epochs),
+                                            ("cnn", args.cnn_epochs)) if model in models)
+        )  # fmt: skip
         results = run_suite(load_suite(suite), args.out / f"bench-f{factor:g}", progress=False)
         for cell in results["cells"]:
             rows.append({"factor": factor, "model": cell["model"], "accuracy": cell["accuracy"],

@@ -44,7 +44,7 @@ LOGITS = ("z", "time")  # a spiking model's logits: -z (the paper's) or -t = -ln
 TRAINING_KEYS = {  # every key a recipe's [training] table may hold
     "optimizer", "lr", "momentum", "batch_size", "l2", "clip_grad_norm", "epochs",
     "max_seconds", "weight_sum_penalty", "logits", "logit_scale", "fire_penalty", "fire_margin",
-    "lr_schedule",
+    "lr_schedule", "early_penalty",
 }  # fmt: skip
 SCHEDULES = ("constant", "cosine")  # cosine: from lr down to 0 over the run's epochs
 
@@ -72,7 +72,8 @@ def _check_training(recipe: dict) -> dict:
     if training.get("lr_schedule", "constant") not in SCHEDULES:
         raise ConfigError(f"recipe {name}: key 'training.lr_schedule': expected one of "
                           f"{list(SCHEDULES)}, got {training['lr_schedule']!r}")  # fmt: skip
-    for key in ("logit_scale", "fire_penalty", "fire_margin", "weight_sum_penalty", "l2"):
+    for key in ("logit_scale", "fire_penalty", "fire_margin", "weight_sum_penalty", "l2",
+                "early_penalty"):  # fmt: skip
         value = training.get(key, 0.0 if key != "logit_scale" else 1.0)
         if not isinstance(value, int | float) or isinstance(value, bool) or value < 0:
             raise ConfigError(f"recipe {name}: key 'training.{key}': expected a number >= 0, "
@@ -92,6 +93,8 @@ def _loss(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training: di
             fire = ttfs.target_fire_penalty(spikes[-2].flatten(1), last, y,
                                             training.get("fire_margin", 0.1))  # fmt: skip
             total = total + training["fire_penalty"] * fire
+        if training.get("early_penalty", 0.0):
+            total = total + training["early_penalty"] * ttfs.target_time(spikes[-1], y)
     else:
         loss = total = F.cross_entropy(model(x), y)
     total = total + training.get("l2", 0.0) * sum((p**2).sum() for p in model.parameters())

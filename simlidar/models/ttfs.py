@@ -45,20 +45,24 @@ def _first_spikes(z: torch.Tensor, w: torch.Tensor):
     """Forward of the dense layer. z (B, N) with inf = silent, w (N, M).
 
     returns z_out (B, M) (inf = silent), and what the backward needs: the time order of the
-    inputs (B, N), the index of the last input of the causal set (B, M) (-1 if silent) and its
-    weight excess sum_C w - 1 (B, M) (1 if silent).
+    inputs (B, K), K <= N (only the inputs that can be in a causal set), the index of the last
+    input of the causal set (B, M) (-1 if silent) and its weight excess sum_C w - 1 (B, M)
+    (1 if silent).
 
-    Work is done in place on the (B, N, M) prefix tensors (the layer's cost). Silent inputs sort
+    Work is done in place on the (B, K, M) prefix tensors (the layer's cost). Silent inputs sort
     last and their weights are not masked: a prefix that reaches one is never valid (its
     ``zs`` is inf), so what they add to the sums is never used.
     """
-    order = torch.argsort(z, dim=1)  # silent inputs (inf) sort last
-    zs = torch.gather(z, 1, order)  # (B, N)
+    # silent inputs (inf) sort last; prefixes past the last spike of every row are never
+    # valid, so only the first K of the order matter, K the batch's largest spike count
+    spiking = int(torch.isfinite(z).sum(dim=1).max()) if z.shape[0] else 0
+    order = torch.argsort(z, dim=1)[:, : max(spiking, 1)]  # (B, K)
+    zs = torch.gather(z, 1, order)  # (B, K)
     zs0 = torch.where(torch.isfinite(zs), zs, 0.0)
-    ws = w[order]  # (B, N, M)
+    ws = w[order]  # (B, K, M)
     excess = torch.cumsum(ws, dim=1).sub_(1.0)  # sum of the first k+1 weights - 1
     cand = torch.cumsum(ws.mul_(zs0[..., None]), dim=1).div_(excess)  # candidate z_out
-    nxt = torch.cat([zs[:, 1:], torch.full_like(zs[:, :1], torch.inf)], dim=1)  # (B, N)
+    nxt = torch.cat([zs[:, 1:], torch.full_like(zs[:, :1], torch.inf)], dim=1)  # (B, K)
     valid = excess > MIN_EXCESS
     valid &= cand >= zs[..., None]  # not before the prefix's last input (silent: never)
     valid &= cand < nxt[..., None]  # strictly before the next input
@@ -82,8 +86,9 @@ class _DenseTTFS(torch.autograd.Function):
         z, w, z_out, order, last, excess = ctx.saved_tensors
         fired = last >= 0
         g = torch.where(fired, grad_out, 0.0) / excess  # (B, M), excess is 1 when silent
-        rank = torch.empty_like(order).scatter_(  # each input's place in time order
-            1, order, torch.arange(z.shape[1], device=z.device).expand_as(order))  # fmt: skip
+        rank = torch.full(z.shape, z.shape[1], dtype=order.dtype, device=z.device).scatter_(
+            1, order, torch.arange(order.shape[1], device=z.device).expand_as(order)
+        )  # each input's place in time order; N for those left out (never causal)
         causal = rank[:, :, None] <= last[:, None, :]  # (B, N, M): input in C (none if silent)
         coeff = torch.where(causal, g[:, None, :], 0.0)
         grad_z = grad_w = None
@@ -148,6 +153,17 @@ def target_fire_penalty(z_in: torch.Tensor, w: torch.Tensor, target: torch.Tenso
     spiked = torch.isfinite(z_in).to(w.dtype)
     reach = (spiked @ w).gather(1, target[:, None])  # (B, 1)
     return torch.relu(1.0 + margin - reach).mean()
+
+
+def target_time(z_out: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Mean spike time t = ln z of each sample's correct output neuron, over the samples where
+    it fires (0 if it fires in none): a loss term that rewards deciding early (not in the
+    paper). z_out : (B, M) output spikes, target : (B,)."""
+    z = z_out.gather(1, target[:, None]).squeeze(1)
+    fired = torch.isfinite(z)
+    if not fired.any():
+        return z_out.new_zeros(())
+    return torch.log(z[fired]).mean()
 
 
 def output_logits(z_out: torch.Tensor) -> torch.Tensor:

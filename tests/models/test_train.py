@@ -84,7 +84,8 @@ def test_logit_scale_fire_penalty_and_cosine_schedule_train(datasets):
     assert torch.allclose(logits(model, z, "time", 10.0)[0, :2], torch.tensor([0.0, -10.0]))
     recipe = _small_recipe()
     recipe["training"].update(logits="time", logit_scale=10.0, fire_penalty=10.0,
-                              fire_margin=0.1, lr_schedule="cosine", lr=1e-3)  # fmt: skip
+                              fire_margin=0.1, lr_schedule="cosine", lr=1e-3,
+                              early_penalty=1.0)  # fmt: skip
     result = train(recipe, datasets[0.1], seed=0, epochs=6, progress=False)
     assert result.history[-1]["loss"] < result.history[0]["loss"]
     assert result.test_accuracy > 2.0 / 32

@@ -136,3 +136,38 @@ def test_target_fire_penalty_pushes_a_silent_correct_output_to_fire():
     assert torch.isfinite(ttfs.dense(z, w)[[0, 1], [0, 1]]).all()
     firing = torch.tensor([[1.0, 2.0, torch.inf]])
     assert ttfs.target_fire_penalty(firing, torch.full((3, 2), 1.0), torch.tensor([0])) == 0
+
+
+def test_target_time_averages_the_correct_outputs_that_fire():
+    z = torch.tensor([[torch.e, 1.0], [torch.inf, 2.0], [torch.e**3, torch.inf]],
+                     requires_grad=True)  # fmt: skip
+    t = ttfs.target_time(z, torch.tensor([0, 0, 0]))
+    assert t.item() == pytest.approx((1.0 + 3.0) / 2)  # the silent second sample is left out
+    t.backward()
+    assert torch.isfinite(z.grad).all() and z.grad[1].abs().sum() == 0
+    assert z.grad[0, 0] == pytest.approx(0.5 / torch.e)  # d(ln z / 2)/dz
+    silent = torch.full((2, 2), torch.inf)
+    assert ttfs.target_time(silent, torch.tensor([0, 1])).item() == 0.0
+
+
+def test_a_row_gets_the_same_spikes_and_gradients_alone_and_in_a_batch():
+    # rows with 0, 2, 5 and 8 input spikes: the batch keeps only the first 8 of the time order
+    g = torch.Generator().manual_seed(3)
+    z = torch.exp(3 * torch.rand(4, 12, generator=g, dtype=torch.float64))
+    for row, spikes in enumerate((0, 2, 5, 8)):
+        z[row, spikes:] = torch.inf
+    z = z[:, torch.randperm(12, generator=g)]  # silent inputs anywhere, not only at the end
+    w = torch.rand(12, 6, generator=g, dtype=torch.float64) * 0.6
+
+    def run(rows):
+        zz, ww = z[rows].clone().requires_grad_(), w.clone().requires_grad_()
+        out = ttfs.dense(zz, ww)
+        torch.where(torch.isfinite(out), out, 0.0).sum().backward()
+        return out.detach(), zz.grad, ww.grad
+
+    batch = run(slice(None))
+    alone = [run(slice(r, r + 1)) for r in range(4)]
+    assert torch.isfinite(batch[0]).any() and torch.isinf(batch[0][0]).all()
+    for r in range(4):
+        assert torch.equal(batch[0][r], alone[r][0][0]) and torch.equal(batch[1][r], alone[r][1][0])
+    assert torch.allclose(batch[2], sum(a[2] for a in alone))
