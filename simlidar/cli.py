@@ -423,8 +423,9 @@ def bench(suite, models, dataset, out, as_json):
         click.echo(json.dumps(results))
         return
     click.echo(f"{len(results['cells'])} cells in {out}: results.json, report.md")
+    width = max((len(cell["model"]) for cell in results["cells"]), default=0)
     for cell in results["cells"]:
-        click.echo(f"  {cell['dataset']}  {cell['model']:<14} seed {cell['seed']}  accuracy "
+        click.echo(f"  {cell['dataset']}  {cell['model']:<{width}}  seed {cell['seed']}  accuracy "
                    f"{cell['accuracy']:.4f}  latency {cell['latency_ms']:.2f} ms")  # fmt: skip
 
 
