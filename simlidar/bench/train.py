@@ -74,10 +74,12 @@ def _check_training(recipe: dict) -> dict:
                           f"{list(SCHEDULES)}, got {training['lr_schedule']!r}")  # fmt: skip
     for key in ("logit_scale", "fire_penalty", "fire_margin", "weight_sum_penalty", "l2",
                 "early_penalty"):  # fmt: skip
-        value = training.get(key, 0.0 if key != "logit_scale" else 1.0)
-        if not isinstance(value, int | float) or isinstance(value, bool) or value < 0:
-            raise ConfigError(f"recipe {name}: key 'training.{key}': expected a number >= 0, "
-                              f"got {value!r}")  # fmt: skip
+        value, low = training.get(key, 1.0 if key == "logit_scale" else 0.0), 0.0
+        positive = key == "logit_scale"
+        if (not isinstance(value, int | float) or isinstance(value, bool)
+                or value < low or (positive and value == low)):  # fmt: skip
+            raise ConfigError(f"recipe {name}: key 'training.{key}': expected a number "
+                              f"{'>' if positive else '>='} 0, got {value!r}")  # fmt: skip
     return training
 
 

@@ -97,7 +97,8 @@ def test_logit_scale_fire_penalty_and_cosine_schedule_train(datasets):
         ("lr_schdule", "cosine", r"key 'training.lr_schdule': expected one of \['batch_size'"),
         ("lr_schedule", "step", r"training.lr_schedule': expected one of \['constant', 'cosine'\]"),
         ("fire_penalty", -1.0, r"training.fire_penalty': expected a number >= 0, got -1.0"),
-        ("logit_scale", "10", r"training.logit_scale': expected a number >= 0, got '10'"),
+        ("logit_scale", "10", r"training.logit_scale': expected a number > 0, got '10'"),
+        ("logit_scale", 0, r"training.logit_scale': expected a number > 0, got 0"),
     ],
 )
 def test_training_keys_are_checked(datasets, key, value, message):
