@@ -205,7 +205,9 @@ def test_variation_narrows_the_scenes_and_names_the_dataset(run, tmp_path):
                                         for k in np.unique(labels) if k % 4], axis=0)  # fmt: skip
         assert np.bincount(labels).tolist() == [4] * 32
     assert path.endswith("-var0.1-v1.0.0") and config["variation"] == 0.1
-    assert "--variation 0.1" in (Path(path) / "README.md").read_text()
+    card = (Path(path) / "README.md").read_text()
+    assert "--variation 0.1" in card and "config_name: noise0.2-var0.1" in card
+    assert "scene variation 0.1" in card.split("---")[1]  # the card's title (pretty_name)
     assert (spread["0.1"] < 0.2 * spread["1"]).all(), spread
 
 

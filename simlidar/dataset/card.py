@@ -98,10 +98,15 @@ def front_matter(path: Path) -> dict:
     width = splits["train"].width
     features = [hf_feature(name, dtype, tail(width), attrs["class_names"])
                 for name, (dtype, tail, _) in SCHEMA.items()]  # fmt: skip
-    return hf_front_matter(
-        splits, features, LICENSE, f"{NAME}, {attrs['classes']} classes, noise {attrs['noise']}",
-        TAGS, f"noise{float(attrs['noise'])!r}",
-    )  # fmt: skip
+    variation = GeneratorConfig.from_dict(attrs["config"]).variation
+    title = f"{NAME}, {attrs['classes']} classes, noise {attrs['noise']}"
+    config_name = f"noise{float(attrs['noise'])!r}"
+    if variation != 1.0:
+        title, config_name = (
+            f"{title}, scene variation {variation!r}",
+            f"{config_name}-var{variation!r}",
+        )
+    return hf_front_matter(splits, features, LICENSE, title, TAGS, config_name)
 
 
 def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
