@@ -209,6 +209,13 @@ def test_variation_narrows_the_scenes_and_names_the_dataset(run, tmp_path):
     assert "--variation 0.1" in card and "config_name: noise0.2-var0.1" in card
     assert "scene variation 0.1" in card.split("---")[1]  # the card's title (pretty_name)
     assert (spread["0.1"] < 0.2 * spread["1"]).all(), spread
+    command = card.split("## Regenerate")[1].split("```\n")[1].strip().split()[2:]
+    again = run("generate", *command, "--out", tmp_path / "again")
+    assert again.exit_code == 0, again.output
+    for name in ("train.h5", "test.h5", "README.md", "SHA256SUMS"):
+        assert (tmp_path / "again" / Path(path).name / name).read_bytes() == (
+            Path(path) / name
+        ).read_bytes(), name
 
 
 def test_debug_shows_the_traceback(run):
