@@ -12,7 +12,7 @@ from simlidar.data import load_split, split_path
 from simlidar.dataset.h5 import read_split_info
 from simlidar.errors import ConfigError
 from simlidar.models import ttfs
-from simlidar.models.registry import build_model
+from simlidar.models.registry import build_model, check_training
 
 
 @dataclass
@@ -22,7 +22,7 @@ class TrainResult:
     test_accuracy: float
     seconds: float
     epochs: int
-    history: list[dict] = field(default_factory=list)  # per epoch: loss, accuracies, seconds
+    history: list[dict] = field(default_factory=list)  # per epoch: loss, lr, accuracy, seconds
 
 
 def _optimizer(params, training: dict):
@@ -39,16 +39,6 @@ def is_spiking(model: torch.nn.Module) -> bool:
     return getattr(model, "spiking", False)
 
 
-LOGITS = ("z", "time")  # a spiking model's logits: -z (the paper's) or -t = -ln z
-
-TRAINING_KEYS = {  # every key a recipe's [training] table may hold
-    "optimizer", "lr", "momentum", "batch_size", "l2", "clip_grad_norm", "epochs",
-    "max_seconds", "weight_sum_penalty", "logits", "logit_scale", "fire_penalty", "fire_margin",
-    "lr_schedule", "early_penalty",
-}  # fmt: skip
-SCHEDULES = ("constant", "cosine")  # cosine: from lr down to 0 over the run's epochs
-
-
 def logits(model: torch.nn.Module, out: torch.Tensor, kind: str = "z",
            scale: float = 1.0) -> torch.Tensor:  # fmt: skip
     """Logits for the cross-entropy loss: a spiking model's -z (``kind`` "z", the paper's) or
@@ -57,30 +47,6 @@ def logits(model: torch.nn.Module, out: torch.Tensor, kind: str = "z",
     if not is_spiking(model):
         return out
     return scale * ttfs.output_logits(out if kind == "z" else torch.log(out))
-
-
-def _check_training(recipe: dict) -> dict:
-    training = recipe["training"]
-    name = recipe.get("name", "?")
-    unknown = sorted(set(training) - TRAINING_KEYS)
-    if unknown:
-        raise ConfigError(f"recipe {name}: key 'training.{unknown[0]}': expected one of "
-                          f"{sorted(TRAINING_KEYS)}")  # fmt: skip
-    if training.get("logits", "z") not in LOGITS:
-        raise ConfigError(f"recipe {name}: key 'training.logits': expected one of "
-                          f"{list(LOGITS)}, got {training['logits']!r}")  # fmt: skip
-    if training.get("lr_schedule", "constant") not in SCHEDULES:
-        raise ConfigError(f"recipe {name}: key 'training.lr_schedule': expected one of "
-                          f"{list(SCHEDULES)}, got {training['lr_schedule']!r}")  # fmt: skip
-    for key in ("logit_scale", "fire_penalty", "fire_margin", "weight_sum_penalty", "l2",
-                "early_penalty"):  # fmt: skip
-        value, low = training.get(key, 1.0 if key == "logit_scale" else 0.0), 0.0
-        positive = key == "logit_scale"
-        if (not isinstance(value, int | float) or isinstance(value, bool)
-                or value < low or (positive and value == low)):  # fmt: skip
-            raise ConfigError(f"recipe {name}: key 'training.{key}': expected a number "
-                              f"{'>' if positive else '>='} 0, got {value!r}")  # fmt: skip
-    return training
 
 
 def _loss(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training: dict):
@@ -122,7 +88,7 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
     """
     from tqdm import tqdm
 
-    training = _check_training(recipe)
+    training = check_training(recipe)
     x_train, y_train = (torch.from_numpy(a) for a in load_split(dataset, "train"))
     x_test, y_test = (torch.from_numpy(a) for a in load_split(dataset, "test"))
     x_train, x_test = x_train[:, None], x_test[:, None]  # (N, 1, H, W)
@@ -152,11 +118,12 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
                 torch.nn.utils.clip_grad_norm_(model.parameters(), training["clip_grad_norm"])
             optimizer.step()
             losses.append(loss.item())
+        lr = optimizer.param_groups[0]["lr"]  # the rate this epoch trained with
         if schedule is not None:
             schedule.step()
         accuracy = (predictions(model, x_test) == y_test).float().mean().item()
         seconds = time.perf_counter() - start
-        history.append({"epoch": epoch, "loss": float(np.mean(losses)),
+        history.append({"epoch": epoch, "loss": float(np.mean(losses)), "lr": lr,
                         "test_accuracy": accuracy, "seconds": seconds})  # fmt: skip
         bar.set_postfix(loss=f"{np.mean(losses):.3f}", test=f"{accuracy:.3f}")
         if seconds > budget:

@@ -5,6 +5,7 @@ builder, ``[architecture]`` its arguments and ``[training]`` the hyper-parameter
 and class count come from the dataset, never from the recipe.
 """
 
+import math
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -13,6 +14,14 @@ from simlidar.content import content_dir
 from simlidar.errors import ConfigError
 
 MODELS: dict[str, Callable] = {}
+
+TRAINING_KEYS = {  # every key a recipe's [training] table may hold (docs/snn.md, Training)
+    "optimizer", "lr", "momentum", "batch_size", "l2", "clip_grad_norm", "epochs",
+    "max_seconds", "weight_sum_penalty", "logits", "logit_scale", "fire_penalty", "fire_margin",
+    "lr_schedule", "early_penalty",
+}  # fmt: skip
+LOGITS = ("z", "time")  # a spiking model's logits: -z (the paper's) or -t = -ln z
+SCHEDULES = ("constant", "cosine")  # cosine: from lr down to 0 over the run's epochs
 
 
 def register_model(name: str):
@@ -44,18 +53,42 @@ def load_recipe(name_or_path: str | Path) -> dict:
     if recipe["model"] not in MODELS:
         raise ConfigError(f"{path}: key 'model': expected one of {sorted(MODELS)}, got "
                           f"{recipe['model']!r}")  # fmt: skip
+    recipe["name"] = path.stem
+    check_training(recipe, str(path))
+    return recipe
+
+
+def _number(value) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def check_training(recipe: dict, where: str | None = None) -> dict:
+    """The recipe's [training] table, every key checked; a ConfigError names the first bad one."""
     training = recipe["training"]
+    where = where or f"recipe {recipe.get('name', '?')}"
+    if not isinstance(training, dict):
+        raise ConfigError(f"{where}: key 'training': expected a table, got {training!r}")
+    for key in sorted(set(training) - TRAINING_KEYS):
+        raise ConfigError(f"{where}: unknown key 'training.{key}': expected one of "
+                          f"{sorted(TRAINING_KEYS)}")  # fmt: skip
     for key, low in (("lr", 0.0), ("batch_size", 1), ("epochs", 1)):
         value = training.get(key)
-        if (
-            not isinstance(value, int | float)
-            or isinstance(value, bool)
-            or not (value > low if key == "lr" else value >= low)
-        ):
-            raise ConfigError(f"{path}: key 'training.{key}': expected a number "
+        if not _number(value) or not (value > low if key == "lr" else value >= low):
+            raise ConfigError(f"{where}: key 'training.{key}': expected a number "
                               f"{'>' if key == 'lr' else '>='} {low}, got {value!r}")  # fmt: skip
-    recipe["name"] = path.stem
-    return recipe
+    for key, choices, default in (("optimizer", ("sgd", "adam"), "sgd"), ("logits", LOGITS, "z"),
+                                  ("lr_schedule", SCHEDULES, "constant")):  # fmt: skip
+        if training.get(key, default) not in choices:
+            raise ConfigError(f"{where}: key 'training.{key}': expected one of "
+                              f"{list(choices)}, got {training[key]!r}")  # fmt: skip
+    for key in ("logit_scale", "fire_penalty", "fire_margin", "weight_sum_penalty", "l2",
+                "early_penalty"):  # fmt: skip
+        value = training.get(key, 1.0 if key == "logit_scale" else 0.0)
+        positive = key == "logit_scale"
+        if not _number(value) or value < 0 or (positive and value == 0):
+            raise ConfigError(f"{where}: key 'training.{key}': expected a finite number "
+                              f"{'>' if positive else '>='} 0, got {value!r}")  # fmt: skip
+    return training
 
 
 def build_model(recipe: dict, input_shape: tuple[int, ...], classes: int, generator=None):

@@ -12,8 +12,9 @@ prefix for which ``sum_C w_i - 1 > MIN_EXCESS``, ``z_out >= z_last(C)`` and ``z_
 before the next input (``z_out < z_next``). A neuron with no such prefix never fires.
 
 Representation: spike times travel in the z domain; ``z = inf`` means "no spike". No
-arithmetic ever runs on an infinite value: silent inputs are masked out, silent outputs get
-zero gradient. ``exp`` is only taken of the bounded input times (see :func:`encode`).
+arithmetic ever runs on an infinite value: silent inputs only enter comparisons (their z is
+replaced by 0 in every sum, and no firing prefix reaches them), silent outputs get zero
+gradient. ``exp`` is only taken of the bounded input times (see :func:`encode`).
 
 Near-zero denominators: a prefix whose weight excess ``sum_C w_i - 1`` is not above
 ``MIN_EXCESS`` (1e-4) is not a firing prefix. The neuron's potential would approach the

@@ -1,6 +1,7 @@
 """Training runs for real (a tiny budget): it learns, it is seeded, checkpoints reload."""
 
 import json
+import math
 
 import pytest
 import torch
@@ -89,16 +90,44 @@ def test_logit_scale_fire_penalty_and_cosine_schedule_train(datasets):
     result = train(recipe, datasets[0.1], seed=0, epochs=6, progress=False)
     assert result.history[-1]["loss"] < result.history[0]["loss"]
     assert result.test_accuracy > 2.0 / 32
+    rates = [h["lr"] for h in result.history]  # cosine from 1e-3 towards 0 over the 6 epochs
+    assert rates[0] == 1e-3 and all(a > b > 0 for a, b in zip(rates, rates[1:]))
+    assert rates[-1] == pytest.approx(1e-3 * (1 + math.cos(math.pi * 5 / 6)) / 2)
+
+
+def test_the_penalties_enter_the_loss_as_the_recipe_weighs_them():
+    from simlidar.bench.train import _loss
+    from simlidar.models import ttfs
+    from simlidar.models.registry import build_model
+
+    recipe = _small_recipe()
+    model = build_model(recipe, (1, 16, 16), 32, torch.Generator().manual_seed(0))
+    x = torch.rand(8, 1, 16, 16, generator=torch.Generator().manual_seed(1))
+    y = torch.arange(8)
+    training = {"weight_sum_penalty": 0.0, "l2": 0.0}
+    base, total = _loss(model, x, y, training)
+    assert total == base
+    spikes = model.spikes(x)
+    fire = ttfs.target_fire_penalty(spikes[-2].flatten(1), model.layers[-1].weight, y, 5.0)
+    early = ttfs.target_time(spikes[-1], y)
+    assert fire > 0 and early > 0
+    _, total = _loss(model, x, y, dict(training, fire_penalty=2.0, fire_margin=5.0))
+    assert total.item() == pytest.approx((base + 2.0 * fire).item())
+    _, total = _loss(model, x, y, dict(training, early_penalty=3.0))
+    assert total.item() == pytest.approx((base + 3.0 * early).item())
 
 
 @pytest.mark.parametrize(
     ("key", "value", "message"),
     [
-        ("lr_schdule", "cosine", r"key 'training.lr_schdule': expected one of \['batch_size'"),
+        ("lr_schdule", "cosine", r"unknown key 'training.lr_schdule': expected one of \['batch"),
         ("lr_schedule", "step", r"training.lr_schedule': expected one of \['constant', 'cosine'\]"),
-        ("fire_penalty", -1.0, r"training.fire_penalty': expected a number >= 0, got -1.0"),
-        ("logit_scale", "10", r"training.logit_scale': expected a number > 0, got '10'"),
-        ("logit_scale", 0, r"training.logit_scale': expected a number > 0, got 0"),
+        ("fire_penalty", -1.0, r"training.fire_penalty': expected a finite number >= 0, got -1.0"),
+        ("fire_penalty", float("inf"), r"training.fire_penalty': expected a finite number >= 0"),
+        ("logit_scale", "10", r"training.logit_scale': expected a finite number > 0, got '10'"),
+        ("logit_scale", 0, r"training.logit_scale': expected a finite number > 0, got 0"),
+        ("logit_scale", float("nan"), r"training.logit_scale': expected a finite number > 0"),
+        ("optimizer", "rmsprop", r"training.optimizer': expected one of \['sgd', 'adam'\]"),
     ],
 )
 def test_training_keys_are_checked(datasets, key, value, message):
