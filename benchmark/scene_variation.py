@@ -37,6 +37,7 @@ def main() -> None:
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     models = args.models.split(",")
+    epochs = {"snn_simlidar": args.snn_epochs, "cnn": args.cnn_epochs}  # the rest: recipe's own
     rows = []
     for factor in (float(f) for f in args.factors.split(",")):
         start = time.perf_counter()
@@ -49,10 +50,8 @@ def main() -> None:
         suite.write_text(
             f'name = "variation-f{factor:g}"\nmodels = {json.dumps(models)}\n'
             f'datasets = ["{dataset}"]\n[budget]\nmax_seconds = 600\n'
-            + "".join(f"[budget.{model}]\nepochs = {epochs}\n"
-                      for model, epochs in (("snn_simlidar", args.snn_epochs),
-                                            ("cnn", args.cnn_epochs)) if model in models)
-        )  # fmt: skip
+            + "".join(f"[budget.{m}]\nepochs = {epochs[m]}\n" for m in models if m in epochs)
+        )
         results = run_suite(load_suite(suite), args.out / f"bench-f{factor:g}", progress=False)
         for cell in results["cells"]:
             rows.append({"factor": factor, "model": cell["model"], "accuracy": cell["accuracy"],

@@ -68,8 +68,9 @@ def check_training(recipe: dict, where: str | None = None) -> dict:
     where = where or f"recipe {recipe.get('name', '?')}"
     if not isinstance(training, dict):
         raise ConfigError(f"{where}: key 'training': expected a table, got {training!r}")
-    for key in sorted(set(training) - TRAINING_KEYS):
-        raise ConfigError(f"{where}: unknown key 'training.{key}': expected one of "
+    unknown = sorted(set(training) - TRAINING_KEYS)
+    if unknown:
+        raise ConfigError(f"{where}: unknown key 'training.{unknown[0]}': expected one of "
                           f"{sorted(TRAINING_KEYS)}")  # fmt: skip
     for key, low in (("lr", 0.0), ("batch_size", 1), ("epochs", 1)):
         value = training.get(key)
