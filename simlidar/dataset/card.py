@@ -2,6 +2,7 @@
 constants in :mod:`simlidar.dataset.about` and the split files' own attributes."""
 
 import json
+from functools import cache
 from pathlib import Path
 
 import yaml
@@ -109,10 +110,15 @@ def front_matter(path: Path) -> dict:
     return hf_front_matter(splits, features, LICENSE, title, TAGS, config_name)
 
 
-def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
-    """The command that writes this dataset again, bit for bit (or the Python equivalent)."""
+@cache
+def _shipped_catalog_sha256() -> str:
     from simlidar.scene.recipe import load_catalog
 
+    return load_catalog().fingerprint()
+
+
+def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
+    """The command that writes this dataset again, bit for bit (or the Python equivalent)."""
     default = GeneratorConfig()
     cli_fields = {"classes", "noise", "train_size", "test_size", "seed", "width", "shift_max",
                   "variation"}  # fmt: skip
@@ -139,7 +145,7 @@ def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
         parts.append(f"--shift {config.shift_max!r}")
     if config.variation != 1.0:
         parts.append(f"--variation {config.variation!r}")
-    if catalog_sha256 != load_catalog().fingerprint():
+    if catalog_sha256 != _shipped_catalog_sha256():
         parts.append(f"--scenes CATALOG  # the scene catalog with sha256 {catalog_sha256}")
     return " ".join(parts)
 

@@ -9,7 +9,8 @@ size. The distance to the hit is then recomputed in float64 in the sample's loca
 
 Before building the Embree scene, the faces of closed solids that are turned away from every
 laser origin are dropped: no ray can hit them first, so this changes nothing but Embree's
-per-triangle setup cost (about 1 us a triangle in embreex), which it cuts by 60 %. Tests for
+per-triangle cost (its BVH build, and embreex's copy where the shared buffers of
+:mod:`simlidar.sensor.embree` are unavailable), which it cuts by 60 %. Tests for
 the horizontal wedge, the vertical beam cones and the range limit were tried and removed: they
 cost more numpy time than the few triangles they drop save.
 """
@@ -21,6 +22,7 @@ import numpy as np
 
 from simlidar.errors import ConfigError
 from simlidar.scene.build import CELL_HALF_EXTENT_M, SceneBatch
+from simlidar.sensor.embree import attach_triangles
 
 GRID_CELLS = 16  # per axis
 # A ray reaches at most max range + 1 m from an origin near the cell centre; a neighbour's
@@ -79,14 +81,15 @@ def visible_triangles(scene: SceneBatch, origins: np.ndarray):
 
 
 def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: np.ndarray,
-         max_range_m: float, cull: bool = True) -> Hits:  # fmt: skip
+         max_range_m: float, cull: bool = True, shared: bool = True) -> Hits:  # fmt: skip
     """First hit of every pulse.
 
     origins, directions : (B, 16, W, 3) float64 in each sample's local frame, unit directions
     slots : (B,) int, distinct grid cells (use the sample index in its split mod MAX_BATCH)
     cull : drop triangles no ray can hit first (exact; off only to test that it is)
+    shared : hand the triangles to Embree in place (:mod:`simlidar.sensor.embree`; off only to
+        test that the hits are those of embreex's own copy)
     """
-    import embreex.mesh_construction as mc
     import embreex.rtcore_scene as rtcs
 
     batch = origins.shape[0]
@@ -113,14 +116,13 @@ def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: 
         return Hits(hit_range, surface, on_object)
 
     embree_scene = rtcs.EmbreeScene(_device())
-    # float64 on purpose: embreex converts element by element, faster from float64, and rounds
-    # to float32 exactly as astype would
     world = tris + np.take(offsets, sample, axis=0)[:, None, :]
-    mc.TriangleMesh(embree_scene, world)
+    buffers = attach_triangles(embree_scene, world, shared)
     ray_origin = (origins + offsets[:, None, None, :]).reshape(-1, 3).astype(np.float32)
     ray_dir = directions.reshape(-1, 3).astype(np.float32)
     far = np.full(len(ray_origin), max_range_m + 1.0, np.float32)
     prim = embree_scene.run(ray_origin, ray_dir, dists=far).reshape(shape)  # primID, -1: none
+    del embree_scene, buffers  # in this order: the scene reads the buffers until released
 
     hit = prim >= 0
     flat = np.flatnonzero(hit)

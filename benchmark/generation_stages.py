@@ -1,0 +1,86 @@
+"""Where generation spends its time: microseconds per sample for each stage, on one core.
+
+    python benchmark/generation_stages.py [--samples 6144]
+
+Runs ``generate`` end to end (16 x 16 samples, 32 classes, the default catalog, HDF5 writing
+included, no preview) with timers around the pipeline's stages, after one untimed warm-up run,
+and prints each stage's share. "Other" is the whole run less the timed stages: the per-sample
+random draws, the visibility checks and redraw bookkeeping, pulses, noise, the card. The
+timers add a few microseconds a sample; ``benchmark/generation_speed.py`` gives the untimed
+throughput.
+"""
+
+import os
+
+if hasattr(os, "sched_setaffinity"):
+    os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from collections import defaultdict  # noqa: E402
+
+import embreex.rtcore_scene as rtcs  # noqa: E402
+
+import simlidar.sensor.raycast as raycast  # noqa: E402
+import simlidar.simulate as simulate  # noqa: E402
+from simlidar.dataset.config import GeneratorConfig  # noqa: E402
+from simlidar.dataset.generate import generate  # noqa: E402
+from simlidar.dataset.h5 import SplitWriter  # noqa: E402
+from simlidar.scene.recipe import load_catalog  # noqa: E402
+from simlidar.sensor import embree  # noqa: E402
+
+SPENT: dict[str, float] = defaultdict(float)
+
+
+def timed(stage: str, fn):
+    def wrapper(*args, **kwargs):
+        start = time.perf_counter()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            SPENT[stage] += time.perf_counter() - start
+
+    return wrapper
+
+
+class TimedScene(rtcs.EmbreeScene):
+    """embreex's scene with its ``run`` (BVH build at the first call, then the queries) timed.
+
+    Same C layout at the same offsets as the base class, so the shared buffers still attach.
+    """
+
+    def run(self, *args, **kwargs):
+        return timed("Embree BVH build + ray queries", super().run)(*args, **kwargs)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--samples", type=int, default=6144, help="train + test")
+    args = parser.parse_args()
+    config = GeneratorConfig(train_size=args.samples * 5 // 6, test_size=args.samples // 6)
+    n = config.train_size + config.test_size
+    catalog = load_catalog()
+    print(f"shared Embree buffers: {'on' if embree.shared_buffers() else 'off'}")
+    with tempfile.TemporaryDirectory() as tmp:
+        generate(config, [0.2], catalog, f"{tmp}/warm", progress=False, preview=False)
+        simulate._stream = timed("random streams (SeedSequence)", simulate._stream)
+        simulate.window_rays = timed("window rays", simulate.window_rays)
+        simulate.build_batch = timed("scene building (numpy)", simulate.build_batch)
+        raycast.visible_triangles = timed("back-face culling", raycast.visible_triangles)
+        raycast.attach_triangles = timed("Embree geometry", raycast.attach_triangles)
+        rtcs.EmbreeScene = TimedScene
+        SplitWriter.append = timed("HDF5 writing", SplitWriter.append)
+        start = time.perf_counter()
+        generate(config, [0.2], catalog, f"{tmp}/timed", progress=False, preview=False)
+        total = time.perf_counter() - start
+    SPENT["other"] = total - sum(SPENT.values())
+    print(f"{n} samples in {total:.2f} s: {n / total:.0f} samples/s with the timers")
+    for stage, seconds in sorted(SPENT.items(), key=lambda kv: -kv[1]):
+        print(f"  {stage:32s} {1e6 * seconds / n:6.1f} us/sample  {100 * seconds / total:4.1f} %")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,70 @@
+"""Shared Embree buffers: the same hits as embreex's own copy, and a safe fallback."""
+
+import sys
+
+import numpy as np
+import pytest
+
+from simlidar.scene.build import build_batch
+from simlidar.sensor import VLP16, embree, window_rays
+from simlidar.sensor.raycast import cast
+
+
+def _batch(catalog, n, seed):
+    rng = np.random.default_rng(seed)
+    layout, obj = rng.integers(0, 8, n), rng.integers(0, 4, n)
+    scene = build_batch(catalog, layout, obj, rng.random((n, catalog.layout_columns)),
+                        rng.random((n, catalog.object_columns)))  # fmt: skip
+    origins, directions = window_rays(VLP16(), 16, 36.0, rng.random(n))
+    return scene, origins, directions
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the library is found on Linux")
+def test_the_shared_path_is_on_where_embreex_ships_its_library():
+    assert embree.shared_buffers()
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_hits_equal_embreex_triangle_mesh(catalog, seed):
+    scene, origins, directions = _batch(catalog, 256, seed)
+    slots = np.arange(256) * 7 + seed
+    a = cast(scene, origins, directions, slots, 100.0, shared=True)
+    b = cast(scene, origins, directions, slots, 100.0, shared=False)
+    assert (~np.isnan(a.range_m)).mean() > 0.5  # most pulses return: a real comparison
+    np.testing.assert_array_equal(a.range_m, b.range_m)
+    np.testing.assert_array_equal(a.surface, b.surface)
+    np.testing.assert_array_equal(a.on_object, b.on_object)
+
+
+def test_buffers_hold_the_float32_triangles(catalog):
+    import embreex.rtcore as rtc
+    import embreex.rtcore_scene as rtcs
+
+    if not embree.shared_buffers():
+        pytest.skip("shared buffers unavailable here")
+    tris = np.random.default_rng(0).normal(size=(5, 3, 3)) * 10
+    vertices, indices = embree.attach_triangles(rtcs.EmbreeScene(rtc.EmbreeDevice()), tris)
+    np.testing.assert_array_equal(vertices[:, :3], tris.reshape(-1, 3).astype(np.float32))
+    np.testing.assert_array_equal(indices, np.arange(15).reshape(5, 3))
+
+
+def test_an_unexpected_layout_turns_the_shared_path_off():
+    import embreex.rtcore as rtc
+    import embreex.rtcore_scene as rtcs
+
+    class Bigger(rtcs.EmbreeScene):  # a subclass with a __dict__ has another C layout
+        pass
+
+    device = rtc.EmbreeDevice()
+    assert not embree._layout_ok(Bigger, device)
+    assert embree._layout_ok(rtcs.EmbreeScene, device)
+
+
+def test_without_the_shared_path_the_cast_falls_back(catalog, monkeypatch):
+    scene, origins, directions = _batch(catalog, 32, 2)
+    slots = np.arange(32)
+    expected = cast(scene, origins, directions, slots, 100.0)
+    monkeypatch.setattr(embree, "_embree", lambda: None)
+    assert not embree.shared_buffers()
+    got = cast(scene, origins, directions, slots, 100.0)
+    np.testing.assert_array_equal(got.range_m, expected.range_m)
