@@ -49,7 +49,8 @@ def timed(stage: str, fn):
 class TimedScene(rtcs.EmbreeScene):
     """embreex's scene with its ``run`` (BVH build at the first call, then the queries) timed.
 
-    Same C layout at the same offsets as the base class, so the shared buffers still attach.
+    Same C layout at the same offsets as the base class, so the shared buffers still attach
+    (the layout is checked on the base class, before this one is patched in).
     """
 
     def run(self, *args, **kwargs):

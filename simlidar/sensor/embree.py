@@ -1,22 +1,23 @@
 """Triangles into an embreex scene without embreex's element-by-element copy.
 
 ``embreex.mesh_construction.TriangleMesh`` copies every vertex coordinate into Embree's buffer
-through a Python-level index: about 0.7 us a triangle, the largest single cost of generation
-(docs/performance.md). Embree's C API can instead use a numpy array in place
-(``rtcSetSharedGeometryBuffer``). :func:`attach_triangles` calls that API through ctypes, on the
-Embree library embreex itself loaded, and attaches the geometry to an embreex ``EmbreeScene``.
-Everything else stays embreex's: the scene, the BVH build at the first ``run`` and the ray
-queries (one ``rtcIntersect1`` per ray), so the hits are those of ``TriangleMesh``: same float32
-vertices, same scene, same kernel.
+through a Python-level index: about 0.6 us a triangle, once the largest single cost of
+generation (docs/performance.md). Embree's C API can instead read a numpy array in place
+(``rtcSetSharedGeometryBuffer``). :func:`attach_triangles` calls that API through ctypes, on
+the Embree library embreex itself loaded, and attaches the geometry to an embreex
+``EmbreeScene``. Everything else stays embreex's: the scene, the BVH build at the first ``run``
+(where Embree reads the arrays) and the ray queries (one ``rtcIntersect1`` per ray), so the hits
+are those of ``TriangleMesh``: same float32 vertices, same scene, same kernel.
 
+The library is embreex's own: its symbols are looked up through the handle of embreex's
+``rtcore_scene`` extension module, which resolves them in the libraries that module loaded.
 The scene handle is a C field of embreex's ``EmbreeScene`` (declared in embreex's
 ``rtcore_scene.pxd``: ``scene_i``, ``is_committed``, ``device``), not a Python attribute, so it
-is read from the object's memory. The layout is checked once per process before any pointer is
-used: the object size, the ``device`` field holding the very device object passed in, and the
-public ``is_committed`` field moving when Python sets it; then Embree itself must report the
-same device for two scenes and version 4. The library is found in ``/proc/self/maps`` (the file
-embreex loaded, Linux). Where any of this fails, :func:`attach_triangles` uses ``TriangleMesh``:
-slower, same hits.
+is read from the object's memory. The layout is checked once per process without following any
+pointer: the object size, the ``device`` field holding the very device object passed in, and
+the public ``is_committed`` field moving when Python sets it. Embree must report major version
+4. Where any of this fails, or raises, :func:`attach_triangles` uses ``TriangleMesh``: slower,
+same hits.
 """
 
 import ctypes
@@ -32,18 +33,6 @@ _PTR = ctypes.sizeof(ctypes.c_void_p)
 # EmbreeScene's C struct: PyObject header (2 words), scene_i, is_committed (int, padded to a
 # word), device (a PyObject pointer)
 _SCENE_AT, _COMMITTED_AT, _DEVICE_AT, _SCENE_SIZE = 2 * _PTR, 3 * _PTR, 4 * _PTR, 5 * _PTR
-
-
-def _loaded_library() -> str | None:
-    """Path of the Embree 4 library mapped into this process (embreex's), or None."""
-    import embreex.rtcore  # noqa: F401  (loads the library)
-
-    try:
-        with open("/proc/self/maps") as maps:
-            paths = {line.split(maxsplit=5)[-1].strip() for line in maps if "libembree4" in line}
-    except OSError:
-        return None
-    return paths.pop() if len(paths) == 1 else None
 
 
 def _word(obj, at: int) -> int:
@@ -67,44 +56,43 @@ def _layout_ok(scene_type, device) -> bool:
 
 @cache
 def _embree():
-    """The ctypes handle on embreex's Embree library, or None where the shared path is off."""
+    """(ctypes handle on embreex's Embree, the EmbreeScene class checked), or None."""
+    try:
+        return _open()
+    except Exception:  # an embreex or Embree unlike the one this module knows: fall back
+        return None
+
+
+def _open():
     import embreex.rtcore as rtc
     import embreex.rtcore_scene as rtcs
 
-    path = _loaded_library()
-    device = rtc.EmbreeDevice()
-    if path is None or not _layout_ok(rtcs.EmbreeScene, device):
+    if not _layout_ok(rtcs.EmbreeScene, rtc.EmbreeDevice()):
         return None
-    lib = ctypes.CDLL(path)
-    p, size = ctypes.c_void_p, ctypes.c_size_t
+    lib = ctypes.CDLL(rtcs.__file__)  # embreex's module: its symbols are embreex's Embree
+    p, size, enum = ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int
     for name, restype, argtypes in [
+        ("rtcNewDevice", p, [ctypes.c_char_p]),
         ("rtcGetSceneDevice", p, [p]),
         ("rtcReleaseDevice", None, [p]),
-        ("rtcGetDeviceProperty", ctypes.c_ssize_t, [p, ctypes.c_int]),
+        ("rtcGetDeviceProperty", ctypes.c_ssize_t, [p, enum]),
         ("rtcGetDeviceError", ctypes.c_int, [p]),
-        ("rtcNewGeometry", p, [p, ctypes.c_int]),
-        (
-            "rtcSetSharedGeometryBuffer",
-            None,
-            [p, ctypes.c_int, ctypes.c_uint, ctypes.c_int, p, size, size, size],
-        ),  # fmt: skip
+        ("rtcNewGeometry", p, [p, enum]),
+        ("rtcSetSharedGeometryBuffer", None, [p, enum, ctypes.c_uint, enum, p, size, size, size]),
         ("rtcCommitGeometry", None, [p]),
         ("rtcAttachGeometry", ctypes.c_uint, [p, p]),
         ("rtcReleaseGeometry", None, [p]),
     ]:
         fn = getattr(lib, name)
         fn.restype, fn.argtypes = restype, argtypes
-    devices = []
-    for scene in (rtcs.EmbreeScene(device), rtcs.EmbreeScene(device)):
-        handle = lib.rtcGetSceneDevice(_word(scene, _SCENE_AT))
-        devices.append(handle)
-        if handle:
-            lib.rtcReleaseDevice(handle)
-    if not devices[0] or devices[0] != devices[1]:
+    device = lib.rtcNewDevice(None)
+    if not device:
         return None
-    if lib.rtcGetDeviceProperty(devices[0], _PROPERTY_VERSION_MAJOR) != 4:
-        return None
-    return lib
+    try:
+        major = lib.rtcGetDeviceProperty(device, _PROPERTY_VERSION_MAJOR)
+    finally:
+        lib.rtcReleaseDevice(device)
+    return (lib, rtcs.EmbreeScene) if major == 4 else None
 
 
 def shared_buffers() -> bool:
@@ -117,15 +105,20 @@ def attach_triangles(embree_scene, triangles: np.ndarray, shared: bool = True):
 
     triangles : (T, 3, 3) float, rounded to float32 as Embree stores them
     shared : use the shared buffers where available (off only to compare with ``TriangleMesh``)
-    returns : what must stay alive until the scene is released (Embree reads these arrays)
+    returns : what must stay alive until the scene has run (Embree reads the arrays when it
+        builds the BVH, at the first ``run``)
     """
-    lib = _embree() if shared else None
-    if lib is None:
+    # float64 on purpose: embreex converts element by element, faster from float64, and rounds
+    # to float32 exactly as astype does
+    triangles = np.asarray(triangles, np.float64)
+    opened = _embree() if shared else None
+    if opened is None:
         import embreex.mesh_construction as mc
 
-        # float64 on purpose: embreex converts element by element, faster from float64, and
-        # rounds to float32 exactly as astype would
-        return mc.TriangleMesh(embree_scene, np.asarray(triangles, np.float64))
+        return mc.TriangleMesh(embree_scene, triangles)
+    lib, scene_type = opened
+    if not isinstance(embree_scene, scene_type):
+        raise TypeError(f"expected an embreex EmbreeScene, got {type(embree_scene).__name__}")
     n = len(triangles)
     # 16-byte rows, as TriangleMesh lays them out: Embree reads a vertex with one 16-byte load
     vertices = np.zeros((3 * n, 4), np.float32)
@@ -133,6 +126,7 @@ def attach_triangles(embree_scene, triangles: np.ndarray, shared: bool = True):
     indices = np.arange(3 * n, dtype=np.uint32).reshape(n, 3)
     scene = _word(embree_scene, _SCENE_AT)
     device = lib.rtcGetSceneDevice(scene)
+    lib.rtcGetDeviceError(device)  # clear an earlier, unrelated error of this thread
     try:
         geometry = lib.rtcNewGeometry(device, _GEOMETRY_TRIANGLE)
         lib.rtcSetSharedGeometryBuffer(geometry, _BUFFER_VERTEX, 0, _FORMAT_FLOAT3,

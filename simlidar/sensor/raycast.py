@@ -122,7 +122,7 @@ def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: 
     ray_dir = directions.reshape(-1, 3).astype(np.float32)
     far = np.full(len(ray_origin), max_range_m + 1.0, np.float32)
     prim = embree_scene.run(ray_origin, ray_dir, dists=far).reshape(shape)  # primID, -1: none
-    del embree_scene, buffers  # in this order: the scene reads the buffers until released
+    del embree_scene, buffers  # Embree read the buffers when the run built the BVH
 
     hit = prim >= 0
     flat = np.flatnonzero(hit)

@@ -60,6 +60,25 @@ def test_an_unexpected_layout_turns_the_shared_path_off():
     assert embree._layout_ok(rtcs.EmbreeScene, device)
 
 
+def test_a_surprise_while_probing_turns_the_shared_path_off(monkeypatch):
+    def unlike(*_):
+        raise AttributeError("an embreex unlike the one known")
+
+    monkeypatch.setattr(embree, "_open", unlike)
+    embree._embree.cache_clear()
+    try:
+        assert not embree.shared_buffers()
+    finally:
+        embree._embree.cache_clear()
+
+
+def test_only_an_embreex_scene_is_accepted():
+    if not embree.shared_buffers():
+        pytest.skip("shared buffers unavailable here")
+    with pytest.raises(TypeError, match="expected an embreex EmbreeScene, got object"):
+        embree.attach_triangles(object(), np.ones((1, 3, 3)))
+
+
 def test_without_the_shared_path_the_cast_falls_back(catalog, monkeypatch):
     scene, origins, directions = _batch(catalog, 32, 2)
     slots = np.arange(32)
