@@ -19,7 +19,7 @@ def _batch(catalog, n, seed):
     return scene, origins, directions
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the library is found on Linux")
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="tested on Linux")
 def test_the_shared_path_is_on_where_embreex_ships_its_library():
     assert embree.shared_buffers()
 
