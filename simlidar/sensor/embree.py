@@ -35,6 +35,21 @@ _PTR = ctypes.sizeof(ctypes.c_void_p)
 _SCENE_AT, _COMMITTED_AT, _DEVICE_AT, _SCENE_SIZE = 2 * _PTR, 3 * _PTR, 4 * _PTR, 5 * _PTR
 
 
+@cache
+def device():
+    """The embreex device every scene of this process is made on."""
+    import embreex.rtcore as rtc
+
+    return rtc.EmbreeDevice()
+
+
+def new_scene():
+    """An empty embreex ``EmbreeScene`` on :func:`device`."""
+    import embreex.rtcore_scene as rtcs
+
+    return rtcs.EmbreeScene(device())
+
+
 def _word(obj, at: int) -> int:
     return ctypes.c_void_p.from_address(id(obj) + at).value or 0
 
@@ -64,10 +79,9 @@ def _embree():
 
 
 def _open():
-    import embreex.rtcore as rtc
     import embreex.rtcore_scene as rtcs
 
-    if not _layout_ok(rtcs.EmbreeScene, rtc.EmbreeDevice()):
+    if not _layout_ok(rtcs.EmbreeScene, device()):
         return None
     lib = ctypes.CDLL(rtcs.__file__)  # embreex's module: its symbols are embreex's Embree
     p, size, enum = ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int
@@ -85,13 +99,13 @@ def _open():
     ]:
         fn = getattr(lib, name)
         fn.restype, fn.argtypes = restype, argtypes
-    device = lib.rtcNewDevice(None)
-    if not device:
+    handle = lib.rtcNewDevice(None)
+    if not handle:
         return None
     try:
-        major = lib.rtcGetDeviceProperty(device, _PROPERTY_VERSION_MAJOR)
+        major = lib.rtcGetDeviceProperty(handle, _PROPERTY_VERSION_MAJOR)
     finally:
-        lib.rtcReleaseDevice(device)
+        lib.rtcReleaseDevice(handle)
     return (lib, rtcs.EmbreeScene) if major == 4 else None
 
 
@@ -125,10 +139,10 @@ def attach_triangles(embree_scene, triangles: np.ndarray, shared: bool = True):
     vertices[:, :3] = triangles.reshape(-1, 3)
     indices = np.arange(3 * n, dtype=np.uint32).reshape(n, 3)
     scene = _word(embree_scene, _SCENE_AT)
-    device = lib.rtcGetSceneDevice(scene)
-    lib.rtcGetDeviceError(device)  # clear an earlier, unrelated error of this thread
+    handle = lib.rtcGetSceneDevice(scene)
+    lib.rtcGetDeviceError(handle)  # clear an earlier, unrelated error of this thread
     try:
-        geometry = lib.rtcNewGeometry(device, _GEOMETRY_TRIANGLE)
+        geometry = lib.rtcNewGeometry(handle, _GEOMETRY_TRIANGLE)
         lib.rtcSetSharedGeometryBuffer(geometry, _BUFFER_VERTEX, 0, _FORMAT_FLOAT3,
                                        vertices.ctypes.data, 0, 16, 3 * n)  # fmt: skip
         lib.rtcSetSharedGeometryBuffer(geometry, _BUFFER_INDEX, 0, _FORMAT_UINT3,
@@ -136,9 +150,9 @@ def attach_triangles(embree_scene, triangles: np.ndarray, shared: bool = True):
         lib.rtcCommitGeometry(geometry)
         lib.rtcAttachGeometry(scene, geometry)
         lib.rtcReleaseGeometry(geometry)
-        error = lib.rtcGetDeviceError(device)
+        error = lib.rtcGetDeviceError(handle)
     finally:
-        lib.rtcReleaseDevice(device)
+        lib.rtcReleaseDevice(handle)
     if error:
         raise RuntimeError(f"Embree error {error} while attaching {n} triangles")
     return vertices, indices

@@ -16,13 +16,12 @@ cost more numpy time than the few triangles they drop save.
 """
 
 from dataclasses import dataclass
-from functools import cache
 
 import numpy as np
 
 from simlidar.errors import ConfigError
 from simlidar.scene.build import CELL_HALF_EXTENT_M, SceneBatch
-from simlidar.sensor.embree import attach_triangles
+from simlidar.sensor.embree import attach_triangles, new_scene
 
 GRID_CELLS = 16  # per axis
 # A ray reaches at most max range + 1 m from an origin near the cell centre; a neighbour's
@@ -38,13 +37,6 @@ class Hits:
     range_m: np.ndarray  # (B, 16, W) float64, NaN where nothing is hit
     surface: np.ndarray  # (B, 16, W) uint8, 0 where nothing is hit
     on_object: np.ndarray  # (B, 16, W) bool, the hit belongs to the labelled object
-
-
-@cache
-def _device():
-    import embreex.rtcore as rtc
-
-    return rtc.EmbreeDevice()
 
 
 def cell_offsets(slots: np.ndarray) -> np.ndarray:
@@ -90,8 +82,6 @@ def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: 
     shared : hand the triangles to Embree in place (:mod:`simlidar.sensor.embree`; off only to
         test that the hits are those of embreex's own copy)
     """
-    import embreex.rtcore_scene as rtcs
-
     batch = origins.shape[0]
     if len(np.unique(slots)) != batch or not 0 <= np.min(slots) <= np.max(slots) < MAX_BATCH:
         raise ValueError(f"need {batch} distinct slots in [0, {MAX_BATCH}), got {slots!r}")
@@ -115,7 +105,7 @@ def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: 
     if len(tris) == 0:
         return Hits(hit_range, surface, on_object)
 
-    embree_scene = rtcs.EmbreeScene(_device())
+    embree_scene = new_scene()
     world = tris + np.take(offsets, sample, axis=0)[:, None, :]
     buffers = attach_triangles(embree_scene, world, shared)
     ray_origin = (origins + offsets[:, None, None, :]).reshape(-1, 3).astype(np.float32)

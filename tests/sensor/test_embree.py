@@ -36,14 +36,11 @@ def test_hits_equal_embreex_triangle_mesh(catalog, seed):
     np.testing.assert_array_equal(a.on_object, b.on_object)
 
 
-def test_buffers_hold_the_float32_triangles(catalog):
-    import embreex.rtcore as rtc
-    import embreex.rtcore_scene as rtcs
-
+def test_buffers_hold_the_float32_triangles():
     if not embree.shared_buffers():
         pytest.skip("shared buffers unavailable here")
     tris = np.random.default_rng(0).normal(size=(5, 3, 3)) * 10
-    vertices, indices = embree.attach_triangles(rtcs.EmbreeScene(rtc.EmbreeDevice()), tris)
+    vertices, indices = embree.attach_triangles(embree.new_scene(), tris)
     np.testing.assert_array_equal(vertices[:, :3], tris.reshape(-1, 3).astype(np.float32))
     np.testing.assert_array_equal(indices, np.arange(15).reshape(5, 3))
 
