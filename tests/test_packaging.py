@@ -1,12 +1,15 @@
 """A non-editable install into a fresh virtual environment can run `simlidar generate`.
 
 The content folders (scenes/, baselines/, benchmark/) must ship inside the wheel. The venv
-reuses this interpreter's site-packages for the dependencies, but simlidar itself comes only
-from the wheel (pip install --no-index), and the command runs outside the source tree.
+reuses the running interpreter's installed dependencies (its site-packages, added by a `.pth`
+file: this works whether pytest runs in a venv or not, unlike `system_site_packages`, which
+reaches the base interpreter), but simlidar itself comes only from the wheel (pip install
+--no-index), and the command runs outside the source tree.
 """
 
 import subprocess
 import sys
+import sysconfig
 import venv
 from pathlib import Path
 
@@ -32,8 +35,16 @@ def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
     assert not [n for n in names if "benchmark/results" in n]
 
     env_dir = tmp_path / "venv"
-    venv.EnvBuilder(system_site_packages=True, with_pip=False).create(env_dir)
+    venv.EnvBuilder(with_pip=False).create(env_dir)
     python = env_dir / "bin" / "python"
+    own_site = subprocess.run(
+        [str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+        capture_output=True, text=True, check=True,
+    ).stdout.strip()  # fmt: skip
+    # Plain paths in a .pth file are appended to sys.path without processing the .pth files
+    # found there, so an editable install of simlidar in the running environment stays unseen.
+    parents = dict.fromkeys(sysconfig.get_paths()[k] for k in ("purelib", "platlib"))
+    (Path(own_site) / "_parent_site.pth").write_text("".join(f"{d}\n" for d in parents))
     subprocess.run([str(python), "-m", "pip", "install", "-q", "--no-deps", "--no-index",
                     str(wheel)], check=True)  # fmt: skip
     work = tmp_path / "elsewhere"
