@@ -105,19 +105,25 @@ def main(ctx: click.Context, debug: bool) -> None:
 @click.option("--test-size", type=int, default=600, show_default=True)
 @click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
 @click.option(
+    "--profile",
+    default=None,
+    help="Dataset profile: a name in profiles/ (paper, physical) or a .toml file; see "
+    "`simlidar profiles`. [default: paper]",
+)
+@click.option(
     "--shift",
     type=click.FloatRange(0.0, 1.0, max_open=True),
-    default=0.0,
-    show_default=True,
-    help="Delay-shift augmentation: every return of a sample moves by U(-s, s).",
+    default=None,
+    help="Delay-shift augmentation: every return of a sample moves by U(-s, s). Overrides the "
+    "profile's value (named in the dataset's name).",
 )
 @click.option(
     "--variation",
     type=click.FloatRange(0.0, 1.0, min_open=True),
-    default=1.0,
-    show_default=True,
+    default=None,
     help="Scene variation: every parameter range of the scene catalog shrunk around its "
-    "centre by this factor (1: the recipes as written).",
+    "centre by this factor (1: the recipes as written). Overrides the profile's value "
+    "(named in the dataset's name).",
 )
 @click.option(
     "--out",
@@ -143,22 +149,37 @@ def main(ctx: click.Context, debug: bool) -> None:
 )
 @click.option("--force", is_flag=True, help="Overwrite existing datasets.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-def generate(classes, noise, train_size, test_size, seed, shift, variation, out, width, scenes,
-             batch_size, force, as_json):  # fmt: skip
+def generate(classes, noise, train_size, test_size, seed, profile, shift, variation, out, width,
+             scenes, batch_size, force, as_json):  # fmt: skip
     """Generate Sim LiDAR datasets: per noise level, train/test splits (HDF5), a preview
-    picture, the dataset card, Croissant metadata and checksums."""
+    picture, the dataset card, Croissant metadata and checksums.
+
+    The profile (default: paper) decides the scene variation, the delay shift, what a missing
+    return is written as and which pixels get the noise. --variation and --shift override its
+    values; the dataset's name then says so (docs/profiles.md)."""
     from simlidar.dataset.config import GeneratorConfig
     from simlidar.dataset.generate import generate as run
+    from simlidar.profiles import DEFAULT_PROFILE, load_profile
     from simlidar.simulate import class_plan
 
+    try:
+        chosen = load_profile(profile if profile is not None else DEFAULT_PROFILE)
+    except ConfigError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--profile'") from None
+    for option, value, own in (("--variation", variation, chosen.variation),
+                               ("--shift", shift, chosen.shift)):  # fmt: skip
+        if value is not None and value != own:
+            click.echo(f"Note: {option} {value!r} overrides profile {chosen.name}'s {own!r}",
+                       err=True)  # fmt: skip
     catalog = _load_catalog(scenes)
     try:
         class_plan(catalog, classes)
     except ConfigError as exc:
         raise click.BadParameter(str(exc), param_hint="'--classes'") from None
-    config = GeneratorConfig(classes=classes, noise=noise[0], train_size=train_size,
-                             test_size=test_size, seed=seed, width=width, shift_max=shift,
-                             variation=variation)  # fmt: skip
+    config = GeneratorConfig.from_profile(
+        chosen, variation=variation, shift_max=shift, classes=classes, noise=noise[0],
+        train_size=train_size, test_size=test_size, seed=seed, width=width,
+    )  # fmt: skip
     start = time.perf_counter()
     written = run(config, noise, catalog, out, batch_size=batch_size, force=force)
     seconds = time.perf_counter() - start
@@ -176,6 +197,24 @@ def generate(classes, noise, train_size, test_size, seed, shift, variation, out,
             click.echo(f"wrote {w.path} (train {w.splits['train']}, test {w.splits['test']}, "
                        f"noise {w.noise:g}) and its preview.png")  # fmt: skip
         click.echo(f"done in {seconds:.1f} s")
+
+
+@main.command()
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+def profiles(as_json):
+    """List the shipped dataset profiles and their values (docs/profiles.md)."""
+    from simlidar.profiles import DEFAULT_PROFILE, load_profile, profile_names
+
+    shipped = [load_profile(name).to_dict() for name in profile_names()]
+    if as_json:
+        click.echo(json.dumps({"default": DEFAULT_PROFILE, "profiles": shipped}))
+        return
+    for p in shipped:
+        default = " (default)" if p["name"] == DEFAULT_PROFILE else ""
+        click.echo(f"{p['name']}{default}: {p['description']}")
+        click.echo(f"  variation {p['variation']!r}, shift {p['shift']!r}, missing return "
+                   f"{p['missing_delay']!r}, noise on {p['noise_on']}, input spikes: "
+                   f"{p['spikes']}")  # fmt: skip
 
 
 @main.command()

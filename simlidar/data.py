@@ -90,6 +90,15 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
+def spike_threshold(attrs: dict) -> float:
+    """Delays at or above this value are no input spike, by a split's attributes: ``inf`` when
+    every pixel is a spike (``input_spikes = "all"``, the paper profile), else the
+    ``no_return_delay`` (1.0: the physical profile, converted data and files without it)."""
+    if attrs.get("input_spikes", "returns") == "all":
+        return float("inf")
+    return float(attrs.get("no_return_delay", 1.0))
+
+
 def sensor_size(width: int, height: int = 16) -> tuple[int, int, int]:
     """Tonic's ``sensor_size`` of a sample: (W columns, H rows, 1 polarity)."""
     return (width, height, 1)
@@ -100,6 +109,8 @@ def to_events(delays: np.ndarray, tof_max_ns: float, no_return: float = 1.0) -> 
 
     delays : (H, W) normalised delays of one sample
     tof_max_ns : the split's ``tof_max_ns`` attribute (667.13 ns for 100 m)
+    no_return : delays at or above it are no event; pass :func:`spike_threshold` of the split's
+        attributes (inf for the paper profile, where every pixel is a pulse)
     returns : structured array with fields x (column), y (row), t (arrival time in
         picoseconds, so the 2 mm range step of 13 ps survives), p (always 1: a pulse).
         A pulse at the no-return value (the end of the window) is no event.

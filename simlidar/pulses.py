@@ -13,6 +13,8 @@ Conventions (``docs/sensor-model.md`` explains them):
   stays 1.0.
 * Optional delay-shift augmentation (the paper's): every return of a sample moves by the same
   ``s``; a return shifted out of (0, 1) becomes no return. Applied before noise.
+* A dataset profile (``simlidar.profiles``) may write a missing return as 0.0 instead and put
+  the noise on every pixel (:func:`profile_pulses`); the physical profile is the rule above.
 """
 
 import numpy as np
@@ -51,3 +53,31 @@ def add_noise(delay: np.ndarray, level: float, u: np.ndarray) -> np.ndarray:
     """Uniform noise U(0, level) on every pulse, clipped at 1.0 (the only clipping)."""
     noisy = delay + np.float32(level) * u.astype(np.float32)
     return np.minimum(noisy, np.float32(NO_RETURN)).astype(np.float32)
+
+
+def profile_pulses(clean: np.ndarray, level: float, u: np.ndarray, missing_delay: float,
+                   noise_on: str) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Clean delays (missing return = 1.0) -> (clean, noisy) delays under a profile's rule.
+
+    clean : (..., 16, W) float32, returns in (0, 1), missing returns at NO_RETURN
+    missing_delay : 0.0 or 1.0, what a missing return is written as
+    noise_on : "returns" (noise delays returns only) or "all" (every pixel)
+    returns : clean delays with missing returns at ``missing_delay``, and those with
+        ``U(0, level)`` noise added where ``noise_on`` says, clipped at 1.0. For the physical
+        rule (1.0, "returns") the noisy delays are exactly :func:`add_noise`'s.
+    """
+    written = clean if missing_delay == NO_RETURN else np.where(
+        clean < NO_RETURN, clean, np.float32(missing_delay)).astype(np.float32)  # fmt: skip
+    return written, noisy_delays(written, level, u, missing_delay, noise_on)
+
+
+def noisy_delays(clean: np.ndarray, level: float, u: np.ndarray, missing_delay: float,
+                 noise_on: str) -> np.ndarray:  # fmt: skip
+    """A profile's clean delays (missing at ``missing_delay``) plus ``level * u`` where
+    ``noise_on`` says, clipped at 1.0. Returns lie strictly inside (0, 1), so a pixel equal to
+    ``missing_delay`` (0.0 or 1.0) is a missing return. Also used to draw fresh noise in
+    training (``noise_augment``)."""
+    noisy = add_noise(clean, level, u)
+    if noise_on == "returns" and missing_delay != NO_RETURN:  # (1.0 stays 1.0 by clipping)
+        noisy = np.where(clean == np.float32(missing_delay), clean, noisy).astype(np.float32)
+    return noisy

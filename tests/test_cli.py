@@ -46,7 +46,7 @@ def test_generate_plain_output_and_classes(run, tmp_path):
     result = run("generate", *SMALL, "--classes", "8", "--out", tmp_path)
     assert result.exit_code == 0, result.output
     assert "simlidar-8c-noise0.2" in result.stdout
-    assert (tmp_path / "simlidar-8c-noise0.2-v1.0.0" / "preview.png").is_file()
+    assert (tmp_path / "simlidar-8c-noise0.2-paper-v2.0.0" / "preview.png").is_file()
 
 
 def test_scenes_lists_and_exports(run, tmp_path):
@@ -105,7 +105,7 @@ def test_bad_input_gets_one_line_and_an_exit_code(run, tmp_path, monkeypatch, ar
 
 def test_an_existing_dataset_needs_force(run, tmp_path):
     assert run("generate", *SMALL, "--out", tmp_path).exit_code == 0
-    target = tmp_path / "simlidar-32c-noise0.2-v1.0.0" / "train.h5"
+    target = tmp_path / "simlidar-32c-noise0.2-paper-v2.0.0" / "train.h5"
     before = target.read_bytes()
     again = run("generate", *SMALL, "--out", tmp_path)
     assert again.exit_code == 1
@@ -193,8 +193,8 @@ def test_variation_narrows_the_scenes_and_names_the_dataset(run, tmp_path):
 
     spread = {}
     for variation in ("1", "0.1"):
-        result = run("generate", "--train-size", "128", "--test-size", "32", "--variation",
-                     variation, "--out", tmp_path, "--json")  # fmt: skip
+        result = run("generate", "--profile", "physical", "--train-size", "128", "--test-size",
+                     "32", "--variation", variation, "--out", tmp_path, "--json")  # fmt: skip
         assert result.exit_code == 0, result.output
         path = json.loads(result.stdout)["datasets"][0]["path"]
         with h5py.File(f"{path}/train.h5") as f:
@@ -204,7 +204,7 @@ def test_variation_narrows_the_scenes_and_names_the_dataset(run, tmp_path):
         spread[variation] = np.nanmean([np.std(pose[labels == k, :2], axis=0)
                                         for k in np.unique(labels) if k % 4], axis=0)  # fmt: skip
         assert np.bincount(labels).tolist() == [4] * 32
-    assert path.endswith("-var0.1-v1.0.0") and config["variation"] == 0.1
+    assert path.endswith("-physical-var0.1-v1.0.0") and config["variation"] == 0.1
     card = (Path(path) / "README.md").read_text()
     assert "--variation 0.1" in card and "config_name: noise0.2-var0.1" in card
     assert "scene variation 0.1" in card.split("---")[1]  # the card's title (pretty_name)

@@ -61,4 +61,4 @@ def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
         cwd=work, capture_output=True, text=True,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
-    assert (work / "data" / "simlidar-32c-noise0.2-v1.0.0" / "train.h5").is_file()
+    assert (work / "data" / "simlidar-32c-noise0.2-paper-v2.0.0" / "train.h5").is_file()

@@ -6,7 +6,8 @@ import h5py
 import numpy as np
 import torch
 
-from simlidar.data import load_split, split_path
+from simlidar.data import load_split, spike_threshold, split_path
+from simlidar.dataset.h5 import read_split_info
 from simlidar.models import ttfs
 from simlidar.models.events import ALPHAS_PJ, decide
 
@@ -21,8 +22,10 @@ def decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test"):
     x, y = load_split(dataset, split)
     with h5py.File(split_path(dataset, split)) as f:
         tof_max_ns = float(f.attrs["tof_max_ns"]) if "tof_max_ns" in f.attrs else None
+    silent_from = spike_threshold(read_split_info(split_path(dataset, split)).attrs)
     weights = [m.weight.detach().double().numpy() for m in model.layers]
-    z = ttfs.encode(torch.from_numpy(x.astype(np.float64)).flatten(1), model.scale).numpy()
+    z = ttfs.encode(torch.from_numpy(x.astype(np.float64)).flatten(1), model.scale,
+                    silent_from).numpy()  # fmt: skip
     return [decide(weights, sample) for sample in z], y, tof_max_ns
 
 

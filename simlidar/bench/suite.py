@@ -10,6 +10,7 @@ A suite is a TOML file (``benchmark/<name>.toml`` or any path)::
 
     [generate]                           # datasets made on the fly (GeneratorConfig fields) ...
     noise = [0.1, 0.5]                   # ... one per noise level
+    profile = "paper"                    # a dataset profile (the default), or a .toml path
     train_size = 640
 
     # datasets = ["data/my-dataset"]     # ... or dataset directories instead of [generate]
@@ -30,6 +31,7 @@ from simlidar.content import content_dir
 from simlidar.dataset.config import GeneratorConfig
 from simlidar.errors import ConfigError
 from simlidar.models.registry import load_recipe
+from simlidar.profiles import DEFAULT_PROFILE, load_profile
 
 KEYS = {"name", "description", "models", "seeds", "board_power_w", "generate", "datasets",
         "budget"}  # fmt: skip
@@ -123,7 +125,11 @@ def load_suite(name_or_path: str | Path) -> Suite:
             bad = sorted(unknown | ({"sensor"} & set(table)))[0]
             raise _fail(path, f"generate.{bad}", "a GeneratorConfig field", table[bad])
         try:
-            config = GeneratorConfig(**table)
+            name = table.pop("profile", DEFAULT_PROFILE)
+            if not isinstance(name, str):
+                raise _fail(path, "generate.profile", "a profile name or .toml path", name)
+            profile = load_profile(name)
+            config = GeneratorConfig.from_profile(profile, **table)
             for level in levels:
                 config.with_noise(level)
         except ConfigError as exc:

@@ -8,11 +8,12 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from simlidar.data import load_split, split_path
+from simlidar.data import load_split, spike_threshold, split_path
 from simlidar.dataset.h5 import read_split_info
 from simlidar.errors import ConfigError
 from simlidar.models import ttfs
 from simlidar.models.registry import build_model, check_training
+from simlidar.pulses import noisy_delays
 
 
 @dataclass
@@ -69,6 +70,28 @@ def _loss(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training: di
     return loss, total
 
 
+def _fresh_noise(dataset, attrs: dict, seed: int):
+    """``noise_augment``: a function drawing the train split's noise anew (same level, same
+    profile rule, from ``clean_delays``) for each epoch: the paper's "adding noise randomly"
+    as augmentation rather than one fixed draw per sample. Seeded by the training seed."""
+    if "source" in attrs or "noise" not in attrs:
+        raise ConfigError(
+            f"{dataset}: training option noise_augment: expected a generated dataset "
+            "(clean_delays and a noise level), got converted data"
+        )
+    clean, _ = load_split(dataset, "train", field="clean_delays")
+    level = float(attrs["noise"])
+    missing = float(attrs.get("no_return_delay", 1.0))
+    noise_on = attrs.get("noise_on", "returns")
+    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(7,))))
+
+    def draw() -> torch.Tensor:
+        u = rng.random(clean.shape, dtype=np.float32)
+        return torch.from_numpy(noisy_delays(clean, level, u, missing, noise_on))[:, None]
+
+    return draw
+
+
 def predictions(model: torch.nn.Module, x: torch.Tensor, batch: int = 500) -> torch.Tensor:
     """Predicted classes of any registered model, in batches (-1: no output spike)."""
     model.eval()
@@ -92,9 +115,13 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
     x_train, y_train = (torch.from_numpy(a) for a in load_split(dataset, "train"))
     x_test, y_test = (torch.from_numpy(a) for a in load_split(dataset, "test"))
     x_train, x_test = x_train[:, None], x_test[:, None]  # (N, 1, H, W)
-    classes = len(read_split_info(split_path(dataset, "train")).attrs["class_names"])
+    attrs = read_split_info(split_path(dataset, "train")).attrs
+    classes = len(attrs["class_names"])
     generator = torch.Generator().manual_seed(seed)
     model = build_model(recipe, tuple(x_train.shape[1:]), classes, generator)
+    if is_spiking(model):
+        model.silent_from = spike_threshold(attrs)  # the encoding follows the data's profile
+    fresh_noise = _fresh_noise(dataset, attrs, seed) if training.get("noise_augment") else None
     optimizer = _optimizer(model.parameters(), training)
     epochs = epochs if epochs is not None else training.get("epochs", 100)
     budget = max_seconds if max_seconds is not None else training.get("max_seconds", np.inf)
@@ -107,6 +134,8 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
     bar = tqdm(range(epochs), desc=f"train {recipe.get('name', '')}", disable=not progress)
     for epoch in bar:
         model.train()
+        if fresh_noise is not None:
+            x_train = fresh_noise()
         order = torch.randperm(len(y_train), generator=generator)
         losses = []
         for i in range(0, len(order), batch):
@@ -138,7 +167,8 @@ def save_checkpoint(result: TrainResult, path: str | Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.partial")
     torch.save({"state_dict": result.model.state_dict(), "recipe": result.recipe,
-                "history": result.history}, tmp)  # fmt: skip
+                "history": result.history,
+                "silent_from": getattr(result.model, "silent_from", 1.0)}, tmp)  # fmt: skip
     tmp.replace(path)
     return path
 
@@ -148,4 +178,6 @@ def load_checkpoint(path: str | Path, input_shape, classes):
     data = torch.load(path, weights_only=True)
     model = build_model(data["recipe"], input_shape, classes)
     model.load_state_dict(data["state_dict"])
+    if is_spiking(model):
+        model.silent_from = float(data.get("silent_from", 1.0))  # older checkpoints: 1.0
     return model, data

@@ -99,13 +99,22 @@ def front_matter(path: Path) -> dict:
     width = splits["train"].width
     features = [hf_feature(name, dtype, tail(width), attrs["class_names"])
                 for name, (dtype, tail, _) in SCHEMA.items()]  # fmt: skip
-    variation = GeneratorConfig.from_dict(attrs["config"]).variation
+    config = GeneratorConfig.from_dict(attrs["config"])
     title = f"{NAME}, {attrs['classes']} classes, noise {attrs['noise']}"
     config_name = f"noise{float(attrs['noise'])!r}"
-    if variation != 1.0:
+    if config.profile is not None:  # the physical profile's card keeps the 1.0.0 names
+        title = f"{title}, profile {config.profile_name}"
+        config_name = f"{config_name}-{config.profile_name}"
+    over = config.overrides
+    if "variation" in over:
         title, config_name = (
-            f"{title}, scene variation {variation!r}",
-            f"{config_name}-var{variation!r}",
+            f"{title}, scene variation {over['variation']!r}",
+            f"{config_name}-var{over['variation']!r}",
+        )
+    if "shift_max" in over:
+        title, config_name = (
+            f"{title}, delay shift {over['shift_max']!r}",
+            f"{config_name}-shift{over['shift_max']!r}",
         )
     return hf_front_matter(splits, features, LICENSE, title, TAGS, config_name)
 
@@ -119,11 +128,17 @@ def _shipped_catalog_sha256() -> str:
 
 def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
     """The command that writes this dataset again, bit for bit (or the Python equivalent)."""
+    from simlidar.profiles import load_profile, profile_names
+
     default = GeneratorConfig()
     cli_fields = {"classes", "noise", "train_size", "test_size", "seed", "width", "shift_max",
-                  "variation"}  # fmt: skip
+                  "variation", "profile"}  # fmt: skip
     other = {k for k, v in config.to_dict().items() if k not in cli_fields}
-    if any(config.to_dict()[k] != default.to_dict()[k] for k in other):
+    shipped = config.profile is None or (
+        config.profile.name in profile_names()
+        and load_profile(config.profile.name) == config.profile
+    )
+    if not shipped or any(config.to_dict()[k] != default.to_dict()[k] for k in other):
         return (
             "from simlidar.dataset.config import GeneratorConfig\n"
             "from simlidar.dataset.generate import generate\n"
@@ -134,6 +149,7 @@ def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
         )
     parts = [
         "simlidar generate",
+        f"--profile {config.profile_name}",
         f"--classes {config.classes}",
         f"--noise {config.noise!r}",
         f"--train-size {config.train_size}",
@@ -141,13 +157,42 @@ def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
         f"--seed {config.seed}",
         f"--width {config.width}",
     ]
-    if config.shift_max:
+    over = config.overrides
+    if "shift_max" in over:
         parts.append(f"--shift {config.shift_max!r}")
-    if config.variation != 1.0:
+    if "variation" in over:
         parts.append(f"--variation {config.variation!r}")
     if catalog_sha256 != _shipped_catalog_sha256():
         parts.append(f"--scenes CATALOG  # the scene catalog with sha256 {catalog_sha256}")
     return " ".join(parts)
+
+
+def _profile_line(config: GeneratorConfig) -> str:
+    rule = config.pulse_rule
+    return (f"missing return written as {rule['missing_delay']!r}, noise on "
+            f"{'every pixel' if rule['noise_on'] == 'all' else 'returns only'}, input spikes: "
+            f"{'every pixel' if rule['spikes'] == 'all' else 'returns only'}; scene variation "
+            f"{config.variation!r}, delay shift {config.shift_max!r} (simlidar's "
+            "`docs/profiles.md`)")  # fmt: skip
+
+
+def _noised(config: GeneratorConfig) -> str:
+    return "every pixel" if config.pulse_rule["noise_on"] == "all" else "every pulse"
+
+
+def _noise_details(config: GeneratorConfig) -> str:
+    every = config.pulse_rule["noise_on"] == "all"
+    shift = config.shift_max
+    return (", on every pixel: a missing return (0.0) reads U(0, a)" if every else "") + (
+        f"; each sample's returns shifted by U(-{shift!r}, {shift!r}) before noise" if shift else ""
+    )
+
+
+def _missing_meaning(config: GeneratorConfig) -> str:
+    if config.pulse_rule["missing_delay"] == 1.0:
+        return ""
+    return (" Under this dataset's profile a missing return is written as 0.0 (before noise), "
+            "not 1.0, and every pixel is an input spike (the paper's protocol).")  # fmt: skip
 
 
 def _table(header: list[str], rows: list[list]) -> str:
@@ -188,14 +233,15 @@ def render_card(path: str | Path) -> str:
                 ["classes", f"{len(names)} ({attrs['class_mode']})"],
                 ["samples", ", ".join(f"{s} {info.size}" for s, info in splits.items())],
                 ["sample", f"16 x {width} float32 delays in [0, 1]"],
-                ["noise", f"U(0, {attrs['noise']}) added to every pulse"],
+                ["profile", f"`{config.profile_name}`: {_profile_line(config)}"],
+                ["noise", f"U(0, {attrs['noise']}) added to {_noised(config)}"],
                 ["seed", attrs["seed"]],
             ],
         )
         + "\n",  # fmt: skip
         f"## Motivation\n\n{MOTIVATION}\n",
         "## Composition\n",
-        f"What a value means: {DELAY_MEANING}\n",
+        f"What a value means: {DELAY_MEANING}{_missing_meaning(config)}\n",
         _table(
             ["class", "name", *splits],
             [[k, name, *(counts[s][name] for s in splits)] for k, name in enumerate(names)],
@@ -244,7 +290,8 @@ def render_card(path: str | Path) -> str:
         )
         + "\n",  # fmt: skip
         f"Noise: `delays = min(clean_delays + a * u, 1)` with `u ~ U(0, 1)` per pulse and "
-        f"a = {attrs['noise']}. Seed {attrs['seed']}: every sample has its own random stream "
+        f"a = {attrs['noise']}{_noise_details(config)}. Seed {attrs['seed']}: every sample has "
+        "its own random stream "
         "(numpy `SeedSequence(seed, spawn_key=(split, index))`).\n",
         f"## Preprocessing\n\n{PREPROCESSING}\n",
         f"## Uses\n\n{USES}\n\n### Out-of-scope uses\n\n{OUT_OF_SCOPE}\n",

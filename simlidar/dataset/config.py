@@ -5,6 +5,7 @@ import math
 from dataclasses import asdict, dataclass, field, replace
 
 from simlidar.errors import ConfigError
+from simlidar.profiles import PHYSICAL_RULE, Profile
 from simlidar.sensor.vlp16 import VLP16
 
 MAX_SPLIT_SIZE = 10**9  # samples per split
@@ -29,6 +30,11 @@ class GeneratorConfig:
     # made before the option existed stay byte for byte the same
     variation: float = 1.0
     sensor: VLP16 = field(default_factory=VLP16)
+    # the dataset profile (simlidar.profiles) whose pulse rule the pixels follow; None: the
+    # physical rule of dataset version 1.0.0 (stored only when not None, for the same reason
+    # as variation). `variation` and `shift_max` above are the values used, which start from
+    # the profile's and may be overridden (docs/profiles.md)
+    profile: Profile | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.classes, int) or self.classes < 2:
@@ -57,8 +63,40 @@ class GeneratorConfig:
                 and 0.0 < self.variation <= 1.0):  # fmt: skip
             raise ConfigError(f"variation={self.variation!r}: expected a factor in (0, 1] "
                               "(1: the scene catalog's ranges as written)")  # fmt: skip
+        if self.profile is not None and not isinstance(self.profile, Profile):
+            raise ConfigError(f"profile={self.profile!r}: expected a Profile or None")
         if not 0.0 <= self.shift_max < 1.0:
             raise ConfigError(f"shift_max={self.shift_max!r}: expected a value in [0, 1)")
+
+    @classmethod
+    def from_profile(cls, profile: Profile, variation: float | None = None,
+                     shift_max: float | None = None, **fields) -> "GeneratorConfig":  # fmt: skip
+        """A config that follows ``profile``; ``variation`` and ``shift_max`` given here
+        override the profile's. The shipped ``physical`` profile is stored as None (the 1.0.0
+        rule), so that its datasets keep the bytes of 1.0.0."""
+        physical = profile.name == "physical" and profile.pulse_rule == PHYSICAL_RULE
+        return cls(
+            variation=profile.variation if variation is None else variation,
+            shift_max=profile.shift if shift_max is None else shift_max,
+            profile=None if physical else profile, **fields,
+        )  # fmt: skip
+
+    @property
+    def profile_name(self) -> str:
+        return "physical" if self.profile is None else self.profile.name
+
+    @property
+    def pulse_rule(self) -> dict:
+        """missing_delay, noise_on, spikes (simlidar.profiles.Profile)."""
+        return dict(PHYSICAL_RULE) if self.profile is None else self.profile.pulse_rule
+
+    @property
+    def overrides(self) -> dict:
+        """Scene values that differ from the profile's own (they are named in the dataset's
+        name): {"variation": ..., "shift_max": ...}."""
+        own = (1.0, 0.0) if self.profile is None else (self.profile.variation, self.profile.shift)
+        used = {"variation": self.variation, "shift_max": self.shift_max}
+        return {k: v for (k, v), mine in zip(used.items(), own) if v != mine}
 
     @property
     def split_sizes(self) -> dict[str, int]:
@@ -72,6 +110,8 @@ class GeneratorConfig:
         values["sensor"] = self.sensor.to_dict()
         if values["variation"] == 1.0:
             del values["variation"]  # absent means 1 (and keeps older datasets' bytes)
+        if values["profile"] is None:
+            del values["profile"]  # absent means the physical rule of 1.0.0 (same reason)
         return values
 
     def to_json(self) -> str:
@@ -81,4 +121,6 @@ class GeneratorConfig:
     def from_dict(cls, values: dict) -> "GeneratorConfig":
         values = dict(values)
         values["sensor"] = VLP16.from_dict(values.get("sensor", {}))
+        if values.get("profile") is not None:
+            values["profile"] = Profile(**values["profile"])
         return cls(**values)

@@ -9,8 +9,7 @@ on any failure the temporary folders are removed and nothing appears under a fin
 
 import json
 import os
-import shutil
-import time
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -22,11 +21,12 @@ import numpy as np
 from simlidar import __version__
 from simlidar.dataset.card import write_card
 from simlidar.dataset.checksums import write_sums
+from simlidar.dataset.claim import Temporary, clean_stale, install
 from simlidar.dataset.config import GeneratorConfig
 from simlidar.dataset.croissant import write_croissant
 from simlidar.dataset.h5 import SPLITS, SplitWriter
 from simlidar.dataset.preview import write_preview
-from simlidar.dataset.version import DATASET_VERSION
+from simlidar.dataset.version import dataset_version
 from simlidar.errors import DatasetError
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.raycast import MAX_BATCH
@@ -44,9 +44,14 @@ class Written:
 
 
 def dataset_name(config: GeneratorConfig) -> str:
-    """``simlidar-<classes>c-noise<level>-v<version>``, the level as Python's repr (0.2, 0.33)."""
-    variation = f"-var{float(config.variation)!r}" if config.variation != 1.0 else ""
-    return f"simlidar-{config.classes}c-noise{float(config.noise)!r}{variation}-v{DATASET_VERSION}"
+    """``simlidar-<classes>c-noise<level>-<profile>[-var<v>][-shift<s>]-v<version>``, numbers
+    as Python's repr (0.2, 0.33); ``-var`` and ``-shift`` name values that differ from the
+    profile's own."""
+    over = config.overrides
+    variation = f"-var{float(over['variation'])!r}" if "variation" in over else ""
+    shift = f"-shift{float(over['shift_max'])!r}" if "shift_max" in over else ""
+    return (f"simlidar-{config.classes}c-noise{float(config.noise)!r}-{config.profile_name}"
+            f"{variation}{shift}-v{dataset_version(config)}")  # fmt: skip
 
 
 def split_attrs(config: GeneratorConfig, catalog: Catalog, split: str) -> dict:
@@ -55,8 +60,8 @@ def split_attrs(config: GeneratorConfig, catalog: Catalog, split: str) -> dict:
     sensor = config.sensor
     rows = row_order(sensor)
     strings = h5py.string_dtype()
-    return {
-        "dataset_version": DATASET_VERSION,
+    attrs = {
+        "dataset_version": dataset_version(config),
         "simlidar_version": __version__,
         "split": split,
         "config": config.to_json(),
@@ -78,6 +83,13 @@ def split_attrs(config: GeneratorConfig, catalog: Catalog, split: str) -> dict:
         "no_return_delay": 1.0,
         "min_object_hits": config.min_object_hits,
     }
+    if config.profile is not None:  # absent: the physical rule (and 1.0.0's bytes)
+        rule = config.pulse_rule
+        attrs["profile"] = config.profile.name
+        attrs["no_return_delay"] = rule["missing_delay"]
+        attrs["noise_on"] = rule["noise_on"]
+        attrs["input_spikes"] = rule["spikes"]
+    return attrs
 
 
 def _make_out(out: Path) -> bool:
@@ -110,9 +122,13 @@ def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalo
     if existing and not force:
         raise DatasetError(f"{existing[0]} already exists: pass --force to overwrite it")
     created = _make_out(out)
-    temps = [out / f".{f.name}.partial-{os.getpid()}" for f in finals]
+    _clean_stale(out)
+    claims: list[Temporary] = []
     writers: list[SplitWriter] = []
     try:
+        for final in finals:
+            claims.append(Temporary(out, final.name))
+        temps = [c.path for c in claims]
         total = sum(config.split_sizes.values())
         bar = tqdm(total=total, unit="sample", disable=not progress, desc="generate",
                    dynamic_ncols=True)  # fmt: skip
@@ -120,10 +136,9 @@ def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalo
             size = config.split_sizes[split]
             writers = []
             for cfg, temp in zip(configs, temps):
-                temp.mkdir(exist_ok=True)
                 attrs = split_attrs(cfg, catalog, split)
                 writers.append(SplitWriter(temp / f"{split}.h5", size, cfg.width, cfg.noise,
-                                           attrs))  # fmt: skip
+                                           attrs, cfg.pulse_rule))  # fmt: skip
             for start in range(0, size, batch_size):
                 stop = min(start + batch_size, size)
                 samples = simulate(config, catalog, split, start, stop)
@@ -139,36 +154,41 @@ def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalo
             write_croissant(temp, name=final.name)
             write_card(temp)
             write_sums(temp)
-        for temp, final in zip(temps, finals):
-            _move_into_place(temp, final)
+        for claim, final in zip(claims, finals):
+            install(claim, final, force)
     except BaseException:
         for writer in writers:
             writer.file.close()
-        for temp in temps:
-            shutil.rmtree(temp, ignore_errors=True)
-        if created and not any(out.iterdir()):
-            out.rmdir()
         raise
+    finally:
+        for claim in claims:
+            claim.release()
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
     return [Written(f, c.noise, c.classes, dict(c.split_sizes)) for f, c in zip(finals, configs)]
 
 
-def _move_into_place(temp: Path, final: Path) -> None:
-    """Rename ``temp`` to ``final``; an old ``final`` (``--force``) is removed only after."""
-    old = None
-    if final.exists():
-        old = final.with_name(f".{final.name}.old-{os.getpid()}-{time.monotonic_ns()}")
-        final.rename(old)
-    temp.rename(final)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+def _clean_stale(out: Path) -> None:
+    """Remove dead runs' temporaries from ``out``; warn (one line each) about what was done."""
+    removed, unknown = clean_stale(out)
+    for folder in removed:
+        warnings.warn(f"removed {folder}, left by a run that did not finish", stacklevel=3)
+    if unknown:
+        names = " ".join(str(u) for u in unknown)
+        warnings.warn(
+            f"{len(unknown)} temporary folder(s) of older simlidar runs in {out}; if "
+            f"none is running there, remove them with: rm -rf {names}",
+            stacklevel=3,
+        )
 
 
 @contextmanager
 def building(out: str | Path, name: str, force: bool = False) -> Iterator[Path]:
-    """A hidden folder ``out/.<name>.partial-<pid>`` to build a dataset in; it becomes
-    ``out/<name>`` when the block ends without error and is removed on any error (with ``out``
-    too, if this call created it and it is left empty). An existing ``out/<name>`` stops the
-    build before anything is written, unless ``force``: then it is replaced only at the end.
+    """A hidden locked folder ``out/.<name>.partial-<random>`` (:mod:`simlidar.dataset.claim`)
+    to build a dataset in; it becomes ``out/<name>`` when the block ends without error and is
+    removed on any error (with ``out`` too, if this call created it and it is left empty). An
+    existing ``out/<name>`` stops the build before anything is written, unless ``force``: then
+    it is replaced only at the end, in one step.
 
     Used by the converters (``simlidar.convert``); :func:`generate` builds several at once.
     """
@@ -177,13 +197,12 @@ def building(out: str | Path, name: str, force: bool = False) -> Iterator[Path]:
     if final.exists() and not force:
         raise DatasetError(f"{final} already exists: pass --force to overwrite it")
     created = _make_out(out)
-    temp = out / f".{name}.partial-{os.getpid()}"
+    _clean_stale(out)
+    claim = Temporary(out, name)
     try:
-        temp.mkdir(exist_ok=True)
-        yield temp
-        _move_into_place(temp, final)
-    except BaseException:
-        shutil.rmtree(temp, ignore_errors=True)
+        yield claim.path
+        install(claim, final, force)
+    finally:
+        claim.release()
         if created and out.is_dir() and not any(out.iterdir()):
             out.rmdir()
-        raise

@@ -14,9 +14,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from simlidar.dataset.version import GENERATOR, SOURCES, major
+from simlidar.dataset.version import GENERATOR, PHYSICAL_VERSION, SOURCES, major
 from simlidar.errors import DatasetError
-from simlidar.pulses import add_noise
+from simlidar.pulses import profile_pulses
 from simlidar.simulate import Samples
 
 CHUNK_SAMPLES = 256
@@ -149,19 +149,36 @@ class RowWriter:
 
 
 class SplitWriter(RowWriter):
-    """Appends blocks of generated samples to one split file (the generator's schema)."""
+    """Appends blocks of generated samples to one split file (the generator's schema).
 
-    def __init__(self, path: Path, size: int, width: int, noise: float, attrs: dict):
+    rule : the profile's pulse rule (``GeneratorConfig.pulse_rule``): what a missing return is
+        written as and which pixels get the noise; ``clean_delays`` are written under the rule
+        too (missing returns at ``missing_delay``), before noise
+    """
+
+    def __init__(self, path: Path, size: int, width: int, noise: float, attrs: dict,
+                 rule: dict):  # fmt: skip
         self.noise = noise
+        self.rule = rule
         shapes = {name: (dtype, tail(width)) for name, (dtype, tail, _) in SCHEMA.items()}
         super().__init__(path, size, shapes, attrs, frozenset(SHUFFLED))
 
     def append(self, samples: Samples) -> None:
         """Add the next block of samples (in split order)."""
+        rule = self.rule
+        clean, noisy = profile_pulses(
+            samples.clean_delays,
+            self.noise,
+            samples.noise_u,
+            rule["missing_delay"],
+            rule["noise_on"],
+        )
         block = {}
         for name, (_, _, source) in SCHEMA.items():
             if source is None:
-                block[name] = add_noise(samples.clean_delays, self.noise, samples.noise_u)
+                block[name] = noisy
+            elif source == "clean_delays":
+                block[name] = clean
             else:
                 block[name] = getattr(samples, source)
         super().append(block)
@@ -208,22 +225,29 @@ def read_split_info(path: Path) -> SplitInfo:
             info = SplitInfo(path, size, width, attrs, height)
     except OSError as exc:
         raise DatasetError(f"{path}: cannot read as HDF5 ({exc})") from None
-    check_version(path, attrs["dataset_version"], info.source)
+    # a generated split without a profile follows the physical rule, still written as 1.0.0
+    physical = info.source == GENERATOR and "profile" not in attrs
+    check_version(path, attrs["dataset_version"], info.source,
+                  PHYSICAL_VERSION if physical else None)  # fmt: skip
     return info
 
 
 _warned: set[tuple[str, str]] = set()
 
 
-def check_version(path: Path, version: str, source: str = GENERATOR) -> None:
+def check_version(path: Path, version: str, source: str = GENERATOR,
+                  writes: str | None = None) -> None:  # fmt: skip
     """Refuse a dataset from a newer MAJOR version; warn once about an older one.
 
     source : the split's ``source``; each source has its own version line
+    writes : the version this simlidar writes for such a file, when not the source's current
+        one (the generator's physical profile: 1.0.0)
     """
     if source not in SOURCES:
         known = ", ".join(SOURCES)
         raise DatasetError(f"{path}: source {source!r}: expected one of {known}")
     current, _, notes = SOURCES[source]
+    current = writes or current
     try:
         theirs, ours = major(version), major(current)
     except ValueError:

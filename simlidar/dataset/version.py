@@ -8,12 +8,16 @@ Each source of datasets has its own version line: the generator (``DATASET_VERSI
 converter of real data (``simlidar.convert``), keyed by the ``source`` attribute of a split.
 """
 
-DATASET_VERSION = "1.0.0"
+DATASET_VERSION = "2.0.0"
+# The records of the physical pulse rule (profile `physical`) have not changed since 1.0.0:
+# such datasets are still written as 1.0.0, byte for byte (see dataset_version).
+PHYSICAL_VERSION = "1.0.0"
 
 # Release dates are part of the published metadata (croissant.json's datePublished), so they are
 # constants too: a dataset's bytes never depend on the day it was generated.
 RELEASE_DATES: dict[str, str] = {
     "1.0.0": "2026-11-22",
+    "2.0.0": "2026-11-23",
 }
 
 RELEASE_NOTES: dict[str, str] = {
@@ -22,7 +26,22 @@ RELEASE_NOTES: dict[str, str] = {
         "4 objects, uniform delay noise, clean and noisy delays, per-pulse surface labels, "
         "object pose and hit counts."
     ),
+    "2.0.0": (
+        "Dataset profiles. The default profile is now `paper`, the protocol that reproduces the "
+        "paper's accuracy-versus-noise table: a missing return is written as 0.0 (not 1.0), "
+        "U(0, a) noise lands on every pixel (missing returns included) and every pixel is an "
+        "input spike; scenes vary little within a class (variation 0.05) and every sample's "
+        "delays are shifted by U(-0.05, 0.05). Records change, hence a new MAJOR. The "
+        "`physical` profile writes the 1.0.0 records byte for byte and keeps version 1.0.0."
+    ),
 }
+
+
+def dataset_version(config) -> str:
+    """The version a generated dataset of ``config`` (a GeneratorConfig) carries:
+    PHYSICAL_VERSION for the physical pulse rule (its records are those of 1.0.0), else
+    DATASET_VERSION."""
+    return PHYSICAL_VERSION if config.profile is None else DATASET_VERSION
 
 
 def major(version: str) -> int:

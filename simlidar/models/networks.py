@@ -14,7 +14,11 @@ MAX_SCALE = 80.0  # exp(80) = 5.5e34, below float32's 3.4e38
 class SpikingNet(nn.Module):
     """Input delays (B, C, H, W) -> output first-spike times in the z domain (B, classes).
 
-    scale : input spike time t = scale * delay (a missing return is no spike)
+    scale : input spike time t = scale * delay
+    silent_from : delays at or above this are no input spike: 1.0 (the physical profile: a
+        missing return is no spike) or inf (the paper profile: every pixel spikes). A property
+        of the data, not of the recipe: ``train`` sets it from the dataset's ``input_spikes``
+        attribute (:func:`simlidar.data.spike_threshold`) and checkpoints keep it.
     """
 
     spiking = True  # outputs are first-spike times (z domain), not logits
@@ -26,13 +30,14 @@ class SpikingNet(nn.Module):
         super().__init__()
         self.layers = nn.ModuleList(layers)
         self.scale = scale
+        self.silent_from = 1.0
 
     def forward(self, delays: torch.Tensor) -> torch.Tensor:
         return self.spikes(delays)[-1]
 
     def spikes(self, delays: torch.Tensor) -> list[torch.Tensor]:
         """The input spikes and every layer's output spikes, in the z domain (inf = none)."""
-        out = [ttfs.encode(delays, self.scale)]
+        out = [ttfs.encode(delays, self.scale, self.silent_from)]
         for layer in self.layers:
             out.append(layer(out[-1]))
         return out

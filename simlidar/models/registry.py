@@ -18,7 +18,7 @@ MODELS: dict[str, Callable] = {}
 TRAINING_KEYS = {  # every key a recipe's [training] table may hold (docs/snn.md, Training)
     "optimizer", "lr", "momentum", "batch_size", "l2", "clip_grad_norm", "epochs",
     "max_seconds", "weight_sum_penalty", "logits", "logit_scale", "fire_penalty", "fire_margin",
-    "lr_schedule", "early_penalty",
+    "lr_schedule", "early_penalty", "noise_augment",
 }  # fmt: skip
 LOGITS = ("z", "time")  # a spiking model's logits: -z (the paper's) or -t = -ln z
 SCHEDULES = ("constant", "cosine")  # cosine: from lr down to 0 over the run's epochs
@@ -82,6 +82,9 @@ def check_training(recipe: dict, where: str | None = None) -> dict:
         if training.get(key, default) not in choices:
             raise ConfigError(f"{where}: key 'training.{key}': expected one of "
                               f"{list(choices)}, got {training[key]!r}")  # fmt: skip
+    if not isinstance(training.get("noise_augment", False), bool):
+        raise ConfigError(f"{where}: key 'training.noise_augment': expected true or false, got "
+                          f"{training['noise_augment']!r}")  # fmt: skip
     for key in ("logit_scale", "fire_penalty", "fire_margin", "weight_sum_penalty", "l2",
                 "early_penalty"):  # fmt: skip
         value = training.get(key, 1.0 if key == "logit_scale" else 0.0)

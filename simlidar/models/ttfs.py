@@ -36,7 +36,8 @@ def encode(delays: torch.Tensor, scale: float, no_return: float = 1.0) -> torch.
     """Normalised delays -> input spikes in the z domain.
 
     A delay d < no_return becomes the spike time t = scale * d, so z = exp(scale * d) lies in
-    [1, exp(scale)); a missing return (d >= no_return) is no spike (z = inf).
+    [1, exp(scale)]; a missing return (d >= no_return) is no spike (z = inf). With
+    ``no_return = inf`` (the paper profile) every pixel is a spike.
     """
     spike = delays < no_return
     return torch.where(spike, torch.exp(scale * torch.where(spike, delays, 0.0)), torch.inf)

@@ -105,8 +105,8 @@ def test_generated_datasets_are_made_once(tmp_path):
                     "test_size = 32\n[budget]\nepochs = 1\n")  # fmt: skip
     out = tmp_path / "out"
     results = run_suite(load_suite(path), out, progress=False)
-    assert results["cells"][0]["dataset"] == "simlidar-32c-noise0.2-v1.0.0"
-    assert (out / "datasets" / "simlidar-32c-noise0.2-v1.0.0" / "train.h5").is_file()
+    assert results["cells"][0]["dataset"] == "simlidar-32c-noise0.2-paper-v2.0.0"
+    assert (out / "datasets" / "simlidar-32c-noise0.2-paper-v2.0.0" / "train.h5").is_file()
 
 
 @pytest.mark.parametrize(

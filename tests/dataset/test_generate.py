@@ -8,13 +8,13 @@ from simlidar.dataset.config import GeneratorConfig
 from simlidar.dataset.generate import dataset_name, generate
 from simlidar.dataset.h5 import SCHEMA, dataset_splits
 from simlidar.dataset.info import dataset_info
-from simlidar.dataset.version import DATASET_VERSION
+from simlidar.dataset.version import DATASET_VERSION, PHYSICAL_VERSION
 from simlidar.errors import ConfigError, DatasetError
 
 
 def test_the_directory_and_its_files(datasets):
     path = datasets[0.1]
-    assert path.name == f"simlidar-32c-noise0.1-v{DATASET_VERSION}"
+    assert path.name == f"simlidar-32c-noise0.1-physical-v{PHYSICAL_VERSION}"  # library default
     assert sorted(p.name for p in path.iterdir()) == [
         "README.md",
         "SHA256SUMS",
@@ -33,7 +33,7 @@ def test_every_split_holds_the_schema(datasets):
                 assert f[name].dtype == np.dtype(dtype), name
                 assert f[name].shape == (size, *tail(16)), name
                 assert f[name].compression == "gzip" and f[name].chunks is not None
-            assert f.attrs["dataset_version"] == DATASET_VERSION
+            assert f.attrs["dataset_version"] == PHYSICAL_VERSION
             assert f.attrs["split"] == split
             assert list(f.attrs["class_names"])[:2] == ["tunnel/none", "tunnel/car"]
             delays = f["delays"][:]
@@ -121,12 +121,17 @@ def test_a_path_that_is_not_a_dataset(tmp_path):
 
 
 def test_names_encode_classes_noise_and_version():
+    from simlidar.profiles import load_profile
+
     assert dataset_name(GeneratorConfig(classes=8, noise=0.33)) == (
-        f"simlidar-8c-noise0.33-v{DATASET_VERSION}"
+        f"simlidar-8c-noise0.33-physical-v{PHYSICAL_VERSION}"
     )
     assert dataset_name(GeneratorConfig(noise=0.1, variation=0.25)) == (
-        f"simlidar-32c-noise0.1-var0.25-v{DATASET_VERSION}"
+        f"simlidar-32c-noise0.1-physical-var0.25-v{PHYSICAL_VERSION}"
     )
+    paper = GeneratorConfig.from_profile(load_profile("paper"), noise=0.5)
+    assert dataset_name(paper) == f"simlidar-32c-noise0.5-paper-v{DATASET_VERSION}"
+    assert DATASET_VERSION == "2.0.0" and PHYSICAL_VERSION == "1.0.0"
 
 
 def test_variation_is_stored_only_when_it_narrows():

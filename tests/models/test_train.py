@@ -128,6 +128,7 @@ def test_the_penalties_enter_the_loss_as_the_recipe_weighs_them():
         ("logit_scale", 0, r"training.logit_scale': expected a finite number > 0, got 0"),
         ("logit_scale", float("nan"), r"training.logit_scale': expected a finite number > 0"),
         ("optimizer", "rmsprop", r"training.optimizer': expected one of \['sgd', 'adam'\]"),
+        ("noise_augment", 1, r"training.noise_augment': expected true or false, got 1"),
     ],
 )
 def test_training_keys_are_checked(datasets, key, value, message):
@@ -146,3 +147,30 @@ def test_train_errors_are_one_line(tmp_path):
     missing = runner.invoke(main, ["train", "--model", "snn_simlidar", "--dataset",
                                    str(tmp_path / "x")])  # fmt: skip
     assert missing.exit_code == 1 and "expected a dataset directory" in missing.stderr
+
+
+def test_noise_augment_draws_the_noise_anew_each_epoch(datasets):
+    """Fresh U(0, a) on the clean delays under the split's rule, seeded, different per epoch."""
+    import numpy as np
+
+    from simlidar.bench.train import _fresh_noise
+    from simlidar.dataset.h5 import read_split_info
+
+    path = datasets[0.5]
+    attrs = read_split_info(path / "train.h5").attrs
+    clean, _ = load_split(path, "train", field="clean_delays")
+    stored, _ = load_split(path, "train")
+    draw = _fresh_noise(path, attrs, seed=3)
+    first, second = draw()[:, 0].numpy(), draw()[:, 0].numpy()
+    assert first.shape == clean.shape and not np.array_equal(first, second)
+    assert not np.array_equal(first, stored)  # not the file's draw
+    for x in (first, second):  # the physical rule: returns delayed by at most 0.5, clipped
+        assert (x >= clean).all() and (x - clean <= 0.5 + 1e-6).all() and x.max() <= 1.0
+        assert (x[clean == 1.0] == 1.0).all()  # a missing return stays missing
+    again = _fresh_noise(path, attrs, seed=3)()[:, 0].numpy()
+    assert np.array_equal(again, first)  # seeded
+    recipe = _small_recipe()
+    recipe["training"]["noise_augment"] = True
+    a = train(recipe, path, seed=0, epochs=2, progress=False)
+    b = train(recipe, path, seed=0, epochs=2, progress=False)
+    assert [h["loss"] for h in a.history] == [h["loss"] for h in b.history]

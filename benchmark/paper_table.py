@@ -1,0 +1,207 @@
+"""The paper's Sim LiDAR table, rerun: the dense SNN (256-400-32) at the four noise levels.
+
+    python benchmark/paper_table.py                      # the whole table (about an hour, 2 cores)
+    python benchmark/paper_table.py --seeds 0 --recipes snn_simlidar_tuned   # a part of it
+
+What it does, with one command:
+
+1. ``simlidar generate --noise 0.1,0.2,0.33,0.5`` with the default profile (``paper``) and the
+   paper's sizes (3000 / 600), into ``--data`` (kept and reused when already there);
+2. trains every recipe of ``--recipes`` with every seed of ``--seeds`` on every noise level,
+   ``--jobs`` cells at a time (one torch thread each), each cell a JSON file under
+   ``--out``/cells (a rerun skips finished cells, so a killed run resumes);
+3. prints the mean and sample standard deviation over seeds beside the paper's accuracy
+   (``baselines/reported/wang2020.toml``), with the distribution of input spikes consumed
+   before the decision (median, 10th / 90th percentile, maximum, over every test sample of
+   every seed), and writes ``table.md``, ``table.json`` and ``input_spikes.png`` to ``--out``.
+
+Test accuracy is that of the last epoch (no selection on the test split).
+"""
+
+import argparse
+import json
+import os
+import sys
+import time
+import tomllib
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+LEVELS = (0.1, 0.2, 0.33, 0.5)
+
+
+def _cell(recipe_name: str, dataset: str, seed: int, path: str) -> str:
+    """Train one cell in a worker process; write its JSON atomically; return the path."""
+    import torch
+
+    torch.set_num_threads(1)
+    from simlidar.bench.early import early_decisions
+    from simlidar.bench.train import train
+    from simlidar.models.registry import load_recipe
+
+    recipe = load_recipe(recipe_name)
+    result = train(recipe, dataset, seed=seed, progress=False)
+    early = early_decisions(result.model, dataset, per_sample=True)
+    record = {
+        "recipe": recipe_name, "dataset": Path(dataset).name, "seed": seed,
+        "test_accuracy": result.test_accuracy, "epochs": result.epochs,
+        "seconds": result.seconds, "history": result.history,
+        "early": {k: v for k, v in early.items() if k != "per_sample"},
+        "input_spikes": early["per_sample"]["input_spikes"],
+    }  # fmt: skip
+    tmp = Path(path).with_suffix(".partial")
+    tmp.write_text(json.dumps(record))
+    tmp.replace(path)
+    return path
+
+
+def datasets(root: Path) -> dict[float, Path]:
+    """The four datasets of the table (default profile), generated when missing."""
+    from simlidar.dataset.config import GeneratorConfig
+    from simlidar.dataset.generate import dataset_name, generate
+    from simlidar.profiles import DEFAULT_PROFILE, load_profile
+    from simlidar.scene.recipe import load_catalog
+
+    config = GeneratorConfig.from_profile(load_profile(DEFAULT_PROFILE))
+    paths = {level: root / dataset_name(config.with_noise(level)) for level in LEVELS}
+    if not all(p.is_dir() for p in paths.values()):
+        missing = [level for level, p in paths.items() if not p.is_dir()]
+        generate(config, missing, load_catalog(), root)
+    return paths
+
+
+def summarise(cells: list[dict], paper: list[float]) -> dict:
+    """Per recipe and noise level: accuracy mean / sample std over seeds, input spikes."""
+    table = {}
+    for recipe in sorted({c["recipe"] for c in cells}):
+        rows = []
+        for level, reported in zip(LEVELS, paper):
+            mine = [c for c in cells if c["recipe"] == recipe and c["noise"] == level]
+            if not mine:
+                continue
+            acc = np.array([100 * c["test_accuracy"] for c in mine])
+            spikes = np.concatenate([c["input_spikes"] for c in mine])
+            rows.append({
+                "noise": level, "paper": reported, "seeds": sorted(c["seed"] for c in mine),
+                "accuracy": [round(a, 2) for a in acc], "mean": round(float(acc.mean()), 2),
+                "std": round(float(acc.std(ddof=1)), 2) if len(acc) > 1 else None,
+                "difference": round(float(acc.mean()) - reported, 2),
+                "epochs": [c["epochs"] for c in mine],
+                "minutes": round(float(np.mean([c["seconds"] for c in mine])) / 60, 1),
+                "input_spikes": {"p10": float(np.percentile(spikes, 10)),
+                                 "median": float(np.median(spikes)),
+                                 "p90": float(np.percentile(spikes, 90)),
+                                 "max": int(spikes.max()), "mean": float(spikes.mean()),
+                                 "total": float(np.mean([c["early"]["input_spikes_total_mean"]
+                                                         for c in mine]))},
+                "no_decision": int(sum(c["early"]["no_decision"] for c in mine)),
+            })  # fmt: skip
+        table[recipe] = rows
+    return table
+
+
+def markdown(table: dict, command: str) -> str:
+    lines = [f"Made by `{command}`. Accuracy in percent on the 600 test samples, mean and sample "
+             "standard deviation over training seeds (last epoch); input spikes consumed before "
+             "the decision over every test sample of every seed (the paper: as few as 13-16, "
+             "never more than 180 of 256).", ""]  # fmt: skip
+    for recipe, rows in table.items():
+        lines += [f"### `{recipe}`", "",
+                  "| noise | paper | ours | difference | seeds | input spikes: median (p10 / "
+                  "p90, max) of total | epochs | minutes / run |",
+                  "| --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+        for r in rows:
+            std = f" ± {r['std']:.2f}" if r["std"] is not None else ""
+            s = r["input_spikes"]
+            lines.append(
+                f"| {r['noise']} | {r['paper']:.2f} | {r['mean']:.2f}{std} | "
+                f"{r['difference']:+.2f} | {len(r['seeds'])} | {s['median']:.0f} ({s['p10']:.0f} "
+                f"/ {s['p90']:.0f}, {s['max']}) of {s['total']:.0f} | "
+                f"{'/'.join(map(str, sorted(set(r['epochs']))))} | {r['minutes']} |"
+            )
+        lines.append("")
+    return "\n".join(lines)
+
+
+def plot(table: dict, cells: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    recipes = list(table)
+    fig, axes = plt.subplots(1, len(recipes), figsize=(5.5 * len(recipes), 3.8), squeeze=False)
+    bins = np.arange(0, 258, 8)
+    for ax, recipe in zip(axes[0], recipes):
+        for level in LEVELS:
+            spikes = [s for c in cells if c["recipe"] == recipe and c["noise"] == level
+                      for s in c["input_spikes"]]  # fmt: skip
+            if spikes:
+                ax.hist(spikes, bins=bins, histtype="step", linewidth=1.5, label=f"noise {level}")
+        ax.axvspan(13, 16, color="tab:green", alpha=0.3, label="paper: as few as 13-16")
+        ax.axvline(180, color="tab:red", linestyle="--", label="paper: never more than 180")
+        ax.set(title=recipe, xlabel="input spikes consumed before the decision (of 256)",
+               ylabel="test samples (all seeds)", xlim=(0, 256))  # fmt: skip
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--recipes", default="snn_simlidar,snn_simlidar_tuned")
+    parser.add_argument("--seeds", default="0,1,2")
+    parser.add_argument("--data", type=Path, default=ROOT / "data")
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmark/results/paper-table")
+    parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
+    args = parser.parse_args(argv)
+    recipes = [r for r in args.recipes.split(",") if r]
+    seeds = [int(s) for s in args.seeds.split(",") if s]
+    reported = tomllib.loads((ROOT / "baselines/reported/wang2020.toml").read_text())
+    paper = reported["simlidar"]["snn_accuracy"]
+
+    paths = datasets(args.data)
+    cells_dir = args.out / "cells"
+    cells_dir.mkdir(parents=True, exist_ok=True)
+    todo = []
+    for recipe in recipes:
+        for level in LEVELS:
+            for seed in seeds:
+                cell = cells_dir / f"{paths[level].name}__{recipe}__seed{seed}.json"
+                if not cell.is_file():
+                    todo.append((recipe, str(paths[level]), seed, str(cell)))
+    start = time.perf_counter()
+    if todo:
+        from tqdm import tqdm
+
+        with ProcessPoolExecutor(args.jobs) as pool:
+            futures = [pool.submit(_cell, *job) for job in todo]
+            for future in tqdm(as_completed(futures), total=len(futures), desc="cells"):
+                future.result()
+    cells = []
+    for recipe in recipes:
+        for level in LEVELS:
+            for seed in seeds:
+                cell = cells_dir / f"{paths[level].name}__{recipe}__seed{seed}.json"
+                record = json.loads(cell.read_text())
+                record["noise"] = level
+                cells.append(record)
+    table = summarise(cells, paper)
+    command = "python benchmark/paper_table.py" + "".join(
+        f" {a}" for a in (argv if argv is not None else sys.argv[1:]))  # fmt: skip
+    text = markdown(table, command)
+    (args.out / "table.md").write_text(text)
+    (args.out / "table.json").write_text(json.dumps(table, indent=1))
+    plot(table, cells, args.out / "input_spikes.png")
+    print(text)
+    print(f"{len(todo)} cells trained in {time.perf_counter() - start:.0f} s; wrote "
+          f"{args.out / 'table.md'}")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

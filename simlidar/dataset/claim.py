@@ -1,0 +1,142 @@
+"""Claiming a name in an output folder: locked temporaries, renames that never replace by
+accident, and the removal of temporaries left by dead runs.
+
+A run builds under ``out/.<name>.<kind>-<random>`` (``kind``: ``partial``, ``old``, ``fetch``)
+and holds an exclusive ``flock`` on the file of the same name plus ``.lock`` for as long as the
+temporary exists. The random part comes from ``tempfile`` (no two processes pick the same, even
+with equal PIDs in containers sharing a volume). A temporary whose lock can be taken belongs to
+a dead run: :func:`clean_stale` removes it, and never touches a live run's (its lock is held).
+
+Installing is one ``renameat2`` call (Linux): ``RENAME_NOREPLACE`` without ``--force``, so a
+dataset that appeared under the final name while this run worked is refused, never replaced;
+``RENAME_EXCHANGE`` with ``--force``, so the old dataset and the new one swap in one step and
+the old one is then removed under this run's lock. Where ``renameat2`` is unavailable the
+fallback is ``os.rename`` after an existence check (a narrow race, documented).
+"""
+
+import ctypes
+import errno
+import fcntl
+import os
+import re
+import shutil
+import tempfile
+from pathlib import Path
+
+from simlidar.errors import DatasetError
+
+_AT_FDCWD = -100
+_RENAME_NOREPLACE, _RENAME_EXCHANGE = 1, 2
+_TEMP = re.compile(r"^\.(?P<name>.+)\.(?P<kind>partial|old|fetch)-[A-Za-z0-9_]+$")
+_LEGACY = re.compile(r"^\.(?P<name>.+)\.(partial|old)-\d+(-\d+)?$")  # simlidar <= 0.1.0: pid
+
+
+def _libc():
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc if hasattr(libc, "renameat2") else None
+    except OSError:
+        return None
+
+
+_LIBC = _libc()
+
+
+class Temporary:
+    """A locked temporary folder ``out/.<name>.<kind>-<random>``; ``release()`` unlocks it
+    and removes the folder if it is still there."""
+
+    def __init__(self, out: Path, name: str, kind: str = "partial"):
+        fd, lock = tempfile.mkstemp(prefix=f".{name}.{kind}-", suffix=".lock", dir=out)
+        self.lock_path = Path(lock)
+        self.path = self.lock_path.with_suffix("")
+        self._fd = fd
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # new file: nobody else holds it
+        self.path.mkdir()
+
+    def release(self) -> None:
+        shutil.rmtree(self.path, ignore_errors=True)
+        self.lock_path.unlink(missing_ok=True)
+        os.close(self._fd)
+
+
+def _rename(src: Path, dst: Path, flags: int) -> None:
+    if _LIBC is None:
+        if flags == _RENAME_NOREPLACE and (dst.exists() or dst.is_symlink()):
+            raise OSError(errno.EEXIST, os.strerror(errno.EEXIST), str(dst))
+        os.rename(src, dst)  # exchange unavailable: the caller moved the old one aside
+        return
+    if _LIBC.renameat2(_AT_FDCWD, os.fsencode(src), _AT_FDCWD, os.fsencode(dst), flags) != 0:
+        code = ctypes.get_errno()
+        if code in (errno.EINVAL, errno.ENOSYS):  # a file system without these flags
+            raise _Unsupported()
+        raise OSError(code, os.strerror(code), str(dst))
+
+
+class _Unsupported(Exception):
+    pass
+
+
+def install(temp: Temporary, final: Path, force: bool) -> None:
+    """Move ``temp``'s folder to ``final``: refused if ``final`` exists (also if it appeared
+    after the run started), unless ``force``: then swapped in one step, the old removed."""
+    global _LIBC
+    if not (final.exists() or final.is_symlink()):
+        try:
+            _rename(temp.path, final, _RENAME_NOREPLACE)
+            return
+        except _Unsupported:
+            _LIBC = None
+            return install(temp, final, force)
+        except OSError as exc:
+            if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY):
+                raise
+    if not force:
+        raise DatasetError(f"{final} already exists (it appeared while this run was writing): "
+                           "nothing replaced; pass --force to overwrite it")  # fmt: skip
+    if _LIBC is not None:
+        try:
+            _rename(temp.path, final, _RENAME_EXCHANGE)  # temp.path now holds the old one
+            return  # release() removes it, still under this run's lock
+        except _Unsupported:
+            _LIBC = None
+    old = Temporary(final.parent, final.name, "old")
+    try:
+        old.path.rmdir()
+        os.rename(final, old.path)
+        os.rename(temp.path, final)
+    finally:
+        old.release()
+
+
+def _is_dead(lock: Path) -> bool:
+    try:
+        fd = os.open(lock, os.O_RDWR)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return False  # a live run holds it
+    else:
+        return True  # unlocked: its run is gone (we now hold it until close)
+    finally:
+        os.close(fd)
+
+
+def clean_stale(out: Path) -> tuple[list[Path], list[Path]]:
+    """Remove the temporaries of dead runs in ``out``; return (removed, unknown): unknown ones
+    carry no lock (written by simlidar 0.1.0 or earlier, named by PID) and are left alone."""
+    removed, unknown = [], []
+    if not out.is_dir():
+        return removed, unknown
+    for entry in sorted(out.iterdir()):
+        if entry.suffix == ".lock" and _TEMP.match(entry.stem):
+            if _is_dead(entry):
+                folder = entry.with_suffix("")
+                shutil.rmtree(folder, ignore_errors=True)
+                entry.unlink(missing_ok=True)
+                removed.append(folder)
+        elif entry.is_dir() and _LEGACY.match(entry.name):
+            unknown.append(entry)
+    return removed, unknown

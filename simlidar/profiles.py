@@ -1,0 +1,125 @@
+"""Dataset profiles: what a sample looks like beyond the scene catalog.
+
+A profile is a small TOML file in ``profiles/`` (shipped in the wheel) or anywhere on disk. It
+names the scene variation, the delay-shift augmentation, the delay written for a missing
+return, which pixels receive the uniform noise, and which pixels a spiking network reads as
+input spikes. ``docs/profiles.md`` explains each value and the two shipped profiles:
+
+* ``paper`` (the default of ``simlidar generate``): the protocol that reproduces the paper's
+  accuracy-versus-noise table;
+* ``physical``: the pulses of dataset version 1.0.0, byte for byte.
+
+Delays always stay in [0, 1] (the split schema's contract): noise is clipped at 1.0, the end of
+the listening window.
+"""
+
+import math
+import re
+import tomllib
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from simlidar.content import content_dir
+from simlidar.errors import ConfigError
+
+DEFAULT_PROFILE = "paper"
+MAX_PROFILE_BYTES = 64 * 1024  # a profile is a few lines; anything larger is not one
+WHERE = ("all", "returns")  # noise_on / spikes: every pixel, or only the pixels with a return
+MISSING = (0.0, 1.0)  # the start or the end of the listening window
+KEYS = {"description", "variation", "shift", "missing_delay", "noise_on", "spikes"}
+_NAME = re.compile(r"^[a-z0-9][a-z0-9_.-]{0,63}$")
+
+
+@dataclass(frozen=True)
+class Profile:
+    """One dataset profile (fields as in the TOML file; ``name`` is the file's stem)."""
+
+    name: str
+    description: str
+    variation: float  # scene parameter ranges shrunk around their centre by this factor
+    shift: float  # delay-shift augmentation: every return of a sample moves by U(-s, s)
+    missing_delay: float  # the delay written where no return came back: 0.0 or 1.0
+    noise_on: str  # "all": U(0, a) on every pixel; "returns": on returns only
+    spikes: str  # "all": every pixel is an input spike; "returns": only delays < 1.0
+
+    @property
+    def pulse_rule(self) -> dict:
+        """The three values that decide the pixels (beyond the scenes and the noise level)."""
+        return {"missing_delay": self.missing_delay, "noise_on": self.noise_on,
+                "spikes": self.spikes}  # fmt: skip
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+PHYSICAL_RULE = {"missing_delay": 1.0, "noise_on": "returns", "spikes": "returns"}
+
+
+def profile_names() -> list[str]:
+    """The shipped profiles' names."""
+    return sorted(p.stem for p in content_dir("profiles").glob("*.toml"))
+
+
+def _fail(where: str, key: str, expected: str, got) -> ConfigError:
+    return ConfigError(f"{where}: key '{key}': expected {expected}, got {got!r}")
+
+
+def _number(value) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def load_profile(name_or_path: str | Path) -> Profile:
+    """A shipped profile by name, or a profile file by path; every key checked.
+
+    Raises ConfigError naming the file, the key and what was expected.
+    """
+    text = str(name_or_path)
+    path = Path(text)
+    if not text.endswith(".toml") and "/" not in text:
+        path = content_dir("profiles") / f"{text}.toml"
+        if not path.is_file():
+            raise ConfigError(f"profile {text!r}: expected one of {profile_names()} or a "
+                              ".toml file")  # fmt: skip
+    where = f"profile {path}"
+    if not _NAME.match(path.stem):
+        raise ConfigError(f"{where}: file name {path.stem!r}: expected lower-case letters, "
+                          "digits, '_', '-' or '.' (it becomes part of dataset names)")  # fmt: skip
+    try:
+        if not path.is_file():
+            raise ConfigError(f"{where}: file not found")
+        if path.stat().st_size > MAX_PROFILE_BYTES:
+            raise ConfigError(f"{where}: {path.stat().st_size} bytes: expected a profile of at "
+                              f"most {MAX_PROFILE_BYTES} bytes")  # fmt: skip
+        data = tomllib.loads(path.read_bytes()[:MAX_PROFILE_BYTES].decode("utf-8"))
+    except UnicodeDecodeError:
+        raise ConfigError(f"{where}: expected a UTF-8 TOML text file") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{where}: not valid TOML ({exc})") from None
+    except OSError as exc:
+        raise ConfigError(f"{where}: cannot read ({exc.strerror})") from None
+    for key in data:
+        if key not in KEYS:
+            raise _fail(where, key, f"one of {sorted(KEYS)}", key)
+    for key in sorted(KEYS - set(data)):
+        raise ConfigError(f"{where}: key '{key}' is missing")
+    if not isinstance(data["description"], str):
+        raise _fail(where, "description", "a string", data["description"])
+    if not (_number(data["variation"]) and 0.0 < data["variation"] <= 1.0):
+        raise _fail(where, "variation", "a factor in (0, 1]", data["variation"])
+    if not (_number(data["shift"]) and 0.0 <= data["shift"] < 1.0):
+        raise _fail(where, "shift", "a value in [0, 1)", data["shift"])
+    if not (_number(data["missing_delay"]) and data["missing_delay"] in MISSING):
+        raise _fail(where, "missing_delay", "0.0 (start of the window) or 1.0 (its end)",
+                    data["missing_delay"])  # fmt: skip
+    for key in ("noise_on", "spikes"):
+        if data[key] not in WHERE:
+            raise _fail(where, key, f"one of {list(WHERE)}", data[key])
+    if data["spikes"] == "returns" and data["missing_delay"] != 1.0:
+        raise _fail(where, "spikes", "'all' when missing_delay is 0.0 ('returns' reads pixels "
+                    "below 1.0 as spikes, so a missing return at 0.0 would fire first)",
+                    data["spikes"])  # fmt: skip
+    return Profile(
+        name=path.stem, description=data["description"], variation=float(data["variation"]),
+        shift=float(data["shift"]), missing_delay=float(data["missing_delay"]),
+        noise_on=data["noise_on"], spikes=data["spikes"],
+    )  # fmt: skip

@@ -1,0 +1,100 @@
+"""Claiming output names: a dataset that appears mid-run is never replaced without --force,
+temporaries are unique and locked, and dead runs' temporaries are cleaned, live ones kept."""
+
+import fcntl
+import multiprocessing
+import os
+
+import pytest
+
+from simlidar.dataset import claim
+from simlidar.dataset.claim import Temporary, clean_stale, install
+from simlidar.dataset.generate import building
+from simlidar.errors import DatasetError
+
+
+def _fill(temp: Temporary, text: str) -> None:
+    (temp.path / "train.h5").write_text(text)
+
+
+def test_a_dataset_that_appeared_meanwhile_is_refused_then_swapped_with_force(tmp_path):
+    final = tmp_path / "ds"
+    mine = Temporary(tmp_path, "ds")
+    _fill(mine, "seed 0")
+    final.mkdir()  # another run installed its dataset while this one worked
+    (final / "train.h5").write_text("seed 7")
+    with pytest.raises(DatasetError, match="appeared while this run was writing"):
+        install(mine, final, force=False)
+    assert (final / "train.h5").read_text() == "seed 7"  # nothing lost
+    install(mine, final, force=True)
+    mine.release()
+    assert (final / "train.h5").read_text() == "seed 0"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]  # the old one is gone too
+
+
+def test_the_fallback_without_renameat2_refuses_and_replaces_too(tmp_path, monkeypatch):
+    monkeypatch.setattr(claim, "_LIBC", None)
+    final = tmp_path / "ds"
+    final.mkdir()
+    (final / "x").write_text("old")
+    mine = Temporary(tmp_path, "ds")
+    _fill(mine, "new")
+    with pytest.raises(DatasetError, match="already exists"):
+        install(mine, final, force=False)
+    install(mine, final, force=True)
+    mine.release()
+    assert (final / "train.h5").read_text() == "new" and not (final / "x").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
+
+
+def test_temporaries_are_unique_and_locked(tmp_path):
+    a, b = Temporary(tmp_path, "ds"), Temporary(tmp_path, "ds")
+    assert a.path != b.path and a.path.is_dir() and b.path.is_dir()
+    assert a.path.name.startswith(".ds.partial-") and a.lock_path.name == a.path.name + ".lock"
+    fd = os.open(a.lock_path, os.O_RDWR)
+    with pytest.raises(BlockingIOError):  # a live run's lock is held
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    os.close(fd)
+    assert clean_stale(tmp_path) == ([], [])  # both alive: untouched
+    a.release()
+    b.release()
+    assert list(tmp_path.iterdir()) == []
+
+
+def _die_holding_a_temporary(out):
+    temp = Temporary(out, "ds")
+    (temp.path / "train.h5").write_text("half")
+    os._exit(9)  # killed: no release, no cleanup
+
+
+def test_a_dead_runs_temporary_is_removed_a_legacy_one_reported(tmp_path):
+    process = multiprocessing.get_context("fork").Process(
+        target=_die_holding_a_temporary, args=(tmp_path,)
+    )
+    process.start()
+    process.join()
+    live = Temporary(tmp_path, "other")
+    legacy = tmp_path / ".ds.partial-12345"
+    legacy.mkdir()
+    stale = [p for p in tmp_path.iterdir() if p.name.startswith(".ds.partial-") and p != legacy]
+    assert len(stale) == 2  # the dead run's folder and its lock file
+    folder = next(p for p in stale if p.is_dir())
+    removed, unknown = clean_stale(tmp_path)
+    assert removed == [folder] and not any(p.exists() for p in stale)
+    assert unknown == [legacy] and live.path.is_dir()  # a live run's folder is never touched
+    live.release()
+
+
+def test_building_cleans_up_on_error_and_refuses_a_late_arrival(tmp_path):
+    out = tmp_path / "out"
+    with pytest.raises(RuntimeError):
+        with building(out, "ds") as temp:
+            (temp / "x").write_text("half")
+            raise RuntimeError("disk full")
+    assert not out.exists()  # created by the call, left empty: removed
+    with pytest.raises(DatasetError, match="appeared"):
+        with building(out, "ds") as temp:
+            (temp / "x").write_text("mine")
+            (out / "ds").mkdir()
+            (out / "ds" / "y").write_text("theirs")
+    assert [p.name for p in out.iterdir()] == ["ds"] and (out / "ds" / "y").exists()
