@@ -339,6 +339,16 @@ def fetch(url, sha256, out, timeout, force):  # fmt: skip
     click.echo(f"installed {run(url, sha256, out, timeout=timeout, force=force)}")
 
 
+MAX_EPOCHS = 10**6
+
+
+def _not_nan(value, param):
+    if value is not None and value != value:
+        raise click.BadParameter(f"{value}: expected a number of seconds >= 0 (inf: no limit)",
+                                 param=param)  # fmt: skip
+    return value
+
+
 def _need_torch(command: str) -> None:
     try:
         import torch  # noqa: F401
@@ -370,25 +380,30 @@ def _need_torch(command: str) -> None:
 )
 @click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
 @click.option(
-    "--epochs", type=click.IntRange(min=1), default=None, help="Override the recipe's epochs."
+    "--epochs",
+    type=click.IntRange(1, MAX_EPOCHS),
+    default=None,
+    help="Override the recipe's epochs.",
 )
 @click.option(
     "--max-seconds",
     type=click.FloatRange(min=0),
     default=None,
-    help="Override the recipe's time budget.",
+    callback=lambda ctx, param, value: _not_nan(value, param),
+    help="Override the recipe's time budget (inf: none).",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def train(model, dataset, out, seed, epochs, max_seconds, as_json):  # fmt: skip
     """Train a model on a dataset's train split, score it on the test split, save a checkpoint."""
     _need_torch("train")
-    from simlidar.bench.train import save_checkpoint
+    from simlidar.bench.train import check_writable, save_checkpoint
     from simlidar.bench.train import train as run
     from simlidar.data import split_path
     from simlidar.models.registry import load_recipe
 
     recipe = load_recipe(model)
     split_path(dataset, "train")  # a dataset, or a one-line error
+    check_writable(out)  # before training, not after
     result = run(recipe, dataset, seed=seed, epochs=epochs, max_seconds=max_seconds)
     path = save_checkpoint(result, out / f"{recipe['name']}-seed{seed}.pt")
     record = {"model": recipe["name"], "dataset": str(dataset), "seed": seed,

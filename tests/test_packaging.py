@@ -29,7 +29,7 @@ def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
     names = zipfile.ZipFile(wheel).namelist()
     assert "simlidar/_content/scenes/catalog.toml" in names
     assert "simlidar/_content/scenes/layouts/tunnel.toml" in names
-    for folder in ("baselines", "benchmark"):  # every recipe and suite, and nothing else
+    for folder in ("baselines", "benchmark", "profiles"):  # every recipe, suite and profile
         shipped = {n.split("/")[-1] for n in names if n.startswith(f"simlidar/_content/{folder}/")}
         assert {p.name for p in (ROOT / folder).glob("*.toml")} <= shipped
     assert not [n for n in names if "benchmark/results" in n]

@@ -23,6 +23,7 @@ A suite is a TOML file (``benchmark/<name>.toml`` or any path)::
 """
 
 import hashlib
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,6 +34,7 @@ from simlidar.errors import ConfigError
 from simlidar.models.registry import load_recipe
 from simlidar.profiles import DEFAULT_PROFILE, load_profile
 
+SUITE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,99}$")
 KEYS = {"name", "description", "models", "seeds", "board_power_w", "generate", "datasets",
         "budget"}  # fmt: skip
 BUDGET_KEYS = {"epochs", "max_seconds"}
@@ -96,6 +98,10 @@ def load_suite(name_or_path: str | Path) -> Suite:
         if key not in KEYS:
             raise ConfigError(f"suite {path}: unknown key '{key}': expected one of "
                               f"{sorted(KEYS)}")  # fmt: skip
+    name = data.get("name", path.stem)
+    if not (isinstance(name, str) and SUITE_NAME.match(name)):
+        raise _fail(path, "name", "letters, digits, '_', '-' or '.', not starting with '.' (it "
+                    "names the output folder bench/<name>)", name)  # fmt: skip
     models = data.get("models")
     if not isinstance(models, list) or not models or not all(isinstance(m, str) for m in models):
         raise _fail(path, "models", "a non-empty list of recipe names", models)
@@ -152,7 +158,7 @@ def load_suite(name_or_path: str | Path) -> Suite:
     if power is not None and not _number(power, 0):
         raise _fail(path, "board_power_w", "watts >= 0", power)
     return Suite(
-        name=str(data.get("name", path.stem)), path=path,
+        name=name, path=path,
         sha256=hashlib.sha256(raw).hexdigest(), description=str(data.get("description", "")),
         models=tuple(models), seeds=tuple(seeds), generate=config, noise=noise,
         datasets=datasets, budget=budget, board_power_w=power,

@@ -1,5 +1,7 @@
 """Seeded training of any registered model on a dataset in the simlidar schema."""
 
+import os
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -10,7 +12,7 @@ import torch.nn.functional as F
 
 from simlidar.data import load_split, spike_threshold, split_path
 from simlidar.dataset.h5 import read_split_info
-from simlidar.errors import ConfigError
+from simlidar.errors import ConfigError, DatasetError
 from simlidar.models import ttfs
 from simlidar.models.registry import build_model, check_training
 from simlidar.pulses import noisy_delays
@@ -161,15 +163,38 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
                        len(history), history)  # fmt: skip
 
 
+def check_writable(folder: str | Path) -> None:
+    """Create ``folder`` if needed and prove a file can be written there; a DatasetError
+    naming the folder otherwise (``train`` calls it before the first epoch)."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".write-check-", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise DatasetError(f"--out {folder}: cannot write there ({exc.strerror})") from None
+
+
 def save_checkpoint(result: TrainResult, path: str | Path) -> Path:
     """State dict plus the recipe and the run's figures; loads with ``weights_only=True``."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.partial")
-    torch.save({"state_dict": result.model.state_dict(), "recipe": result.recipe,
-                "history": result.history,
-                "silent_from": getattr(result.model, "silent_from", 1.0)}, tmp)  # fmt: skip
-    tmp.replace(path)
+    check_writable(path.parent)
+    data = {
+        "state_dict": result.model.state_dict(),
+        "recipe": result.recipe,
+        "history": result.history,
+        "silent_from": getattr(result.model, "silent_from", 1.0),
+    }
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.partial-", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            torch.save(data, f)
+        os.replace(tmp, path)
+    except (OSError, RuntimeError) as exc:  # torch reports a full disk as a RuntimeError
+        Path(tmp).unlink(missing_ok=True)
+        cause = getattr(exc, "strerror", None) or str(exc).splitlines()[0]
+        raise DatasetError(f"{path}: cannot write the checkpoint ({cause})") from None
     return path
 
 

@@ -219,7 +219,7 @@ def write_split(path: Path, recordings: list[Recording], rows: np.ndarray, delay
             writer.add_rows(name, values, schema[name][0])
         writer.close()
     finally:
-        writer.file.close()
+        writer.abort()  # a no-op after close()
 
 
 def dataset_name() -> str:

@@ -262,7 +262,7 @@ def write_splits(folder: Path, base: Path, frames: list[Frame], splits: dict[str
             writer.close()
     finally:
         for writer in writers.values():
-            writer.file.close()
+            writer.abort()  # a no-op after close()
 
 
 def _small_file_hashes(base: Path, frames: list[Frame]) -> dict[Path, str]:

@@ -124,6 +124,7 @@ def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalo
     created = _make_out(out)
     _clean_stale(out)
     claims: list[Temporary] = []
+    bar = None
     writers: list[SplitWriter] = []
     try:
         for final in finals:
@@ -158,7 +159,9 @@ def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalo
             install(claim, final, force)
     except BaseException:
         for writer in writers:
-            writer.file.close()
+            writer.abort()
+        if bar is not None:
+            bar.close()  # the error then gets a line of its own, not the end of the bar's
         raise
     finally:
         for claim in claims:

@@ -7,7 +7,9 @@ Level 1 because the noisy delays barely compress and higher levels cost time for
 """
 
 import json
+import os
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -96,6 +98,14 @@ class RowWriter:
     shapes : name -> (dtype, trailing shape); every dataset gets ``size`` rows
     Rows are written one whole chunk at a time, every dataset in turn, so the file's layout
     (and therefore its bytes) does not depend on the size of the blocks handed in.
+
+    Write errors (a full disk) surface at the write that failed, as a DatasetError naming the
+    file and the cause: HDF5's chunk cache is off (``rdcc_nbytes=0``; whole chunks are
+    written, so it saved nothing, and the bytes are the same), and the dataset handles are
+    held open. With the cache on, a failed write surfaced only when a cached chunk was evicted
+    inside a handle's deallocation, where h5py can only print it: generation went on for
+    seconds, printing thousands of tracebacks, and crashed at close. After an error,
+    :meth:`abort` closes the file without raising.
     """
 
     def __init__(self, path: Path, size: int, shapes: dict[str, tuple[str, tuple]],
@@ -104,10 +114,13 @@ class RowWriter:
         self.chunk = min(CHUNK_SAMPLES, size)
         self.written = 0
         self.pending: dict[str, list[np.ndarray]] = {name: [] for name in shapes}
-        self.file = h5py.File(path, "w", libver=("earliest", "v110"), track_order=False)
+        self.path = Path(path)
+        self.file = h5py.File(path, "w", libver=("earliest", "v110"), track_order=False,
+                              rdcc_nbytes=0)  # fmt: skip
+        self.datasets = {}
         for name, (dtype, tail) in shapes.items():
             shape = (size, *tail)
-            self.file.create_dataset(
+            self.datasets[name] = self.file.create_dataset(
                 name, shape=shape, dtype=dtype, chunks=(self.chunk, *shape[1:]),
                 compression="gzip", compression_opts=1, shuffle=name in shuffled,
                 track_times=False,
@@ -125,7 +138,8 @@ class RowWriter:
             rows = min(self.chunk, ready)
             for name, parts in self.pending.items():
                 block = np.concatenate(parts)
-                self.file[name][self.written : self.written + rows] = block[:rows]
+                with self._failing():
+                    self.datasets[name][self.written : self.written + rows] = block[:rows]
                 self.pending[name] = [block[rows:]]
             self.written += rows
             ready -= rows
@@ -141,11 +155,31 @@ class RowWriter:
             compression_opts=1, shuffle=True, track_times=False,
         )  # fmt: skip
 
+    @contextmanager
+    def _failing(self):
+        """Turn an HDF5 write error into one DatasetError naming the file and the cause."""
+        try:
+            yield
+        except (OSError, RuntimeError) as exc:
+            code = getattr(exc, "errno", None)
+            cause = os.strerror(code) if code else str(exc).splitlines()[0]
+            raise DatasetError(f"{self.path}: cannot write ({cause})") from None
+
     def close(self) -> None:
         if self.written != self.size:
+            self.abort()
+            raise RuntimeError(f"{self.path}: {self.written} of {self.size} rows")
+        self.datasets = {}
+        with self._failing():
             self.file.close()
-            raise RuntimeError(f"{self.file.filename}: {self.written} of {self.size} rows")
-        self.file.close()
+
+    def abort(self) -> None:
+        """Close after an error, never raising (what is in the file no longer matters)."""
+        self.datasets = {}
+        try:
+            self.file.close()
+        except Exception:  # noqa: BLE001 - a failed flush of a file about to be deleted
+            pass
 
 
 class SplitWriter(RowWriter):

@@ -127,6 +127,10 @@ def test_generated_datasets_are_made_once(tmp_path):
         ('models = ["cnn", "cnn"]\ndatasets = ["x"]', "key 'models': expected distinct"),
         ('models = ["cnn"]\nseeds = [1, 1]\ndatasets = ["x"]', "key 'seeds': expected distinct"),
         ('models = ["cnn"]\n[generate]\nnoise = [0.1, 0.1]', "distinct noise levels"),
+        ('name = "../../evil"\nmodels = ["cnn"]\ndatasets = ["x"]', "key 'name': expected letters"),
+        ('name = ".hidden"\nmodels = ["cnn"]\ndatasets = ["x"]', "key 'name'"),
+        ('models = ["cnn"]\n[generate]\nnoise = [0.1]\nprofile = "nope"', "profile 'nope'"),
+        ('models = ["cnn"]\n[generate]\nnoise = [0.1]\nprofile = 3', "key 'generate.profile'"),
     ],
 )
 def test_bad_suites_are_named(tmp_path, text, message):

@@ -98,3 +98,75 @@ def test_building_cleans_up_on_error_and_refuses_a_late_arrival(tmp_path):
             (out / "ds").mkdir()
             (out / "ds" / "y").write_text("theirs")
     assert [p.name for p in out.iterdir()] == ["ds"] and (out / "ds" / "y").exists()
+
+
+def _full_disk_after(monkeypatch, writes: int):
+    """Make the n-th HDF5 dataset write fail with ENOSPC, as a full disk does."""
+    import errno
+
+    import h5py
+
+    calls = {"n": 0}
+    original = h5py.Dataset.__setitem__
+
+    def write(self, key, value):
+        calls["n"] += 1
+        if calls["n"] > writes:
+            raise OSError(errno.ENOSPC, "Can't synchronously write data (file write failed)")
+        return original(self, key, value)
+
+    monkeypatch.setattr(h5py.Dataset, "__setitem__", write)
+    return calls
+
+
+def test_a_full_disk_stops_generate_at_the_first_error_and_leaves_nothing(tmp_path, monkeypatch):
+    from click.testing import CliRunner
+
+    from simlidar.cli import main
+
+    calls = _full_disk_after(monkeypatch, 30)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["generate", "--out", str(out), "--noise", "0.1,0.3",
+                                       "--train-size", "2048", "--batch-size", "256"])  # fmt: skip
+    assert result.exit_code == 1
+    assert "cannot write (No space left on device)" in result.stderr
+    assert "Traceback" not in result.output and result.stderr.count("Error") == 1
+    assert calls["n"] == 31  # stopped at the first failed write
+    assert not out.exists()  # created by the run, left empty: removed
+
+
+def test_a_full_disk_while_saving_a_checkpoint_leaves_no_partial_file(tmp_path, monkeypatch,
+                                                                      datasets):  # fmt: skip
+    import errno
+
+    pytest.importorskip("torch")
+    from simlidar.bench import train as training
+    from simlidar.models.registry import load_recipe
+
+    result = training.train(load_recipe("mlp"), datasets[0.1], epochs=1, progress=False)
+
+    def full(obj, f):
+        f.write(b"partial")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(training.torch, "save", full)
+    with pytest.raises(DatasetError, match=r"mlp.pt: cannot write the checkpoint \(No space"):
+        training.save_checkpoint(result, tmp_path / "runs" / "mlp.pt")
+    assert list((tmp_path / "runs").iterdir()) == []
+
+
+def test_train_refuses_an_unwritable_out_before_training(tmp_path, datasets):
+    from click.testing import CliRunner
+
+    from simlidar.cli import main
+
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    args = ["train", "--model", "mlp", "--dataset", str(datasets[0.1])]
+    result = CliRunner().invoke(main, [*args, "--out", str(blocker / "runs")])
+    assert result.exit_code == 1 and "cannot write there" in result.stderr
+    assert "test accuracy" not in result.output  # no training happened
+    nan = CliRunner().invoke(main, [*args, "--max-seconds", "nan"])
+    assert nan.exit_code == 2 and "expected a number of seconds" in nan.stderr
+    huge = CliRunner().invoke(main, [*args, "--epochs", "99999999999999999999"])
+    assert huge.exit_code == 2 and "--epochs" in huge.stderr
