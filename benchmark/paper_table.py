@@ -10,10 +10,11 @@ What it does, with one command:
 2. trains every recipe of ``--recipes`` with every seed of ``--seeds`` on every noise level,
    ``--jobs`` cells at a time (one torch thread each), each cell a JSON file under
    ``--out``/cells (a rerun skips finished cells, so a killed run resumes);
-3. prints the mean and sample standard deviation over seeds beside the paper's accuracy
-   (``baselines/reported/wang2020.toml``), with the distribution of input spikes consumed
-   before the decision (median, 10th / 90th percentile, maximum, over every test sample of
-   every seed), and writes ``table.md``, ``table.json`` and ``input_spikes.png`` to ``--out``.
+3. prints the mean and sample standard deviation over the seeds found in ``--out``/cells
+   beside the paper's accuracy (``baselines/reported/wang2020.toml``), with the distribution
+   of input spikes consumed before the decision (median, 10th / 90th percentile, maximum,
+   over every test sample of every seed), and writes ``table.md``, ``table.json`` and
+   ``input_spikes.png`` to ``--out``.
 
 Test accuracy is that of the last epoch (no selection on the test split).
 """
@@ -33,8 +34,12 @@ ROOT = Path(__file__).resolve().parents[1]
 LEVELS = (0.1, 0.2, 0.33, 0.5)
 
 
-def _cell(recipe_name: str, dataset: str, seed: int, path: str) -> str:
-    """Train one cell in a worker process; write its JSON atomically; return the path."""
+def _cell(recipe_name: str, dataset: str, seed: int, path: str, training: dict | None = None,
+          epochs: int | None = None) -> str:  # fmt: skip
+    """Train one cell in a worker process; write its JSON atomically; return the path.
+
+    training : [training] keys to set on top of the recipe's (benchmark/early_tradeoff.py)
+    """
     import torch
 
     torch.set_num_threads(1)
@@ -43,10 +48,12 @@ def _cell(recipe_name: str, dataset: str, seed: int, path: str) -> str:
     from simlidar.models.registry import load_recipe
 
     recipe = load_recipe(recipe_name)
-    result = train(recipe, dataset, seed=seed, progress=False)
+    recipe["training"].update(training or {})
+    result = train(recipe, dataset, seed=seed, epochs=epochs, progress=False)
     early = early_decisions(result.model, dataset, per_sample=True)
     record = {
         "recipe": recipe_name, "dataset": Path(dataset).name, "seed": seed,
+        "training": training or {},
         "test_accuracy": result.test_accuracy, "epochs": result.epochs,
         "seconds": result.seconds, "history": result.history,
         "early": {k: v for k, v in early.items() if k != "per_sample"},
@@ -56,6 +63,18 @@ def _cell(recipe_name: str, dataset: str, seed: int, path: str) -> str:
     tmp.write_text(json.dumps(record))
     tmp.replace(path)
     return path
+
+
+def run_cells(todo: list[tuple], jobs: int) -> None:
+    """Train the cells of ``todo`` (:func:`_cell` arguments), ``jobs`` at a time."""
+    if not todo:
+        return
+    from tqdm import tqdm
+
+    with ProcessPoolExecutor(jobs) as pool:
+        futures = [pool.submit(_cell, *job) for job in todo]
+        for future in tqdm(as_completed(futures), total=len(futures), desc="cells"):
+            future.result()
 
 
 def datasets(root: Path) -> dict[float, Path]:
@@ -175,18 +194,11 @@ def main(argv=None) -> int:
                 if not cell.is_file():
                     todo.append((recipe, str(paths[level]), seed, str(cell)))
     start = time.perf_counter()
-    if todo:
-        from tqdm import tqdm
-
-        with ProcessPoolExecutor(args.jobs) as pool:
-            futures = [pool.submit(_cell, *job) for job in todo]
-            for future in tqdm(as_completed(futures), total=len(futures), desc="cells"):
-                future.result()
-    cells = []
+    run_cells(todo, args.jobs)
+    cells = []  # every finished cell of these recipes, also seeds of earlier runs
     for recipe in recipes:
         for level in LEVELS:
-            for seed in seeds:
-                cell = cells_dir / f"{paths[level].name}__{recipe}__seed{seed}.json"
+            for cell in sorted(cells_dir.glob(f"{paths[level].name}__{recipe}__seed*.json")):
                 record = json.loads(cell.read_text())
                 record["noise"] = level
                 cells.append(record)

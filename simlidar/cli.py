@@ -398,11 +398,11 @@ def train(model, dataset, out, seed, epochs, max_seconds, as_json):  # fmt: skip
     _need_torch("train")
     from simlidar.bench.train import check_writable, save_checkpoint
     from simlidar.bench.train import train as run
-    from simlidar.data import split_path
+    from simlidar.dataset.verify import check_trainable
     from simlidar.models.registry import load_recipe
 
     recipe = load_recipe(model)
-    split_path(dataset, "train")  # a dataset, or a one-line error
+    check_trainable(dataset)  # a sound dataset, or a one-line error
     check_writable(out)  # before training, not after
     result = run(recipe, dataset, seed=seed, epochs=epochs, max_seconds=max_seconds)
     path = save_checkpoint(result, out / f"{recipe['name']}-seed{seed}.pt")

@@ -14,6 +14,7 @@ import json
 import os
 import platform
 import re
+import shutil
 import time
 from pathlib import Path
 
@@ -27,6 +28,7 @@ from simlidar.bench.suite import Suite
 from simlidar.bench.train import is_spiking, predictions, train
 from simlidar.data import load_split
 from simlidar.dataset.h5 import dataset_splits
+from simlidar.dataset.verify import check_trainable
 from simlidar.dataset.version import GENERATOR
 from simlidar.errors import DatasetError
 from simlidar.models.registry import load_recipe
@@ -76,11 +78,20 @@ def claim(out: Path, suite: Suite) -> None:
                 f"{suite.sha256[:12]}); expected a new directory or one of this suite"
             )
         return
-    if out.exists() and any(out.iterdir()):
+    litter = {"cells", ".suite.json.partial"}  # what a claim that failed midway left
+    if out.exists() and any(p.name not in litter or (p.is_dir() and any(p.iterdir()))
+                            for p in out.iterdir()):  # fmt: skip
         raise DatasetError(f"--out {out}: not empty and not a benchmark output directory; "
                            "expected a new or empty directory")  # fmt: skip
-    (out / "cells").mkdir(parents=True, exist_ok=True)
-    _write_json(marker, {"name": suite.name, "sha256": suite.sha256, "path": str(suite.path)})
+    created = not out.exists()
+    try:
+        (out / "cells").mkdir(parents=True, exist_ok=True)
+        _write_json(marker, {"name": suite.name, "sha256": suite.sha256,
+                             "path": str(suite.path)})  # fmt: skip
+    except BaseException:  # undo, so that a rerun can claim the folder
+        shutil.rmtree(out if created else out / "cells", ignore_errors=True)
+        (out / ".suite.json.partial").unlink(missing_ok=True)
+        raise
 
 
 def resolve_datasets(suite: Suite, out: Path, dataset: Path | None, progress: bool) -> list[Path]:
@@ -197,7 +208,7 @@ def run_suite(suite: Suite, out: Path, models: list[str] | None = None,
     for model in models:
         load_recipe(model)  # unknown recipes fail before anything is written
     for path in [dataset] if dataset is not None else suite.datasets:
-        dataset_splits(path)  # every given dataset is one, before anything is written
+        check_trainable(path)  # every given dataset is sound, before anything is written
     claim(out, suite)
     datasets = resolve_datasets(suite, out, dataset, progress)
     cells = [(d, m, s) for d in datasets for m in models for s in suite.seeds]

@@ -259,11 +259,16 @@ def read_split_info(path: Path) -> SplitInfo:
             info = SplitInfo(path, size, width, attrs, height)
     except OSError as exc:
         raise DatasetError(f"{path}: cannot read as HDF5 ({exc})") from None
-    # a generated split without a profile follows the physical rule, still written as 1.0.0
-    physical = info.source == GENERATOR and "profile" not in attrs
-    check_version(path, attrs["dataset_version"], info.source,
-                  PHYSICAL_VERSION if physical else None)  # fmt: skip
+    check_version(path, attrs["dataset_version"], info.source, written_version(attrs))
     return info
+
+
+def written_version(attrs) -> str | None:
+    """The version this simlidar writes for a split like this one, when it is not its source's
+    current version: a generated split without a profile follows the physical rule, still
+    written as PHYSICAL_VERSION (1.0.0)."""
+    physical = split_source(attrs) == GENERATOR and "profile" not in attrs
+    return PHYSICAL_VERSION if physical else None
 
 
 _warned: set[tuple[str, str]] = set()

@@ -14,6 +14,7 @@ from simlidar.dataset.h5 import (
     check_version,
     expected_shapes,
     split_source,
+    written_version,
 )
 from simlidar.errors import DatasetError
 
@@ -39,7 +40,7 @@ def _check_split(path: Path, expected_size: int | None) -> list[str]:
         version = f.attrs.get("dataset_version")
         if version is not None:
             try:
-                check_version(path, _decode(version), source)
+                check_version(path, _decode(version), source, written_version(f.attrs))
             except DatasetError as exc:
                 problems.append(str(exc))
         events = f["event_t_us"].shape[0] if "event_t_us" in f else 0
@@ -58,9 +59,16 @@ def _check_split(path: Path, expected_size: int | None) -> list[str]:
                 problems.append(f"{path}: '{name}' has shape {ds.shape}, expected {shape}")
         if problems or size is None or width is None:  # not readable as the schema says
             return problems
+        split = _decode(f.attrs["split"])
+        if split != path.stem:
+            problems.append(f"{path}: holds the {split!r} split, expected {path.stem!r} (files "
+                            "swapped or renamed?)")  # fmt: skip
         if expected_size is not None and size != expected_size:
             problems.append(f"{path}: {size} samples, the card says {expected_size}")
         classes = len(f.attrs["class_names"])
+        if "classes" in f.attrs and int(f.attrs["classes"]) != classes:
+            problems.append(f"{path}: {classes} class_names for {int(f.attrs['classes'])} "
+                            "classes")  # fmt: skip
         try:
             for start in range(0, size, _BLOCK):
                 rows = slice(start, start + _BLOCK)
@@ -68,8 +76,8 @@ def _check_split(path: Path, expected_size: int | None) -> list[str]:
                     if name not in shapes:
                         continue
                     block = f[name][rows]
-                    if not ((block >= 0) & (block <= 1)).all():
-                        problems.append(f"{path}: '{name}' has values outside [0, 1]")
+                    if not ((block >= 0) & (block <= 1)).all():  # NaN fails too
+                        problems.append(f"{path}: '{name}' has values outside [0, 1] or NaN")
                 labels = f["labels"][rows]
                 if labels.size and not (0 <= labels.min() and labels.max() < classes):
                     problems.append(f"{path}: labels outside 0..{classes - 1}")
@@ -93,6 +101,15 @@ def _check_events(path: Path, f: h5py.File) -> list[str]:
     return []
 
 
+def check_trainable(path: str | Path) -> None:
+    """Refuse a dataset that :func:`verify` rejects, before any training: a DatasetError with
+    the first problem (``train`` and ``bench`` call it once per dataset)."""
+    problems = verify(path)
+    if problems:
+        more = f" (and {len(problems) - 1} more: simlidar verify {path})" * (len(problems) > 1)
+        raise DatasetError(f"{problems[0]}{more}; expected a dataset that simlidar verify accepts")
+
+
 def verify(path: str | Path) -> list[str]:
     """Every problem found in a dataset directory; an empty list means it is sound.
 
@@ -106,7 +123,7 @@ def verify(path: str | Path) -> list[str]:
         raise DatasetError(f"{path}: expected a dataset directory")
     if not any((path / f"{s}.h5").exists() for s in SPLITS):
         raise DatasetError(f"{path}: not a simlidar dataset (no train.h5 or test.h5)")
-    problems = check_sums(path)
+    problems = []  # the schema's and values' first: they say what is wrong; checksums last
     sizes: dict[str, int] = {}
     try:
         meta = read_front_matter(path)
@@ -120,4 +137,4 @@ def verify(path: str | Path) -> list[str]:
             problems.append(f"{file}: missing")
             continue
         problems += _check_split(file, sizes.get(split))
-    return problems
+    return problems + check_sums(path)
