@@ -57,6 +57,29 @@ class NoiseLevels(click.ParamType):
         return levels
 
 
+class FiniteRange(click.FloatRange):
+    """A FloatRange that also refuses nan (which compares False with both bounds)."""
+
+    def convert(self, value, param, ctx):
+        number = super().convert(value, param, ctx)
+        if number != number:
+            high = "" if self.max is None else f"<={self.max:g}"
+            self.fail(f"{value!r} is not a number in the range {self.min:g}<=x{high}.", param, ctx)
+        return number
+
+
+class OutFolder(click.Path):
+    """An --out folder: not an empty string, which would silently mean the current folder."""
+
+    def __init__(self):
+        super().__init__(file_okay=False, path_type=Path)
+
+    def convert(self, value, param, ctx):
+        if value == "":
+            self.fail("'' is empty; expected a folder name ('.': the current one)", param, ctx)
+        return super().convert(value, param, ctx)
+
+
 _scenes_option = click.option(
     "--scenes",
     type=click.Path(path_type=Path),
@@ -127,7 +150,7 @@ def main(ctx: click.Context, debug: bool) -> None:
 )
 @click.option(
     "--out",
-    type=click.Path(file_okay=False, path_type=Path),
+    type=OutFolder(),
     default=Path("data"),
     show_default=True,
     help="Folder that receives the dataset directories.",
@@ -290,8 +313,12 @@ def verify(path):
 
 @main.command()
 @click.argument("path", type=click.Path(path_type=Path))
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Folder for the archive (default: beside the dataset).")  # fmt: skip
+@click.option(
+    "--out",
+    type=OutFolder(),
+    default=None,
+    help="Folder for the archive (default: beside the dataset).",
+)
 def pack(path, out):
     """Verify a dataset and write <name>.tar.gz and its .sha256, ready to upload."""
     from simlidar.dataset.archive import pack as run
@@ -318,18 +345,13 @@ def _hex_sha256(ctx, param, value):
     callback=_hex_sha256,
     help="Expected sha256 of the archive (default: read from URL.sha256).",
 )
-@click.option(
-    "--out",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=Path("data"),
-    show_default=True,
-)
+@click.option("--out", type=OutFolder(), default=Path("data"), show_default=True)
 @click.option(
     "--timeout",
-    type=click.FloatRange(min=0.1),
+    type=FiniteRange(0.1, 86_400),  # archive.MAX_TIMEOUT_S (not imported: cli stays light)
     default=30.0,
     show_default=True,
-    help="Seconds to wait for the server.",
+    help="Seconds to wait for the server (at most a day).",
 )
 @click.option("--force", is_flag=True, help="Replace an existing dataset of the same name.")
 def fetch(url, sha256, out, timeout, force):  # fmt: skip
@@ -340,13 +362,6 @@ def fetch(url, sha256, out, timeout, force):  # fmt: skip
 
 
 MAX_EPOCHS = 10**6
-
-
-def _not_nan(value, param):
-    if value is not None and value != value:
-        raise click.BadParameter(f"{value}: expected a number of seconds >= 0 (inf: no limit)",
-                                 param=param)  # fmt: skip
-    return value
 
 
 def _need_torch(command: str) -> None:
@@ -387,9 +402,8 @@ def _need_torch(command: str) -> None:
 )
 @click.option(
     "--max-seconds",
-    type=click.FloatRange(min=0),
+    type=FiniteRange(min=0),
     default=None,
-    callback=lambda ctx, param, value: _not_nan(value, param),
     help="Override the recipe's time budget (inf: none).",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
@@ -531,21 +545,21 @@ def _with_convert_options(command):
 )
 @click.option(
     "--res-h",
-    type=click.FloatRange(min=0, min_open=True),
+    type=FiniteRange(0.01, 10),  # kitti.RES_DEG (not imported: cli stays light)
     default=0.18,
     show_default=True,
     help="Horizontal front-view resolution, degrees.",
 )
 @click.option(
     "--res-v",
-    type=click.FloatRange(min=0, min_open=True),
+    type=FiniteRange(0.01, 10),  # kitti.RES_DEG (not imported: cli stays light)
     default=0.4,
     show_default=True,
     help="Vertical front-view resolution, degrees.",
 )
 @click.option(
     "--max-range",
-    type=click.FloatRange(min=0, min_open=True),
+    type=FiniteRange(1, 1000),  # kitti.MAX_RANGE_M
     default=100.0,
     show_default=True,
     help="Range (m) whose time of flight is delay 1.",

@@ -165,11 +165,14 @@ def simulate(config: GeneratorConfig, catalog: Catalog, split: str, start: int, 
         pending = pending[~ok]
         if len(pending) and attempts[pending].max() >= config.max_attempts:
             k = pending[0]
+            step = config.fov_deg / width
             raise SimlidarError(
                 f"{split} sample {index[k]} ({plan.names[labels[k]]}): no draw in "
                 f"{config.max_attempts} showed the object (min_object_hits="
-                f"{config.min_object_hits}) and the layout's `visible` surface; expected "
-                "recipes whose object and layout the sensor can see"
+                f"{config.min_object_hits}) and the layout's `visible` surface with width "
+                f"{width} ({step:.3g} deg between columns); expected a width whose columns are "
+                "close enough to hit the object (the shipped scenes need about 8 or more at "
+                "36 deg) and recipes whose object and layout the sensor can see"
             )
     tof, clean = delays_from_range(range_m, sensor)
     if config.shift_max > 0:

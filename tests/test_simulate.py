@@ -159,3 +159,9 @@ def test_an_invisible_object_is_reported_not_looped_on(catalog_copy):
     config = GeneratorConfig(max_attempts=3)
     with pytest.raises(SimlidarError, match=r"pedestrian\): no draw in 3"):
         simulate(config, catalog, "train", 0, 8)
+
+
+def test_too_few_columns_is_named_as_the_cause(catalog):
+    config = GeneratorConfig(width=2, train_size=32, test_size=32, max_attempts=5)
+    with pytest.raises(SimlidarError, match=r"with width 2 \(18 deg between columns\)"):
+        simulate(config, catalog, "train", 0, 8)

@@ -61,13 +61,25 @@ def accuracy_by_noise(cells: list[dict], paper: dict) -> list[str]:
              "| model | " + " | ".join(f"noise {v:g}" for v in levels) + " |",
              "|---" * (len(levels) + 1) + "|"]  # fmt: skip
     for m in models:
-        row = [f"{_pct([c['accuracy'] for c in by[m, v]])} ({len(by[m, v])})" if by[m, v]
-               else "–" for v in levels]  # fmt: skip
+        row = [f"{_pct([c['accuracy'] for c in by[m, v]])} ({len(by[m, v])}){_capped(by[m, v])}"
+               if by[m, v] else "–" for v in levels]  # fmt: skip
         lines.append(f"| {m} | " + " | ".join(row) + " |")
     reported = dict(zip(paper["simlidar"]["noise"], paper["simlidar"]["snn_accuracy"]))
     row = [f"{reported[v]:.2f}" if v in reported else "–" for v in levels]
     lines.append("| *paper: SNN 256-400-32* | " + " | ".join(row) + " |")
+    if any(c.get("stopped_by_time") for c in sim):
+        lines += ["", f"{CAPPED} at least one seed stopped on the suite's time cap "
+                  "(`max_seconds`) before its epoch budget: a figure of the machine's speed and "
+                  "load, not of the model."]  # fmt: skip
     return lines + [""]
+
+
+CAPPED = "†"
+
+
+def _capped(cells: list[dict]) -> str:
+    """A mark for a group of cells of which one stopped on the time cap."""
+    return f" {CAPPED}" if any(c.get("stopped_by_time") for c in cells) else ""
 
 
 def by_model(cells: list[dict], paper: dict) -> list[str]:
@@ -110,7 +122,7 @@ def by_model(cells: list[dict], paper: dict) -> list[str]:
                 + f" | {_mean(runs, lambda c: c['latency_ms']):.3f}"
                 f" | {_mean(runs, lambda c: c['throughput_per_s']):.0f}"
                 f" | {runs[0]['params']:,} | {runs[0]['footprint'] / 1e6:.2f}"
-                f" | {_num(_mean(runs, lambda c: c['epochs']), '{:.0f}')} |"
+                f" | {_num(_mean(runs, lambda c: c['epochs']), '{:.0f}')}{_capped(runs)} |"
             )  # fmt: skip
         if source == "kitti":
             lines += ["", f"The paper on KITTI ({paper['kitti']['train_size']:,} / "

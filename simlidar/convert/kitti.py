@@ -45,6 +45,12 @@ from simlidar.errors import ConfigError, DatasetError
 from simlidar.sensor.vlp16 import tof_ns
 
 SOURCE = "kitti"
+# Accepted option values (docs/converters.md): cells from 0.01 degree (far finer than any
+# HDL-64E step; 36,000 columns) to 10 degrees, and a delay-1 range from 1 m to 1 km (8 times the
+# HDL-64E's 120 m). Outside these the front view means nothing: 1e-300 degree cells overflow
+# the cell indices, a 1e-300 m range turns every return into "no return" (1.0).
+RES_DEG = (0.01, 10.0)
+MAX_RANGE_M = (1.0, 1000.0)
 
 
 @dataclass(frozen=True)
@@ -67,18 +73,25 @@ class KittiConfig:
         ):
             raise ConfigError(f"crop={crop!r}: expected (rows, columns), integers in [1, 4096]")
         object.__setattr__(self, "crop", tuple(crop))
-        if not 0.0 < self.res_v_deg <= 10.0:
-            raise ConfigError(f"res_v_deg={self.res_v_deg!r}: expected degrees in (0, 10]")
-        columns = 360.0 / self.res_h_deg if 0.0 < self.res_h_deg <= 10.0 else 0.5
+        low, high = RES_DEG
+        if not low <= self.res_v_deg <= high:
+            raise ConfigError(
+                f"res_v_deg={self.res_v_deg!r}: expected degrees in [{low:g}, {high:g}]"
+            )
+        columns = 360.0 / self.res_h_deg if low <= self.res_h_deg <= high else 0.5
         if abs(columns - round(columns)) > 1e-9 * columns:
             raise ConfigError(
-                f"res_h_deg={self.res_h_deg!r}: expected degrees in (0, 10] dividing 360 (0.08, "
-                "0.09, 0.1, 0.12, 0.15, 0.16, 0.18, 0.2, ...), so that the front view closes"
+                f"res_h_deg={self.res_h_deg!r}: expected degrees in (0, {high:g}] dividing 360 "
+                f"into at most {round(360 / low)} columns (0.01, ..., 0.08, 0.09, 0.1, 0.12, "
+                "0.15, 0.16, 0.18, 0.2, ...), so that the front view closes"
             )
         if self.crop[1] > self.columns:
             raise ConfigError(f"crop={self.crop}: wider than the {self.columns} columns of 360 deg")
-        if not 0.0 < self.max_range_m <= 1000.0:
-            raise ConfigError(f"max_range_m={self.max_range_m!r}: expected metres in (0, 1000]")
+        low, high = MAX_RANGE_M
+        if not low <= self.max_range_m <= high:
+            raise ConfigError(
+                f"max_range_m={self.max_range_m!r}: expected metres in [{low:g}, {high:g}]"
+            )
         check_common(self.test_fraction, self.seed)
 
     @property

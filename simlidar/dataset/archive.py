@@ -9,19 +9,24 @@ says which step failed.
 import gzip
 import http.client
 import os
+import re
 import shutil
 import tarfile
 import tempfile
 import urllib.error
+import urllib.parse
 import urllib.request
 from pathlib import Path
 
-from simlidar.dataset.checksums import is_sha256, sha256_file
+from simlidar.dataset.checksums import is_os_litter, is_sha256, sha256_file
+from simlidar.dataset.claim import Temporary
 from simlidar.dataset.verify import verify
-from simlidar.errors import DatasetError
+from simlidar.errors import ConfigError, DatasetError
 
 DEFAULT_MAX_BYTES = 20 * 2**30  # refuse archives that unpack to more than this
+MAX_TIMEOUT_S = 86_400.0  # one day: the longest wait for the server that makes sense
 _CHUNK = 1 << 16
+_PLAIN_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
 
 
 def _checked(path: Path) -> None:
@@ -34,8 +39,9 @@ def _checked(path: Path) -> None:
 def pack(path: str | Path, out: str | Path | None = None) -> tuple[Path, Path]:
     """Verify a dataset directory and write ``<dir name>.tar.gz`` and its ``.sha256``.
 
-    The directory name already carries the dataset version (``...-v1.0.0``). Returns the paths
-    of the archive and of its checksum file.
+    The directory name already carries the dataset version (``...-v1.0.0``). Operating-system
+    litter (``.DS_Store``, ``Thumbs.db``, ``desktop.ini``, ``._*``) is left out. Returns the
+    paths of the archive and of its checksum file.
     """
     path = Path(path)
     _checked(path)
@@ -44,17 +50,21 @@ def pack(path: str | Path, out: str | Path | None = None) -> tuple[Path, Path]:
         raise DatasetError(f"--out {out}: expected a folder outside the dataset {path}")
     out.mkdir(parents=True, exist_ok=True)
     archive = out / f"{path.name}.tar.gz"
-    tmp = out / f".{archive.name}.partial-{os.getpid()}"
+    files = sorted(p for p in path.iterdir() if p.is_file() and not is_os_litter(p.name))
+    fd, name = tempfile.mkstemp(prefix=f".{archive.name}.partial-", dir=out)  # unique
+    tmp = Path(name)
     try:
-        with open(tmp, "wb") as raw, gzip.GzipFile(filename="", mode="wb", fileobj=raw,
-                                                   mtime=0) as gz:  # fmt: skip
-            with tarfile.open(fileobj=gz, mode="w", format=tarfile.PAX_FORMAT) as tar:
+        with os.fdopen(fd, "wb") as raw:
+            os.fchmod(raw.fileno(), 0o644)  # mkstemp's 0600 would keep a published one private
+            with (
+                gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz,
+                tarfile.open(fileobj=gz, mode="w", format=tarfile.PAX_FORMAT) as tar,
+            ):
                 tar.addfile(_info(path.name, tarfile.DIRTYPE, 0))
-                for file in sorted(p for p in path.iterdir() if p.is_file()):
-                    info = _info(f"{path.name}/{file.name}", tarfile.REGTYPE,
-                                 file.stat().st_size)  # fmt: skip
+                for file in files:
+                    size = file.stat().st_size
                     with open(file, "rb") as f:
-                        tar.addfile(info, f)
+                        tar.addfile(_info(f"{path.name}/{file.name}", tarfile.REGTYPE, size), f)
         tmp.replace(archive)
     except BaseException:
         tmp.unlink(missing_ok=True)
@@ -165,26 +175,49 @@ def safe_extract(archive: Path, target: Path, max_bytes: int) -> Path:
     return target / tops.pop()
 
 
+def check_timeout(timeout: float) -> float:
+    """``timeout`` if it is a number of seconds in (0, MAX_TIMEOUT_S]; ConfigError otherwise
+    (inf, NaN or 1e300 would overflow the socket's timer)."""
+    if not (isinstance(timeout, int | float) and 0 < timeout <= MAX_TIMEOUT_S):
+        raise ConfigError(f"timeout={timeout!r}: expected seconds in (0, {MAX_TIMEOUT_S:g}]")
+    return float(timeout)
+
+
+def _work_name(url: str) -> str:
+    """What the temporary folder of a download is named after: the archive's file name if it
+    is a plain one, else ``download``."""
+    name = urllib.parse.urlsplit(url).path.rsplit("/", 1)[-1].removesuffix(".tar.gz")
+    return name if _PLAIN_NAME.fullmatch(name) else "download"
+
+
 def fetch(url: str, sha256: str | None = None, out: str | Path = ".", timeout: float = 30.0,
           force: bool = False, max_bytes: int = DEFAULT_MAX_BYTES,
           progress: bool = True) -> Path:  # fmt: skip
-    """Download, check, extract and verify a dataset archive; return the installed folder."""
+    """Download, check, extract and verify a dataset archive; return the installed folder.
+
+    The work happens in a locked temporary folder ``out/.<archive name>.fetch-<random>``
+    (:mod:`simlidar.dataset.claim`), removed at the end whatever happens; those of killed runs
+    are removed by the next run in ``out`` (a warning each). ``out`` itself is removed again if
+    this call created it and nothing was installed.
+    """
+    from simlidar.dataset.generate import _clean_stale, _make_out
+
     if sha256 is not None and not is_sha256(sha256):
         raise FetchError("checksum", f"--sha256 {sha256!r}: expected 64 hexadecimal digits")
+    timeout = check_timeout(timeout)
     out = Path(out)
+    created = _make_out(out)
+    _clean_stale(out)
+    work = None
     try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise DatasetError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
-    work = Path(tempfile.mkdtemp(prefix=".fetch-", dir=out))
-    try:
-        archive = work / "archive.tar.gz"
+        work = Temporary(out, _work_name(url), "fetch")
+        archive = work.path / "archive.tar.gz"
         _download(url, archive, timeout, progress)
         expected = (sha256 or _sidecar_sha256(url, timeout)).lower()
         actual = sha256_file(archive)
         if actual != expected:
             raise FetchError("checksum", f"sha256 {actual} does not match {expected}")
-        folder = safe_extract(archive, work / "extracted", max_bytes)
+        folder = safe_extract(archive, work.path / "extracted", max_bytes)
         try:
             _checked(folder)
         except DatasetError as exc:
@@ -197,4 +230,7 @@ def fetch(url: str, sha256: str | None = None, out: str | Path = ".", timeout: f
         folder.rename(final)
         return final
     finally:
-        shutil.rmtree(work, ignore_errors=True)
+        if work is not None:
+            work.release()
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()

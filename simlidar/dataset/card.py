@@ -330,7 +330,11 @@ def read_front_matter(path: str | Path) -> dict:
     card = Path(path) / CARD
     if not card.is_file():
         raise DatasetError(f"{card}: missing (expected the dataset card)")
-    text = card.read_text()
+    try:
+        text = card.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        message = f"{card}: not UTF-8 text ({exc.reason} at byte {exc.start})"
+        raise DatasetError(f"{message}; expected the dataset card in UTF-8") from None
     if not text.startswith("---\n") or "\n---\n" not in text[3:]:
         raise DatasetError(f"{card}: expected YAML front matter between '---' lines at the top")
     try:

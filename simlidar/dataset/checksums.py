@@ -5,6 +5,15 @@ from pathlib import Path
 
 SUMS = "SHA256SUMS"
 _BLOCK = 1 << 20
+# Files that file managers drop into any folder they show (macOS Finder, Windows Explorer):
+# never part of a dataset, ignored by the checksums and left out of archives. Compared in
+# lower case (Windows names are case-insensitive); ``._*`` are macOS AppleDouble files.
+OS_LITTER = frozenset({".ds_store", "thumbs.db", "desktop.ini"})
+
+
+def is_os_litter(name: str) -> bool:
+    """Whether a file name is operating-system litter (:data:`OS_LITTER` or ``._*``)."""
+    return name.lower() in OS_LITTER or name.startswith("._")
 
 
 def is_sha256(text: str) -> bool:
@@ -22,8 +31,13 @@ def sha256_file(path: str | Path) -> str:
 
 
 def dataset_files(path: Path) -> list[str]:
-    """Names of the files a dataset directory's checksums cover (all but SHA256SUMS itself)."""
-    return sorted(p.name for p in path.iterdir() if p.is_file() and p.name != SUMS)
+    """Names of the files a dataset directory's checksums cover: all but SHA256SUMS itself
+    and operating-system litter (:func:`is_os_litter`)."""
+    return sorted(
+        p.name
+        for p in path.iterdir()
+        if p.is_file() and p.name != SUMS and not is_os_litter(p.name)
+    )
 
 
 def write_sums(path: Path, names: list[str] | None = None) -> None:
@@ -38,7 +52,12 @@ def write_sums(path: Path, names: list[str] | None = None) -> None:
 def read_sums(path: Path) -> dict[str, str]:
     """``{file name: hex digest}`` from SHA256SUMS; malformed lines raise ValueError."""
     sums = {}
-    for number, line in enumerate((path / SUMS).read_text().splitlines(), 1):
+    try:
+        text = (path / SUMS).read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        message = f"{path / SUMS}: not UTF-8 text ({exc.reason} at byte {exc.start})"
+        raise ValueError(f"{message}; expected '<sha256>  <file name>' lines") from None
+    for number, line in enumerate(text.splitlines(), 1):
         digest, sep, name = line.partition("  ")
         if not sep or len(digest) != 64 or not name or "/" in name:
             raise ValueError(f"{path / SUMS}: line {number} is not '<sha256>  <file name>'")

@@ -140,3 +140,26 @@ def clean_stale(out: Path) -> tuple[list[Path], list[Path]]:
         elif entry.is_dir() and _LEGACY.match(entry.name):
             unknown.append(entry)
     return removed, unknown
+
+
+def write_file(path: str | Path, write) -> Path:
+    """Write ``path`` through a unique temporary file beside it (``write(temporary)``), renamed
+    into place when complete. On any error the temporary is removed, so neither a 0-byte nor a
+    half file is left; an OSError (a full disk, a read-only folder) becomes a DatasetError
+    naming ``path`` and the cause."""
+    path = Path(path)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
+        os.close(fd)
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    try:
+        write(Path(tmp))
+        os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise DatasetError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path

@@ -7,10 +7,12 @@ import numpy as np
 
 from simlidar.dataset.h5 import dataset_splits, load_arrays
 from simlidar.dataset.version import GENERATOR, SOURCES
+from simlidar.errors import DatasetError
 
 
 def dataset_info(path: str | Path) -> dict:
-    """Summarise the dataset directory ``path`` (raises DatasetError if it is not one)."""
+    """Summarise the dataset directory ``path`` (raises DatasetError if it is not one, or if a
+    split holds labels that are not class indices)."""
     splits = dataset_splits(path)
     first = splits["train"].attrs
     source = splits["train"].source
@@ -18,7 +20,7 @@ def dataset_info(path: str | Path) -> dict:
     names = first["class_names"]
     counts = {}
     for split, info in splits.items():
-        labels = load_arrays(info.path, ("labels",))["labels"]
+        labels = _checked_labels(info.path, len(names))
         counts[split] = dict(zip(names, np.bincount(labels, minlength=len(names)).tolist()))
     return {
         "path": str(Path(path)),
@@ -36,6 +38,22 @@ def dataset_info(path: str | Path) -> dict:
         "counts": counts,
         "config": first["config"],
     }
+
+
+def _checked_labels(path: Path, classes: int) -> np.ndarray:
+    """A split file's labels; DatasetError naming the file and the values unless every one is
+    a class index in 0 .. classes - 1."""
+    labels = load_arrays(path, ("labels",))["labels"]
+    if labels.dtype.kind not in "iu":
+        raise DatasetError(f"{path}: labels are {labels.dtype}, expected integer class indices")
+    bad = np.unique(labels[(labels < 0) | (labels >= classes)])
+    if bad.size:
+        shown = ", ".join(str(v) for v in bad[:5].tolist()) + (", ..." if bad.size > 5 else "")
+        raise DatasetError(
+            f"{path}: labels {shown} outside 0..{classes - 1}; expected class indices "
+            "(simlidar verify lists every problem)"
+        )
+    return labels
 
 
 def format_info(summary: dict) -> str:

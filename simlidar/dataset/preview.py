@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 
+from simlidar.dataset.claim import write_file
 from simlidar.dataset.h5 import dataset_splits, load_arrays
 from simlidar.dataset.version import GENERATOR
 
@@ -40,13 +41,19 @@ def write_preview(dataset: str | Path, out: str | Path, split: str = "test",
         ax.set_yticks([])
         if rows[c] >= 0:
             ax.imshow(delays[rows[c]], cmap="gray", vmin=0.0, vmax=1.0, interpolation="nearest")
+        else:  # not white: that would read as "no return"
+            ax.set_facecolor("#f2d0d0")
+            ax.text(0.5, 0.5, f"no {split} sample", ha="center", va="center", fontsize=7,
+                    transform=ax.transAxes)  # fmt: skip
         ax.set_title(name.replace("_", " "), fontsize=8)
-    what = (
-        f"noisy delays (black = 0, white = 1 = no return), noise {info.attrs['noise']}"
-        if info.source == GENERATOR
-        else "delays (black = 0, white = 1 = nothing in the window)"
-    )
+    missing = info.attrs.get("no_return_delay", 1.0)
+    if info.source != GENERATOR:
+        what = "delays (black = 0, white = 1 = nothing in the window)"
+    elif missing == 1.0:
+        what = f"noisy delays (black = 0, white = 1 = no return), noise {info.attrs['noise']}"
+    else:
+        what = (f"noisy delays (black = 0, white = 1), a missing return written as "
+                f"{missing:g} plus noise, noise {info.attrs['noise']}")  # fmt: skip
     fig.suptitle(f"{title or Path(dataset).name}: {split} split, {what}", fontsize=9)
-    out = Path(out)
-    fig.savefig(out, dpi=80, metadata={"Software": None})
-    return out
+    return write_file(out, lambda tmp: fig.savefig(tmp, format="png", dpi=80,
+                                                   metadata={"Software": None}))  # fmt: skip

@@ -123,18 +123,20 @@ def verify(path: str | Path) -> list[str]:
         raise DatasetError(f"{path}: expected a dataset directory")
     if not any((path / f"{s}.h5").exists() for s in SPLITS):
         raise DatasetError(f"{path}: not a simlidar dataset (no train.h5 or test.h5)")
-    problems = []  # the schema's and values' first: they say what is wrong; checksums last
+    # the splits' problems first (they say what is wrong with the data), then the card's,
+    # then the checksums' (which only say that something changed)
+    problems, card = [], []
     sizes: dict[str, int] = {}
     try:
         meta = read_front_matter(path)
         sizes = {s["name"]: s["num_examples"] for s in meta["dataset_info"]["splits"]}
     except (DatasetError, KeyError, TypeError) as exc:
-        problems.append(str(exc) if isinstance(exc, DatasetError)
-                        else f"{path / 'README.md'}: dataset_info.splits malformed")  # fmt: skip
+        card.append(str(exc) if isinstance(exc, DatasetError)
+                    else f"{path / 'README.md'}: dataset_info.splits malformed")  # fmt: skip
     for split in SPLITS:
         file = path / f"{split}.h5"
         if not file.is_file():
             problems.append(f"{file}: missing")
             continue
         problems += _check_split(file, sizes.get(split))
-    return problems + check_sums(path)
+    return problems + card + check_sums(path)

@@ -4,6 +4,8 @@ from pathlib import Path
 
 import numpy as np
 
+from simlidar.dataset.claim import write_file
+from simlidar.errors import DatasetError
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 
@@ -29,18 +31,28 @@ def export_scenes(catalog: Catalog, out: str | Path, seed: int = 0, fmt: str = "
         rng.random((len(pairs), catalog.layout_columns)),
         rng.random((len(pairs), catalog.object_columns)),
     )  # fmt: skip
-    out.mkdir(parents=True, exist_ok=True)  # only once every scene has been built
+    created = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)  # only once every scene has been built
+    except OSError as exc:
+        raise DatasetError(f"{out}: cannot create the folder ({exc.strerror})") from None
     paths = []
-    for k, (a, b) in enumerate(pairs):
-        mine = batch.sample == k
-        tris = batch.triangles[mine]
-        mesh = trimesh.Trimesh(
-            vertices=tris.reshape(-1, 3),
-            faces=np.arange(3 * len(tris)).reshape(-1, 3),
-            face_colors=_PALETTE[batch.surface[mine] % len(_PALETTE)],
-            process=False,
-        )
-        path = out / f"{catalog.layouts[a].name}__{catalog.objects[b].name}.{fmt}"
-        mesh.export(path)
-        paths.append(path)
+    try:
+        for k, (a, b) in enumerate(pairs):
+            mine = batch.sample == k
+            tris = batch.triangles[mine]
+            mesh = trimesh.Trimesh(
+                vertices=tris.reshape(-1, 3),
+                faces=np.arange(3 * len(tris)).reshape(-1, 3),
+                face_colors=_PALETTE[batch.surface[mine] % len(_PALETTE)],
+                process=False,
+            )
+            path = out / f"{catalog.layouts[a].name}__{catalog.objects[b].name}.{fmt}"
+            paths.append(write_file(path, lambda tmp, m=mesh: m.export(tmp, file_type=fmt)))
+    except BaseException:  # all or nothing: remove what this call wrote
+        for path in paths:
+            path.unlink(missing_ok=True)
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        raise
     return paths

@@ -3,7 +3,9 @@
 A recipe value may be a number or a string such as ``"-half_width_m - 0.3"`` or
 ``"first_m + i * spacing_m"``: numbers, parameter names, ``i`` (the index of a repeated
 primitive), ``+ - * / **``, parentheses and the functions in :data:`FUNCTIONS`. Nothing else is
-accepted, so a recipe can never run code.
+accepted, so a recipe can never run code. An expression is at most :data:`MAX_EXPRESSION_CHARS`
+characters long and nests at most :data:`MAX_EXPRESSION_DEPTH` deep, both checked before Python's
+parser sees it (which would otherwise recurse, or allocate, in proportion to the text).
 """
 
 import ast
@@ -30,12 +32,62 @@ _BINARY = {
 }
 
 
+# The longest shipped expression has 49 characters and nests 2 deep. Within these limits the
+# syntax tree stays shallow enough for the parser, copy.deepcopy and compile.
+MAX_EXPRESSION_CHARS = 256
+MAX_EXPRESSION_DEPTH = 32
+_OPERAND_EXPECTED = set("([{,+-*/")  # after these, a + or - is a sign, not an operator
+
+
 class ExpressionError(ValueError):
     """An expression uses something outside the recipe language."""
 
 
+def _show(text: str, limit: int = 60) -> str:
+    """``text`` quoted for an error message, cut to ``limit`` characters."""
+    if len(text) <= limit:
+        return repr(text)
+    return f"{text[:limit]!r}... ({len(text)} characters)"
+
+
+def nesting(text: str) -> int:
+    """How deeply ``text`` nests, counted on the characters without parsing: the brackets open
+    at once plus the unary signs still waiting for their operand (``-(-(1))`` nests 4 deep)."""
+    signs = [0]  # unary signs waiting for their operand, per open bracket
+    waiting = deepest = 0
+    prev = "("  # the start of the text expects an operand, like an open bracket
+    for ch in text:
+        if ch.isspace():
+            continue
+        if ch in "([{":
+            signs.append(0)
+        elif ch in ")]}":
+            if len(signs) > 1:
+                waiting -= signs.pop()
+        elif ch in "+-" and prev in _OPERAND_EXPECTED:
+            signs[-1] += 1
+            waiting += 1
+        elif ch in "+-*/,":  # an operator or the next argument: the signs before are done
+            waiting -= signs[-1]
+            signs[-1] = 0
+        deepest = max(deepest, len(signs) - 1 + waiting)
+        prev = ch
+    return deepest
+
+
 def parse(text: str) -> ast.expr:
     """Parse ``text`` and check it uses only the recipe language; return its syntax tree."""
+    if len(text) > MAX_EXPRESSION_CHARS:
+        raise ExpressionError(
+            f"expected an expression of at most {MAX_EXPRESSION_CHARS} characters, "
+            f"got {_show(text)}"
+        )
+    depth = nesting(text)
+    if depth > MAX_EXPRESSION_DEPTH:
+        raise ExpressionError(
+            f"expected an expression nested at most {MAX_EXPRESSION_DEPTH} deep (brackets and "
+            f"unary signs), got {depth} deep in {_show(text)}"
+        )
     try:
         tree = ast.parse(text, mode="eval").body
     except SyntaxError as exc:

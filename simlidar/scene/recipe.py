@@ -3,13 +3,18 @@
 A catalog is a folder with ``catalog.toml`` (surface labels, the layouts and objects in class
 order) and one recipe per layout in ``layouts/`` and per object in ``objects/``. The format is
 described in ``docs/scenes.md``. Every mistake is reported as a :class:`RecipeError` naming the
-file, the key and what was expected.
+file, the key and what was expected, and so is a file or recipe over the limits below, which keep
+a hostile or runaway recipe from taking the memory of the machine (the expression limits are
+:data:`expr.MAX_EXPRESSION_CHARS` and :data:`expr.MAX_EXPRESSION_DEPTH`).
 """
 
 import hashlib
 import json
+import math
+import stat
 import tomllib
 from dataclasses import dataclass, replace
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -17,10 +22,16 @@ import numpy as np
 from simlidar.content import content_dir
 from simlidar.errors import RecipeError
 from simlidar.scene import expr
-from simlidar.scene.primitives import DEFAULT_SEGMENTS, KINDS
+from simlidar.scene.primitives import DEFAULT_SEGMENTS, KINDS, template
 
 NO_OBJECT = "none"
 PLACEMENT_KEYS = ("distance_m", "lateral_m", "yaw_deg")
+
+# Limits, documented in docs/scenes.md ("Limits"). The shipped recipes have at most 1,774 bytes,
+# 5 copies of a primitive and 356 triangles; a generator batch builds 1,024 scenes at once.
+MAX_RECIPE_BYTES = 64 * 1024  # size of catalog.toml and of every recipe file
+MAX_REPEAT = 256  # copies of one primitive: a post every 0.6 m along the 150 m road
+MAX_TRIANGLES = 4096  # triangles of one recipe, every primitive at its largest repeat
 
 
 @dataclass(frozen=True)
@@ -141,17 +152,62 @@ class Catalog:
         return hashlib.sha256(text.encode()).hexdigest()
 
 
+def _show(value, limit: int = 100) -> str:
+    """``repr(value)`` for an error message, cut to ``limit`` characters."""
+    try:
+        text = repr(value)
+    except (ValueError, RecursionError):  # an integer of too many digits, a deep table
+        return "a value too large or too deeply nested to print"
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
+
+
 def _fail(where: str, key: str, expected: str, got) -> RecipeError:
-    return RecipeError(f"{where}: key '{key}': expected {expected}, got {got!r}")
+    key = key if len(key) <= 100 else f"{key[:100]}..."
+    return RecipeError(f"{where}: key '{key}': expected {expected}, got {_show(got)}")
+
+
+_FILE_KINDS = {
+    stat.S_ISDIR: "a folder",
+    stat.S_ISCHR: "a character device",
+    stat.S_ISBLK: "a block device",
+    stat.S_ISFIFO: "a named pipe",
+    stat.S_ISSOCK: "a socket",
+}
 
 
 def _read_toml(path: Path) -> dict:
+    """Parse a TOML file: a regular file (or a link to one) of at most MAX_RECIPE_BYTES bytes
+    of UTF-8. Never reads more than MAX_RECIPE_BYTES + 1 bytes."""
     try:
+        mode = path.stat().st_mode
+        if not stat.S_ISREG(mode):
+            kind = next(
+                (name for test, name in _FILE_KINDS.items() if test(mode)), "a special file"
+            )
+            target = f" ({path.resolve()})" if path.is_symlink() else ""
+            raise RecipeError(f"{path}: expected a regular file, got {kind}{target}")
         with path.open("rb") as f:
-            return tomllib.load(f)
+            data = f.read(MAX_RECIPE_BYTES + 1)
     except FileNotFoundError:
         raise RecipeError(f"{path}: file not found") from None
-    except tomllib.TOMLDecodeError as exc:
+    except (OSError, ValueError) as exc:  # ValueError: a NUL character in the path
+        raise RecipeError(f"{path}: cannot read the file ({exc})") from None
+    if len(data) > MAX_RECIPE_BYTES:
+        size = max(len(data), path.stat().st_size)
+        raise RecipeError(
+            f"{path}: expected a file of at most {MAX_RECIPE_BYTES} bytes, got {size} bytes"
+        )
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise RecipeError(
+            f"{path}: expected UTF-8 text, got byte 0x{data[exc.start]:02x} at offset {exc.start}"
+        ) from None
+    try:
+        return tomllib.loads(text)
+    except RecursionError:
+        raise RecipeError(f"{path}: not valid TOML (arrays or tables nested too deeply)") from None
+    except ValueError as exc:  # TOMLDecodeError, or an integer of more than 4300 digits
         raise RecipeError(f"{path}: not valid TOML ({exc})") from None
 
 
@@ -164,7 +220,18 @@ def _check_keys(where: str, table: dict, allowed: set[str], required: set[str]) 
 
 
 def _is_number(v) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v)
+    """A finite int or float, not a bool; an integer too large for a float is no number."""
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        return False
+    try:
+        return math.isfinite(v)
+    except OverflowError:
+        return False
+
+
+@cache
+def _triangles(kind: str, segments: int) -> int:
+    return len(template(kind, segments).triangles)
 
 
 def _param(where: str, key: str, name: str, spec) -> Param:
@@ -176,8 +243,8 @@ def _param(where: str, key: str, name: str, spec) -> Param:
         return Param(name, "uniform", (float(spec[0]), float(spec[1])))
     if isinstance(spec, dict) and set(spec) == {"int"}:
         v = spec["int"]
-        if not (isinstance(v, list) and len(v) == 2 and all(isinstance(x, int) for x in v)
-                and 0 <= v[0] <= v[1]):  # fmt: skip
+        integers = isinstance(v, list) and all(isinstance(x, int) and _is_number(x) for x in v)
+        if not (integers and len(v) == 2 and 0 <= v[0] <= v[1]):
             raise _fail(where, key + ".int", "[low, high], integers with 0 <= low <= high", v)
         return Param(name, "int", (float(v[0]), float(v[1])))
     if isinstance(spec, dict) and set(spec) == {"choice"}:
@@ -215,7 +282,7 @@ def _primitive(where: str, table: dict, params: dict[str, Param], surfaces: list
     required = {"kind", "at", "size"} | ({"surface"} if default_surface is None else set())
     _check_keys(where, table, allowed, required)
     kind = table["kind"]
-    if kind not in KINDS:
+    if not isinstance(kind, str) or kind not in KINDS:
         raise _fail(where, "kind", f"one of {sorted(KINDS)}", kind)
     surface = table.get("surface", default_surface)
     if surface not in surfaces:
@@ -225,11 +292,17 @@ def _primitive(where: str, table: dict, params: dict[str, Param], surfaces: list
         spec = params.get(repeat)
         if spec is None or spec.kind not in ("int", "fixed") or spec.upper != int(spec.upper):
             raise _fail(where, "repeat", "the name of an integer parameter", repeat)
-        repeat_max, repeat_param = int(params[repeat].upper), repeat
-    elif isinstance(repeat, int) and not isinstance(repeat, bool) and repeat >= 1:
+        if not 0 <= spec.upper <= MAX_REPEAT:
+            raise RecipeError(
+                f"{where}: key 'repeat': expected a parameter with values in 0..{MAX_REPEAT}, "
+                f"got {_show(repeat)} up to {spec.upper:g}"
+            )
+        repeat_max, repeat_param = int(spec.upper), repeat
+    elif isinstance(repeat, int) and not isinstance(repeat, bool) and 1 <= repeat <= MAX_REPEAT:
         repeat_max, repeat_param = repeat, None
     else:
-        raise _fail(where, "repeat", "a positive integer or an integer parameter's name", repeat)
+        expected = f"an integer in 1..{MAX_REPEAT} or an integer parameter's name"
+        raise _fail(where, "repeat", expected, repeat)
     segments = table.get("segments", DEFAULT_SEGMENTS[kind])
     if kind == "box" and "segments" in table:
         raise _fail(where, "segments", "no segments on a box (only cylinder and arch)", segments)
@@ -283,6 +356,12 @@ def load_recipe(path: Path, surfaces: list[str], is_object: bool) -> Recipe:
         _primitive(f"{where}: primitive[{k}]", p, params, surfaces, default_surface)
         for k, p in enumerate(prims)
     )
+    triangles = sum(p.repeat_max * _triangles(p.kind, p.segments) for p in primitives)
+    if triangles > MAX_TRIANGLES:
+        raise RecipeError(
+            f"{where}: key 'primitive': expected at most {MAX_TRIANGLES} triangles "
+            f"(every primitive at its largest repeat), got {triangles}"
+        )
     return Recipe(path.stem, data["description"], where, tuple(params.values()), primitives,
                   data, _visible(where, data.get("visible", []), surfaces))  # fmt: skip
 
@@ -301,7 +380,7 @@ def _visible(where: str, visible, surfaces: list[str]) -> tuple[tuple[int, int, 
             raise _fail(where, f"{key}.surface", f"a surface of catalog.toml {surfaces[1:]}",
                         rule["surface"])  # fmt: skip
         hits = rule["min_hits"]
-        if not (isinstance(hits, int) and not isinstance(hits, bool) and hits >= 1):
+        if not (isinstance(hits, int) and _is_number(hits) and hits >= 1):
             raise _fail(where, f"{key}.min_hits", "a positive integer", hits)
         side = rule.get("side", "any")
         if side not in ("any", "left", "right"):

@@ -205,3 +205,16 @@ def test_a_suite_with_a_missing_dataset_claims_nothing(tmp_path):
     with pytest.raises(DatasetError, match="expected a dataset directory"):
         run_suite(load_suite(path), tmp_path / "out", progress=False)
     assert not (tmp_path / "out").exists()
+
+
+def test_a_cell_stopped_by_the_time_cap_is_marked_in_the_report():
+    from simlidar.bench.report import CAPPED, accuracy_by_noise, paper_numbers
+
+    def cell(seed, capped):
+        return {"source": "simlidar-generator", "noise": 0.1, "model": "cnn", "seed": seed,
+                "accuracy": 0.5, "stopped_by_time": capped}  # fmt: skip
+
+    clean = "\n".join(accuracy_by_noise([cell(0, False), cell(1, False)], paper_numbers()))
+    assert CAPPED not in clean
+    marked = "\n".join(accuracy_by_noise([cell(0, False), cell(1, True)], paper_numbers()))
+    assert f"50.00 ± 0.00 (2) {CAPPED}" in marked and "stopped on the suite's time cap" in marked

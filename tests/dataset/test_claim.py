@@ -4,6 +4,7 @@ temporaries are unique and locked, and dead runs' temporaries are cleaned, live 
 import fcntl
 import multiprocessing
 import os
+from pathlib import Path
 
 import pytest
 
@@ -167,6 +168,52 @@ def test_train_refuses_an_unwritable_out_before_training(tmp_path, datasets):
     assert result.exit_code == 1 and "cannot write there" in result.stderr
     assert "test accuracy" not in result.output  # no training happened
     nan = CliRunner().invoke(main, [*args, "--max-seconds", "nan"])
-    assert nan.exit_code == 2 and "expected a number of seconds" in nan.stderr
+    assert nan.exit_code == 2 and "'nan' is not a number in the range 0<=x" in nan.stderr
     huge = CliRunner().invoke(main, [*args, "--epochs", "99999999999999999999"])
     assert huge.exit_code == 2 and "--epochs" in huge.stderr
+
+
+def _enospc():
+    import errno
+
+    return OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+def test_a_full_disk_leaves_no_empty_preview(tmp_path, monkeypatch, datasets):
+    from click.testing import CliRunner
+    from matplotlib.figure import Figure
+
+    from simlidar.cli import main
+
+    def full(self, fname, **kwargs):
+        Path(fname).write_bytes(b"")  # what a full disk leaves: an empty file
+        raise _enospc()
+
+    monkeypatch.setattr(Figure, "savefig", full)
+    picture = tmp_path / "grid.png"
+    result = CliRunner().invoke(main, ["preview", str(datasets[0.1]), "--out", str(picture)])
+    assert result.exit_code == 1 and "grid.png: cannot write (No space left" in result.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_full_disk_leaves_no_exported_scene(tmp_path, monkeypatch):
+    import trimesh
+    from click.testing import CliRunner
+
+    from simlidar.cli import main
+
+    calls = {"n": 0}
+    original = trimesh.Trimesh.export
+
+    def export(self, file_obj=None, file_type=None, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 5:
+            Path(file_obj).write_bytes(b"")
+            raise _enospc()
+        return original(self, file_obj=file_obj, file_type=file_type, **kwargs)
+
+    monkeypatch.setattr(trimesh.Trimesh, "export", export)
+    out = tmp_path / "meshes"
+    result = CliRunner().invoke(main, ["scenes", "--export", str(out), "--format", "ply"])
+    assert result.exit_code == 1 and "cannot write (No space left on device)" in result.stderr
+    assert not out.exists()  # the four written before the failure were removed too

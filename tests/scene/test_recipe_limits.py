@@ -1,0 +1,170 @@
+"""Hostile or oversized scene recipes: refused with one RecipeError line, by the library and by
+``simlidar scenes``, before anything large is read, parsed or allocated."""
+
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from simlidar.cli import main
+from simlidar.errors import RecipeError
+from simlidar.scene import expr
+from simlidar.scene.expr import MAX_EXPRESSION_CHARS, MAX_EXPRESSION_DEPTH
+from simlidar.scene.recipe import MAX_RECIPE_BYTES, MAX_REPEAT, MAX_TRIANGLES, load_catalog
+
+TUNNEL = "layouts/tunnel.toml"
+WALL = "tunnel.toml: primitive[1]"  # the tunnel's walls: a repeated box
+WALL_HEIGHT = '"wall_height_m + 0.3"]'  # the last value of the walls' size, an expression
+
+
+def _edit(root: Path, name: str, old: str, new: str) -> Path:
+    path = root / name
+    text = path.read_text()
+    assert old in text, f"test setup: {old!r} not in {name}"
+    path.write_text(text.replace(old, new, 1))
+    return path
+
+
+def _refused(root: Path, *words: str) -> str:
+    """The catalog at ``root`` is refused with one RecipeError line holding ``words``, and
+    ``simlidar scenes`` prints that line after "Error: " and exits with code 1."""
+    with pytest.raises(RecipeError) as err:
+        load_catalog(root)
+    message = str(err.value)
+    assert "\n" not in message and len(message) < 400 + len(str(root))
+    for word in words:
+        assert word in message
+    result = CliRunner().invoke(main, ["scenes", "--scenes", str(root)])
+    assert result.exit_code == 1
+    assert result.stderr == f"Error: {message}\n"
+    assert result.stdout == "" and "Traceback" not in result.output
+    return message
+
+
+def test_a_repeat_beyond_any_array_size_is_refused(catalog_copy):
+    # was: loaded, then ValueError "Maximum allowed size exceeded" when the scenes were built
+    _edit(catalog_copy, TUNNEL, "repeat = 2", "repeat = 99999999999999999999")
+    _refused(
+        catalog_copy,
+        f"{WALL}: key 'repeat'",
+        f"an integer in 1..{MAX_REPEAT}",
+        "got 99999999999999999999",
+    )
+
+
+@pytest.mark.parametrize(
+    "name, old, new, words",
+    [
+        (TUNNEL, "repeat = 2", "repeat = 1000000", [f"1..{MAX_REPEAT}", "got 1000000"]),
+        (TUNNEL, "repeat = 2", f"repeat = {MAX_REPEAT + 1}", [f"got {MAX_REPEAT + 1}"]),
+        (
+            "layouts/lamps_both_sides.toml",
+            "n_lamps = { int = [3, 5] }",
+            "n_lamps = { int = [3, 1000000] }",
+            [
+                "lamps_both_sides.toml: primitive[2]: key 'repeat'",
+                f"a parameter with values in 0..{MAX_REPEAT}",
+                "got 'n_lamps' up to 1e+06",
+            ],
+        ),
+        (  # 256 arches of 16 triangles and the rest of the tunnel: 4132 triangles
+            TUNNEL,
+            "segments = 8",
+            f"segments = 8\nrepeat = {MAX_REPEAT}",
+            ["tunnel.toml: key 'primitive'", f"at most {MAX_TRIANGLES} triangles", "got 4132"],
+        ),
+    ],
+)
+def test_a_repeat_over_the_limit_is_refused(catalog_copy, name, old, new, words):
+    # was: loaded, then 7.6 GB in 30 s for a million copies before a MemoryError
+    _edit(catalog_copy, name, old, new)
+    _refused(catalog_copy, *words)
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("1+" * 29_999 + "1", [f"at most {MAX_EXPRESSION_CHARS} characters", "59999 characters"]),
+        ("-" * 60_000 + "1", [f"at most {MAX_EXPRESSION_CHARS} characters", "60001 characters"]),
+        ("-" * (MAX_EXPRESSION_DEPTH + 1) + "1", [f"nested at most {MAX_EXPRESSION_DEPTH} deep"]),
+        (
+            "(" * (MAX_EXPRESSION_DEPTH + 1) + "1" + ")" * (MAX_EXPRESSION_DEPTH + 1),
+            [f"got {MAX_EXPRESSION_DEPTH + 1} deep"],
+        ),
+    ],
+)
+def test_a_long_or_deep_expression_is_refused_before_parsing(catalog_copy, text, words):
+    # was: RecursionError or MemoryError inside Python's parser (or later, in compile)
+    _edit(catalog_copy, TUNNEL, WALL_HEIGHT, f'"{text}"]')
+    _refused(catalog_copy, f"{WALL}: key 'size[2]'", *words)
+
+
+def test_the_expression_limits_hold_at_any_size_and_are_not_too_tight():
+    # was: RecursionError and MemoryError inside Python's parser
+    for text in ("+".join(["1"] * 100_000), "-" * 200_000 + "1"):
+        with pytest.raises(expr.ExpressionError, match=f"at most {MAX_EXPRESSION_CHARS} char"):
+            expr.parse(text)
+    pairs = MAX_EXPRESSION_DEPTH // 2 + 1  # "-(" nests 2 deep
+    with pytest.raises(expr.ExpressionError, match=f"got {2 * pairs} deep"):
+        expr.parse("-(" * pairs + "1" + ")" * pairs)
+    # the deepest syntax trees within the limits still compile and evaluate
+    for fits in (
+        "-" * MAX_EXPRESSION_DEPTH + "1",
+        "1+" * (MAX_EXPRESSION_CHARS // 2 - 1) + "1",
+        "2**" * (MAX_EXPRESSION_CHARS // 3 - 1) + "1",
+    ):
+        assert len(fits) <= MAX_EXPRESSION_CHARS
+        assert float(expr.evaluate(expr.compile_tree(expr.parse(fits)), {})) > 0
+
+
+def test_a_binary_recipe_is_refused(catalog_copy):
+    # was: UnicodeDecodeError
+    (catalog_copy / TUNNEL).write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(range(256)) * 4)
+    _refused(catalog_copy, "tunnel.toml: expected UTF-8 text, got byte 0x89 at offset 0")
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero")
+def test_a_recipe_linked_to_an_endless_device_is_refused(catalog_copy):
+    # was: MemoryError after reading /dev/zero into memory
+    (catalog_copy / TUNNEL).unlink()
+    (catalog_copy / TUNNEL).symlink_to("/dev/zero")
+    _refused(
+        catalog_copy, "tunnel.toml: expected a regular file, got a character device", "(/dev/zero)"
+    )
+
+
+def test_an_oversized_recipe_file_is_refused(catalog_copy):
+    # was: read and parsed whatever its size
+    path = _edit(catalog_copy, TUNNEL, 'description = "', 'description = "' + "x" * 70_000)
+    _refused(
+        catalog_copy,
+        f"tunnel.toml: expected a file of at most {MAX_RECIPE_BYTES} bytes",
+        f"got {path.stat().st_size} bytes",
+    )
+
+
+HUGE = "0x" + "f" * 300  # a TOML integer of 1200 bits: too large for a float
+
+
+@pytest.mark.parametrize(
+    "old, new, words",
+    [
+        # was: TypeError from numpy
+        ("rise_m = [1.5, 3.0]", f"rise_m = {HUGE}", ["key 'params.rise_m'", "(362 characters)"]),
+        # was: OverflowError
+        ("rise_m = [1.5, 3.0]", f"rise_m = {{ int = [0, {HUGE}] }}", ["'params.rise_m.int'"]),
+        # was: loaded, then ValueError when the catalog's fingerprint was computed
+        ("min_hits = 3", "min_hits = 0x" + "f" * 4000, ["'visible.min_hits'", "too large"]),
+        # was: ValueError (integer string conversion)
+        ("rise_m = [1.5, 3.0]", "rise_m = " + "9" * 5000, ["not valid TOML", "4300 digits"]),
+        # was: RecursionError in tomllib
+        ("rise_m = [1.5, 3.0]", "rise_m = " + "[" * 5000 + "]" * 5000, ["nested too deeply"]),
+        # was: RecursionError printing the value
+        ("at = [65.0, 0.0, -0.3]", "at" + ".a" * 5000 + " = 1", ["key 'at'", "too deeply"]),
+        # was: TypeError (unhashable type)
+        ('kind = "arch"', 'kind = ["arch"]', ["primitive[2]: key 'kind'", "got ['arch']"]),
+    ],
+)
+def test_hostile_values_are_refused(catalog_copy, old, new, words):
+    _edit(catalog_copy, TUNNEL, old, new)
+    _refused(catalog_copy, "tunnel.toml", *words)
