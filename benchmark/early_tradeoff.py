@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from paper_table import ROOT, datasets, run_cells  # noqa: E402
+from paper_table import ROOT, datasets, done, run_cells  # noqa: E402
 
 
 def main(argv=None) -> int:
@@ -48,7 +48,8 @@ def main(argv=None) -> int:
 
     todo = [("snn_simlidar_tuned", str(dataset), seed, str(cell_path(p, seed)),
              {"early_penalty": p}, args.epochs)
-            for p in penalties for seed in seeds if not cell_path(p, seed).is_file()]  # fmt: skip
+            for p in penalties for seed in seeds
+            if not done(cell_path(p, seed), "snn_simlidar_tuned", args.epochs)]  # fmt: skip
     run_cells(todo, args.jobs)
 
     rows = []

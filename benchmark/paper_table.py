@@ -16,7 +16,9 @@ What it does, with one command:
    over every test sample of every seed), and writes ``table.md``, ``table.json`` and
    ``input_spikes.png`` to ``--out``.
 
-Test accuracy is that of the last epoch (no selection on the test split).
+Every cell trains for its recipe's epochs, without the recipe's time cap (``max_seconds``), so
+that no figure depends on how loaded the machine was. Test accuracy is that of the last epoch
+(no selection on the test split).
 """
 
 import argparse
@@ -49,7 +51,9 @@ def _cell(recipe_name: str, dataset: str, seed: int, path: str, training: dict |
 
     recipe = load_recipe(recipe_name)
     recipe["training"].update(training or {})
-    result = train(recipe, dataset, seed=seed, epochs=epochs, progress=False)
+    # epochs decide, never the recipe's time cap: a figure must not depend on machine load
+    result = train(recipe, dataset, seed=seed, epochs=epochs, max_seconds=float("inf"),
+                   progress=False)  # fmt: skip
     early = early_decisions(result.model, dataset, per_sample=True)
     record = {
         "recipe": recipe_name, "dataset": Path(dataset).name, "seed": seed,
@@ -63,6 +67,17 @@ def _cell(recipe_name: str, dataset: str, seed: int, path: str, training: dict |
     tmp.write_text(json.dumps(record))
     tmp.replace(path)
     return path
+
+
+def done(path: Path, recipe: str, epochs: int | None = None) -> bool:
+    """Is the cell at ``path`` finished: there, and trained for all its epochs (a cell of an
+    older run that stopped on a time cap is trained again)?"""
+    if not path.is_file():
+        return False
+    from simlidar.models.registry import load_recipe
+
+    wanted = epochs or load_recipe(recipe)["training"]["epochs"]
+    return json.loads(path.read_text())["epochs"] >= wanted
 
 
 def run_cells(todo: list[tuple], jobs: int) -> None:
@@ -177,6 +192,9 @@ def main(argv=None) -> int:
     parser.add_argument("--data", type=Path, default=ROOT / "data")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmark/results/paper-table")
     parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
+    parser.add_argument(
+        "--epochs", default="", help="RECIPE=N,...: train these recipes for N epochs, not their own"
+    )
     args = parser.parse_args(argv)
     recipes = [r for r in args.recipes.split(",") if r]
     seeds = [int(s) for s in args.seeds.split(",") if s]
@@ -185,22 +203,27 @@ def main(argv=None) -> int:
 
     paths = datasets(args.data)
     cells_dir = args.out / "cells"
+    epochs = {k: int(v) for k, v in (p.split("=") for p in args.epochs.split(",") if p)}
+    tags = {r: f"-e{epochs[r]}" if r in epochs else "" for r in recipes}
     cells_dir.mkdir(parents=True, exist_ok=True)
     todo = []
     for recipe in recipes:
         for level in LEVELS:
             for seed in seeds:
-                cell = cells_dir / f"{paths[level].name}__{recipe}__seed{seed}.json"
-                if not cell.is_file():
-                    todo.append((recipe, str(paths[level]), seed, str(cell)))
+                cell = cells_dir / f"{paths[level].name}__{recipe}{tags[recipe]}__seed{seed}.json"
+                if not done(cell, recipe, epochs.get(recipe)):
+                    todo.append((recipe, str(paths[level]), seed, str(cell), None,
+                                 epochs.get(recipe)))  # fmt: skip
     start = time.perf_counter()
     run_cells(todo, args.jobs)
     cells = []  # every finished cell of these recipes, also seeds of earlier runs
     for recipe in recipes:
         for level in LEVELS:
-            for cell in sorted(cells_dir.glob(f"{paths[level].name}__{recipe}__seed*.json")):
+            name = f"{recipe}{tags[recipe]}"
+            for cell in sorted(cells_dir.glob(f"{paths[level].name}__{name}__seed*.json")):
                 record = json.loads(cell.read_text())
                 record["noise"] = level
+                record["recipe"] = name
                 cells.append(record)
     table = summarise(cells, paper)
     command = "python benchmark/paper_table.py" + "".join(

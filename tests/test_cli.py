@@ -277,3 +277,15 @@ def test_release_commands_fail_in_one_line(run, tmp_path, monkeypatch, args, cod
     assert list(tmp_path.iterdir()) in ([], [tmp_path / "data"])
     if (tmp_path / "data").exists():
         assert list((tmp_path / "data").iterdir()) == []  # nothing half written
+
+
+def test_a_usage_error_is_one_line(run):
+    for args in (["generate", "--noise", "2"], ["generate", "--nope"], ["bogus"]):
+        result = run(*args)
+        assert result.exit_code == 2
+        assert result.stderr.startswith("Error: ") and len(result.stderr.splitlines()) == 1, (
+            result.stderr
+        )
+    assert run("--version").exit_code == 0
+    bare = run()  # no command: click's help, as before
+    assert bare.exit_code == 2 and "Commands:" in bare.output
