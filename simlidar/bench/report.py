@@ -220,7 +220,7 @@ def plot_confusions(cells: list[dict], path: Path) -> bool:
         ax.tick_params(labelsize=5)
     fig.suptitle(f"Confusion matrices on {first} (rows normalised, all seeds)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, metadata={"Software": None})
+    fig.savefig(path, metadata={"Software": None}, bbox_inches="tight")  # keeps axis labels
     plt.close(fig)
     return True
 
@@ -274,8 +274,9 @@ def write_report(results: dict, out: Path) -> Path:
         "latency, needs the suite's `board_power_w`"
         + (" (set)." if any(c.get("energy_pj_board") for c in cells) else
            ": not set, as this machine's power draw is not known (column left out)."),
-        "* latency: batch 1, median of up to 30 runs on this CPU; samples/s: one batch of up to "
-        "512.",
+        "* latency: batch 1, median of up to 30 runs after 3 warm-up runs on this CPU; "
+        "samples/s: one batch of up to 512. Indicative only: both depend on what else the "
+        "machine was doing (a benchmark script, not a training suite, measures speed).",
         "* params, footprint (bytes of parameters and buffers), connection and activation "
         "sparsity, synaptic operations: NeuroBench names, in `results.json`.", "",
     ]  # fmt: skip
