@@ -46,10 +46,19 @@ def main(argv=None) -> int:
         epochs = f"-e{args.epochs}" if args.epochs else ""
         return cells / f"{dataset.name}__early{penalty!r}{epochs}__seed{seed}.json"
 
-    todo = [("snn_simlidar_tuned", str(dataset), seed, str(cell_path(p, seed)),
-             {"early_penalty": p}, args.epochs)
-            for p in penalties for seed in seeds
-            if not done(cell_path(p, seed), "snn_simlidar_tuned", args.epochs)]  # fmt: skip
+    todo = [
+        (
+            "snn_simlidar_tuned",
+            str(dataset),
+            seed,
+            str(cell_path(p, seed)),
+            {"early_penalty": p},
+            args.epochs,
+        )
+        for p in penalties
+        for seed in seeds
+        if not done(cell_path(p, seed), "snn_simlidar_tuned", args.epochs)
+    ]
     run_cells(todo, args.jobs)
 
     rows = []
@@ -57,27 +66,40 @@ def main(argv=None) -> int:
         found = [json.loads(cell_path(penalty, s).read_text()) for s in seeds]
         spikes = np.concatenate([c["input_spikes"] for c in found])
         acc = np.array([100 * c["test_accuracy"] for c in found])
-        rows.append({
-            "early_penalty": penalty, "seeds": seeds, "accuracy": float(acc.mean()),
-            "accuracy_std": float(acc.std(ddof=1)) if len(acc) > 1 else None,
-            "median": float(np.median(spikes)), "p10": float(np.percentile(spikes, 10)),
-            "p90": float(np.percentile(spikes, 90)), "max": int(spikes.max()),
-            "data_ratio": float(np.mean([c["early"]["data_ratio_mean"] for c in found])),
-            "no_decision": int(sum(c["early"]["no_decision"] for c in found)),
-            "epochs": sorted({c["epochs"] for c in found}),
-        })  # fmt: skip
+        rows.append(
+            {
+                "early_penalty": penalty,
+                "seeds": seeds,
+                "accuracy": float(acc.mean()),
+                "accuracy_std": float(acc.std(ddof=1)) if len(acc) > 1 else None,
+                "median": float(np.median(spikes)),
+                "p10": float(np.percentile(spikes, 10)),
+                "p90": float(np.percentile(spikes, 90)),
+                "max": int(spikes.max()),
+                "data_ratio": float(np.mean([c["early"]["data_ratio_mean"] for c in found])),
+                "no_decision": int(sum(c["early"]["no_decision"] for c in found)),
+                "epochs": sorted({c["epochs"] for c in found}),
+            }
+        )
     command = "python benchmark/early_tradeoff.py" + "".join(
-        f" {a}" for a in (argv if argv is not None else sys.argv[1:]))  # fmt: skip
-    lines = [f"Made by `{command}` on `{dataset.name}`. Accuracy on the 600 test samples "
-             "(event-driven: the first output spike decides); input spikes consumed before the "
-             "decision, of 256. Target: >= 97 % with a median below 64 (R_data <= 0.25).", "",
-             "| early_penalty | accuracy | input spikes: median (p10 / p90, max) | R_data | "
-             "undecided | epochs |", "| --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+        f" {a}" for a in (argv if argv is not None else sys.argv[1:])
+    )
+    lines = [
+        f"Made by `{command}` on `{dataset.name}`. Accuracy on the 600 test samples "
+        "(event-driven: the first output spike decides); input spikes consumed before the "
+        "decision, of 256. Target: >= 97 % with a median below 64 (R_data <= 0.25).",
+        "",
+        "| early_penalty | accuracy | input spikes: median (p10 / p90, max) | R_data | "
+        "undecided | epochs |",
+        "| --- | --- | --- | --- | --- | --- |",
+    ]
     for r in rows:
         std = f" ± {r['accuracy_std']:.2f}" if r["accuracy_std"] is not None else ""
-        lines.append(f"| {r['early_penalty']:g} | {r['accuracy']:.2f}{std} | {r['median']:.0f} "
-                     f"({r['p10']:.0f} / {r['p90']:.0f}, {r['max']}) | {r['data_ratio']:.3f} | "
-                     f"{r['no_decision']} | {'/'.join(map(str, r['epochs']))} |")  # fmt: skip
+        lines.append(
+            f"| {r['early_penalty']:g} | {r['accuracy']:.2f}{std} | {r['median']:.0f} "
+            f"({r['p10']:.0f} / {r['p90']:.0f}, {r['max']}) | {r['data_ratio']:.3f} | "
+            f"{r['no_decision']} | {'/'.join(map(str, r['epochs']))} |"
+        )
     text = "\n".join(lines) + "\n"
     (args.out / "tradeoff.md").write_text(text)
     (args.out / "tradeoff.json").write_text(json.dumps(rows, indent=1))
@@ -90,14 +112,22 @@ def main(argv=None) -> int:
     fig, ax = plt.subplots(figsize=(5.5, 4))
     ax.plot([r["median"] for r in rows], [r["accuracy"] for r in rows], "o-")
     for r in rows:
-        ax.annotate(f"{r['early_penalty']:g}", (r["median"], r["accuracy"]), fontsize=8,
-                    xytext=(4, 4), textcoords="offset points")  # fmt: skip
+        ax.annotate(
+            f"{r['early_penalty']:g}",
+            (r["median"], r["accuracy"]),
+            fontsize=8,
+            xytext=(4, 4),
+            textcoords="offset points",
+        )
     ax.axhline(97, color="tab:green", linestyle=":", label="target: >= 97 %")
     ax.axvline(64, color="tab:green", linestyle="--", label="target: median < 64")
     ax.axvspan(13, 16, color="tab:orange", alpha=0.3, label="paper: as few as 13-16")
-    ax.set(xlabel="median input spikes consumed before the decision (of 256)",
-           ylabel="test accuracy (%)", xlim=(0, 260),
-           title=f"early_penalty trade-off, noise {args.noise}")  # fmt: skip
+    ax.set(
+        xlabel="median input spikes consumed before the decision (of 256)",
+        ylabel="test accuracy (%)",
+        xlim=(0, 260),
+        title=f"early_penalty trade-off, noise {args.noise}",
+    )
     ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     fig.savefig(args.out / "tradeoff.png", dpi=110)

@@ -131,8 +131,14 @@ def per_sample_cast_backend(catalog, layout, obj, layout_uniforms, object_unifor
 
 def run_one_at_a_time(config, catalog, count, out: Path, backend):
     """Train samples 0..count-1, one scene at a time, written with the same HDF5 writer."""
-    writer = SplitWriter(out / "train.h5", count, config.width, config.noise,
-                         split_attrs(config, catalog, "train"), config.pulse_rule)  # fmt: skip
+    writer = SplitWriter(
+        out / "train.h5",
+        count,
+        config.width,
+        config.noise,
+        split_attrs(config, catalog, "train"),
+        config.pulse_rule,
+    )
     blocks = []
     for i in range(count):
         samples = simulate(config, catalog, "train", i, i + 1, backend=backend)

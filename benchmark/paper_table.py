@@ -36,8 +36,14 @@ ROOT = Path(__file__).resolve().parents[1]
 LEVELS = (0.1, 0.2, 0.33, 0.5)
 
 
-def _cell(recipe_name: str, dataset: str, seed: int, path: str, training: dict | None = None,
-          epochs: int | None = None) -> str:  # fmt: skip
+def _cell(
+    recipe_name: str,
+    dataset: str,
+    seed: int,
+    path: str,
+    training: dict | None = None,
+    epochs: int | None = None,
+) -> str:
     """Train one cell in a worker process; write its JSON atomically; return the path.
 
     training : [training] keys to set on top of the recipe's (benchmark/early_tradeoff.py)
@@ -52,17 +58,22 @@ def _cell(recipe_name: str, dataset: str, seed: int, path: str, training: dict |
     recipe = load_recipe(recipe_name)
     recipe["training"].update(training or {})
     # epochs decide, never the recipe's time cap: a figure must not depend on machine load
-    result = train(recipe, dataset, seed=seed, epochs=epochs, max_seconds=float("inf"),
-                   progress=False)  # fmt: skip
+    result = train(
+        recipe, dataset, seed=seed, epochs=epochs, max_seconds=float("inf"), progress=False
+    )
     early = early_decisions(result.model, dataset, per_sample=True)
     record = {
-        "recipe": recipe_name, "dataset": Path(dataset).name, "seed": seed,
+        "recipe": recipe_name,
+        "dataset": Path(dataset).name,
+        "seed": seed,
         "training": training or {},
-        "test_accuracy": result.test_accuracy, "epochs": result.epochs,
-        "seconds": result.seconds, "history": result.history,
+        "test_accuracy": result.test_accuracy,
+        "epochs": result.epochs,
+        "seconds": result.seconds,
+        "history": result.history,
         "early": {k: v for k, v in early.items() if k != "per_sample"},
         "input_spikes": early["per_sample"]["input_spikes"],
-    }  # fmt: skip
+    }
     tmp = Path(path).with_suffix(".partial")
     tmp.write_text(json.dumps(record))
     tmp.replace(path)
@@ -118,35 +129,50 @@ def summarise(cells: list[dict], paper: list[float]) -> dict:
                 continue
             acc = np.array([100 * c["test_accuracy"] for c in mine])
             spikes = np.concatenate([c["input_spikes"] for c in mine])
-            rows.append({
-                "noise": level, "paper": reported, "seeds": sorted(c["seed"] for c in mine),
-                "accuracy": [round(a, 2) for a in acc], "mean": round(float(acc.mean()), 2),
-                "std": round(float(acc.std(ddof=1)), 2) if len(acc) > 1 else None,
-                "difference": round(float(acc.mean()) - reported, 2),
-                "epochs": [c["epochs"] for c in mine],
-                "minutes": round(float(np.mean([c["seconds"] for c in mine])) / 60, 1),
-                "input_spikes": {"p10": float(np.percentile(spikes, 10)),
-                                 "median": float(np.median(spikes)),
-                                 "p90": float(np.percentile(spikes, 90)),
-                                 "max": int(spikes.max()), "mean": float(spikes.mean()),
-                                 "total": float(np.mean([c["early"]["input_spikes_total_mean"]
-                                                         for c in mine]))},
-                "no_decision": int(sum(c["early"]["no_decision"] for c in mine)),
-            })  # fmt: skip
+            rows.append(
+                {
+                    "noise": level,
+                    "paper": reported,
+                    "seeds": sorted(c["seed"] for c in mine),
+                    "accuracy": [round(a, 2) for a in acc],
+                    "mean": round(float(acc.mean()), 2),
+                    "std": round(float(acc.std(ddof=1)), 2) if len(acc) > 1 else None,
+                    "difference": round(float(acc.mean()) - reported, 2),
+                    "epochs": [c["epochs"] for c in mine],
+                    "minutes": round(float(np.mean([c["seconds"] for c in mine])) / 60, 1),
+                    "input_spikes": {
+                        "p10": float(np.percentile(spikes, 10)),
+                        "median": float(np.median(spikes)),
+                        "p90": float(np.percentile(spikes, 90)),
+                        "max": int(spikes.max()),
+                        "mean": float(spikes.mean()),
+                        "total": float(
+                            np.mean([c["early"]["input_spikes_total_mean"] for c in mine])
+                        ),
+                    },
+                    "no_decision": int(sum(c["early"]["no_decision"] for c in mine)),
+                }
+            )
         table[recipe] = rows
     return table
 
 
 def markdown(table: dict, command: str) -> str:
-    lines = [f"Made by `{command}`. Accuracy in percent on the 600 test samples, mean and sample "
-             "standard deviation over training seeds (last epoch); input spikes consumed before "
-             "the decision over every test sample of every seed (the paper: as few as 13-16, "
-             "never more than 180 of 256).", ""]  # fmt: skip
+    lines = [
+        f"Made by `{command}`. Accuracy in percent on the 600 test samples, mean and sample "
+        "standard deviation over training seeds (last epoch); input spikes consumed before "
+        "the decision over every test sample of every seed (the paper: as few as 13-16, "
+        "never more than 180 of 256).",
+        "",
+    ]
     for recipe, rows in table.items():
-        lines += [f"### `{recipe}`", "",
-                  "| noise | paper | ours | difference | seeds | input spikes: median (p10 / "
-                  "p90, max) of total | epochs | minutes / run |",
-                  "| --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+        lines += [
+            f"### `{recipe}`",
+            "",
+            "| noise | paper | ours | difference | seeds | input spikes: median (p10 / "
+            "p90, max) of total | epochs | minutes / run |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- |",
+        ]
         for r in rows:
             std = f" ± {r['std']:.2f}" if r["std"] is not None else ""
             s = r["input_spikes"]
@@ -171,14 +197,22 @@ def plot(table: dict, cells: list[dict], path: Path) -> None:
     bins = np.arange(0, 258, 8)
     for ax, recipe in zip(axes[0], recipes):
         for level in LEVELS:
-            spikes = [s for c in cells if c["recipe"] == recipe and c["noise"] == level
-                      for s in c["input_spikes"]]  # fmt: skip
+            spikes = [
+                s
+                for c in cells
+                if c["recipe"] == recipe and c["noise"] == level
+                for s in c["input_spikes"]
+            ]
             if spikes:
                 ax.hist(spikes, bins=bins, histtype="step", linewidth=1.5, label=f"noise {level}")
         ax.axvspan(13, 16, color="tab:green", alpha=0.3, label="paper: as few as 13-16")
         ax.axvline(180, color="tab:red", linestyle="--", label="paper: never more than 180")
-        ax.set(title=recipe, xlabel="input spikes consumed before the decision (of 256)",
-               ylabel="test samples (all seeds)", xlim=(0, 256))  # fmt: skip
+        ax.set(
+            title=recipe,
+            xlabel="input spikes consumed before the decision (of 256)",
+            ylabel="test samples (all seeds)",
+            xlim=(0, 256),
+        )
         ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -214,8 +248,9 @@ def main(argv=None) -> int:
             for seed in seeds:
                 cell = cells_dir / f"{paths[level].name}__{recipe}{tags[recipe]}__seed{seed}.json"
                 if not done(cell, recipe, epochs.get(recipe)):
-                    todo.append((recipe, str(paths[level]), seed, str(cell), None,
-                                 epochs.get(recipe)))  # fmt: skip
+                    todo.append(
+                        (recipe, str(paths[level]), seed, str(cell), None, epochs.get(recipe))
+                    )
     start = time.perf_counter()
     run_cells(todo, args.jobs)
     cells = []  # every finished cell of these recipes, also seeds of earlier runs
@@ -229,14 +264,17 @@ def main(argv=None) -> int:
                 cells.append(record)
     table = summarise(cells, paper)
     command = "python benchmark/paper_table.py" + "".join(
-        f" {a}" for a in (argv if argv is not None else sys.argv[1:]))  # fmt: skip
+        f" {a}" for a in (argv if argv is not None else sys.argv[1:])
+    )
     text = markdown(table, command)
     (args.out / "table.md").write_text(text)
     (args.out / "table.json").write_text(json.dumps(table, indent=1))
     plot(table, cells, args.out / "input_spikes.png")
     print(text)
-    print(f"{len(todo)} cells trained in {time.perf_counter() - start:.0f} s; wrote "
-          f"{args.out / 'table.md'}")  # fmt: skip
+    print(
+        f"{len(todo)} cells trained in {time.perf_counter() - start:.0f} s; wrote "
+        f"{args.out / 'table.md'}"
+    )
     return 0
 
 

@@ -195,8 +195,22 @@ def main(ctx: click.Context, debug: bool) -> None:
 )
 @click.option("--force", is_flag=True, help="Overwrite existing datasets.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-def generate(classes, noise, train_size, test_size, seed, profile, shift, variation, out, width,
-             scenes, batch_size, force, as_json):  # fmt: skip
+def generate(
+    classes,
+    noise,
+    train_size,
+    test_size,
+    seed,
+    profile,
+    shift,
+    variation,
+    out,
+    width,
+    scenes,
+    batch_size,
+    force,
+    as_json,
+):
     """Generate Sim LiDAR datasets: per noise level, train/test splits (HDF5), a preview
     picture, the dataset card, Croissant metadata and checksums.
 
@@ -212,20 +226,30 @@ def generate(classes, noise, train_size, test_size, seed, profile, shift, variat
         chosen = load_profile(profile if profile is not None else DEFAULT_PROFILE)
     except ConfigError as exc:
         raise click.BadParameter(str(exc), param_hint="'--profile'") from None
-    for option, value, own in (("--variation", variation, chosen.variation),
-                               ("--shift", shift, chosen.shift)):  # fmt: skip
+    for option, value, own in (
+        ("--variation", variation, chosen.variation),
+        ("--shift", shift, chosen.shift),
+    ):
         if value is not None and value != own:
-            click.echo(f"Note: {option} {value!r} overrides profile {chosen.name}'s {own!r}",
-                       err=True)  # fmt: skip
+            click.echo(
+                f"Note: {option} {value!r} overrides profile {chosen.name}'s {own!r}", err=True
+            )
     catalog = _load_catalog(scenes)
     try:
         class_plan(catalog, classes)
     except ConfigError as exc:
         raise click.BadParameter(str(exc), param_hint="'--classes'") from None
     config = GeneratorConfig.from_profile(
-        chosen, variation=variation, shift_max=shift, classes=classes, noise=noise[0],
-        train_size=train_size, test_size=test_size, seed=seed, width=width,
-    )  # fmt: skip
+        chosen,
+        variation=variation,
+        shift_max=shift,
+        classes=classes,
+        noise=noise[0],
+        train_size=train_size,
+        test_size=test_size,
+        seed=seed,
+        width=width,
+    )
     start = time.perf_counter()
     written = run(config, noise, catalog, out, batch_size=batch_size, force=force)
     seconds = time.perf_counter() - start
@@ -258,9 +282,11 @@ def profiles(as_json):
     for p in shipped:
         default = " (default)" if p["name"] == DEFAULT_PROFILE else ""
         click.echo(f"{p['name']}{default}: {p['description']}")
-        click.echo(f"  variation {p['variation']!r}, shift {p['shift']!r}, missing return "
-                   f"{p['missing_delay']!r}, noise on {p['noise_on']}, input spikes: "
-                   f"{p['spikes']}")  # fmt: skip
+        click.echo(
+            f"  variation {p['variation']!r}, shift {p['shift']!r}, missing return "
+            f"{p['missing_delay']!r}, noise on {p['noise_on']}, input spikes: "
+            f"{p['spikes']}"
+        )
 
 
 @main.command()

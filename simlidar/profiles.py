@@ -45,8 +45,11 @@ class Profile:
     @property
     def pulse_rule(self) -> dict:
         """The three values that decide the pixels (beyond the scenes and the noise level)."""
-        return {"missing_delay": self.missing_delay, "noise_on": self.noise_on,
-                "spikes": self.spikes}  # fmt: skip
+        return {
+            "missing_delay": self.missing_delay,
+            "noise_on": self.noise_on,
+            "spikes": self.spikes,
+        }
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -78,18 +81,23 @@ def load_profile(name_or_path: str | Path) -> Profile:
     if not text.endswith(".toml") and "/" not in text:
         path = content_dir("profiles") / f"{text}.toml"
         if not path.is_file():
-            raise ConfigError(f"profile {text!r}: expected one of {profile_names()} or a "
-                              ".toml file")  # fmt: skip
+            raise ConfigError(
+                f"profile {text!r}: expected one of {profile_names()} or a .toml file"
+            )
     where = f"profile {path}"
     if not _NAME.match(path.stem):
-        raise ConfigError(f"{where}: file name {path.stem!r}: expected lower-case letters, "
-                          "digits, '_', '-' or '.' (it becomes part of dataset names)")  # fmt: skip
+        raise ConfigError(
+            f"{where}: file name {path.stem!r}: expected lower-case letters, "
+            "digits, '_', '-' or '.' (it becomes part of dataset names)"
+        )
     try:
         if not path.is_file():
             raise ConfigError(f"{where}: file not found")
         if path.stat().st_size > MAX_PROFILE_BYTES:
-            raise ConfigError(f"{where}: {path.stat().st_size} bytes: expected a profile of at "
-                              f"most {MAX_PROFILE_BYTES} bytes")  # fmt: skip
+            raise ConfigError(
+                f"{where}: {path.stat().st_size} bytes: expected a profile of at "
+                f"most {MAX_PROFILE_BYTES} bytes"
+            )
         data = tomllib.loads(path.read_bytes()[:MAX_PROFILE_BYTES].decode("utf-8"))
     except UnicodeDecodeError:
         raise ConfigError(f"{where}: expected a UTF-8 TOML text file") from None
@@ -109,17 +117,29 @@ def load_profile(name_or_path: str | Path) -> Profile:
     if not (_number(data["shift"]) and 0.0 <= data["shift"] < 1.0):
         raise _fail(where, "shift", "a value in [0, 1)", data["shift"])
     if not (_number(data["missing_delay"]) and data["missing_delay"] in MISSING):
-        raise _fail(where, "missing_delay", "0.0 (start of the window) or 1.0 (its end)",
-                    data["missing_delay"])  # fmt: skip
+        raise _fail(
+            where,
+            "missing_delay",
+            "0.0 (start of the window) or 1.0 (its end)",
+            data["missing_delay"],
+        )
     for key in ("noise_on", "spikes"):
         if data[key] not in WHERE:
             raise _fail(where, key, f"one of {list(WHERE)}", data[key])
     if data["spikes"] == "returns" and data["missing_delay"] != 1.0:
-        raise _fail(where, "spikes", "'all' when missing_delay is 0.0 ('returns' reads pixels "
-                    "below 1.0 as spikes, so a missing return at 0.0 would fire first)",
-                    data["spikes"])  # fmt: skip
+        raise _fail(
+            where,
+            "spikes",
+            "'all' when missing_delay is 0.0 ('returns' reads pixels "
+            "below 1.0 as spikes, so a missing return at 0.0 would fire first)",
+            data["spikes"],
+        )
     return Profile(
-        name=path.stem, description=data["description"], variation=float(data["variation"]),
-        shift=float(data["shift"]), missing_delay=float(data["missing_delay"]),
-        noise_on=data["noise_on"], spikes=data["spikes"],
-    )  # fmt: skip
+        name=path.stem,
+        description=data["description"],
+        variation=float(data["variation"]),
+        shift=float(data["shift"]),
+        missing_delay=float(data["missing_delay"]),
+        noise_on=data["noise_on"],
+        spikes=data["spikes"],
+    )

@@ -55,8 +55,9 @@ def add_noise(delay: np.ndarray, level: float, u: np.ndarray) -> np.ndarray:
     return np.minimum(noisy, np.float32(NO_RETURN)).astype(np.float32)
 
 
-def profile_pulses(clean: np.ndarray, level: float, u: np.ndarray, missing_delay: float,
-                   noise_on: str) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def profile_pulses(
+    clean: np.ndarray, level: float, u: np.ndarray, missing_delay: float, noise_on: str
+) -> tuple[np.ndarray, np.ndarray]:
     """Clean delays (missing return = 1.0) -> (clean, noisy) delays under a profile's rule.
 
     clean : (..., 16, W) float32, returns in (0, 1), missing returns at NO_RETURN
@@ -66,13 +67,17 @@ def profile_pulses(clean: np.ndarray, level: float, u: np.ndarray, missing_delay
         ``U(0, level)`` noise added where ``noise_on`` says, clipped at 1.0. For the physical
         rule (1.0, "returns") the noisy delays are exactly :func:`add_noise`'s.
     """
-    written = clean if missing_delay == NO_RETURN else np.where(
-        clean < NO_RETURN, clean, np.float32(missing_delay)).astype(np.float32)  # fmt: skip
+    written = (
+        clean
+        if missing_delay == NO_RETURN
+        else np.where(clean < NO_RETURN, clean, np.float32(missing_delay)).astype(np.float32)
+    )
     return written, noisy_delays(written, level, u, missing_delay, noise_on)
 
 
-def noisy_delays(clean: np.ndarray, level: float, u: np.ndarray, missing_delay: float,
-                 noise_on: str) -> np.ndarray:  # fmt: skip
+def noisy_delays(
+    clean: np.ndarray, level: float, u: np.ndarray, missing_delay: float, noise_on: str
+) -> np.ndarray:
     """A profile's clean delays (missing at ``missing_delay``) plus ``level * u`` where
     ``noise_on`` says, clipped at 1.0. Returns lie strictly inside (0, 1), so a pixel equal to
     ``missing_delay`` (0.0 or 1.0) is a missing return. Also used to draw fresh noise in

@@ -48,8 +48,9 @@ def _label(value):
 
 def _short_class_names(d):
     with h5py.File(d / "train.h5", "a") as f:
-        f.attrs["class_names"] = np.array(list(f.attrs["class_names"])[:30],
-                                          dtype=h5py.string_dtype())  # fmt: skip
+        f.attrs["class_names"] = np.array(
+            list(f.attrs["class_names"])[:30], dtype=h5py.string_dtype()
+        )
 
 
 def _float64_delays(d):
@@ -82,14 +83,27 @@ def test_train_and_bench_refuse_a_broken_dataset_before_training(case, datasets,
     shutil.copytree(datasets[0.1], broken)
     corrupt(broken)
     runner = CliRunner()
-    result = runner.invoke(main, ["train", "--model", "mlp", "--dataset", str(broken),
-                                  "--out", str(tmp_path / "runs")])  # fmt: skip
+    result = runner.invoke(
+        main, ["train", "--model", "mlp", "--dataset", str(broken), "--out", str(tmp_path / "runs")]
+    )
     assert result.exit_code == 1, result.output
     assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
     assert "expected a dataset that simlidar verify accepts" in result.stderr
     assert not (tmp_path / "runs").exists()  # refused before anything was trained or written
-    bench = runner.invoke(main, ["bench", "--suite", "quick", "--models", "mlp", "--dataset",
-                                 str(broken), "--out", str(tmp_path / "bench")])  # fmt: skip
+    bench = runner.invoke(
+        main,
+        [
+            "bench",
+            "--suite",
+            "quick",
+            "--models",
+            "mlp",
+            "--dataset",
+            str(broken),
+            "--out",
+            str(tmp_path / "bench"),
+        ],
+    )
     assert bench.exit_code == 1 and message in bench.stderr
     assert not (tmp_path / "bench").exists()
 

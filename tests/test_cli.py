@@ -193,8 +193,20 @@ def test_variation_narrows_the_scenes_and_names_the_dataset(run, tmp_path):
 
     spread = {}
     for variation in ("1", "0.1"):
-        result = run("generate", "--profile", "physical", "--train-size", "128", "--test-size",
-                     "32", "--variation", variation, "--out", tmp_path, "--json")  # fmt: skip
+        result = run(
+            "generate",
+            "--profile",
+            "physical",
+            "--train-size",
+            "128",
+            "--test-size",
+            "32",
+            "--variation",
+            variation,
+            "--out",
+            tmp_path,
+            "--json",
+        )
         assert result.exit_code == 0, result.output
         path = json.loads(result.stdout)["datasets"][0]["path"]
         with h5py.File(f"{path}/train.h5") as f:

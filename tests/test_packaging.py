@@ -39,8 +39,10 @@ def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
     python = env_dir / "bin" / "python"
     own_site = subprocess.run(
         [str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
-        capture_output=True, text=True, check=True,
-    ).stdout.strip()  # fmt: skip
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
     # Plain paths in a .pth file are appended to sys.path without processing the .pth files
     # found there, so an editable install of simlidar in the running environment stays unseen.
     parents = dict.fromkeys(sysconfig.get_paths()[k] for k in ("purelib", "platlib"))

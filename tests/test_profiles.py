@@ -20,8 +20,7 @@ from simlidar.profiles import DEFAULT_PROFILE, load_profile, profile_names
 from simlidar.pulses import noisy_delays, profile_pulses
 
 PAPER = dict(variation=0.05, shift=0.05, missing_delay=0.0, noise_on="all", spikes="all")
-PHYSICAL = dict(variation=1.0, shift=0.0, missing_delay=1.0, noise_on="returns",
-                spikes="returns")  # fmt: skip
+PHYSICAL = dict(variation=1.0, shift=0.0, missing_delay=1.0, noise_on="returns", spikes="returns")
 
 
 def run(*args):
@@ -39,7 +38,9 @@ def test_shipped_profiles_and_the_default():
     assert listing.exit_code == 0 and "paper (default)" in listing.stdout
     shown = json.loads(run("profiles", "--json").stdout)
     assert shown["default"] == "paper" and {p["name"] for p in shown["profiles"]} >= {
-        "paper", "physical"}  # fmt: skip
+        "paper",
+        "physical",
+    }
 
 
 def _write(tmp_path, text, name="mine.toml"):
@@ -48,8 +49,10 @@ def _write(tmp_path, text, name="mine.toml"):
     return path
 
 
-GOOD = ('description = "x"\nvariation = 0.5\nshift = 0.0\nmissing_delay = 0.0\n'
-        'noise_on = "all"\nspikes = "all"\n')  # fmt: skip
+GOOD = (
+    'description = "x"\nvariation = 0.5\nshift = 0.0\nmissing_delay = 0.0\n'
+    'noise_on = "all"\nspikes = "all"\n'
+)
 
 
 @pytest.mark.parametrize(
@@ -102,8 +105,9 @@ def test_the_paper_rule_and_the_physical_rule_on_hand_made_pulses():
     assert written is clean
     np.testing.assert_allclose(noisy, [[0.4, 1.0], [1.0, 1.0]])
     # the "coded 0 but noise-free" variant: missing returns stay exactly 0
-    assert noisy_delays(np.float32([0.2, 0.0]), 0.4, np.float32([0.5, 0.5]), 0.0,
-                        "returns").tolist() == pytest.approx([0.4, 0.0])  # fmt: skip
+    assert noisy_delays(
+        np.float32([0.2, 0.0]), 0.4, np.float32([0.5, 0.5]), 0.0, "returns"
+    ).tolist() == pytest.approx([0.4, 0.0])
 
 
 def _content_digest(path: Path) -> str:
@@ -129,8 +133,19 @@ BEFORE_PROFILES = {
 @pytest.mark.parametrize("options", list(BEFORE_PROFILES))
 def test_the_physical_profile_writes_the_records_of_1_0_0(tmp_path, options):
     flags = [a for key, value in options for a in (f"--{key}", value)]
-    result = run("generate", "--profile", "physical", "--train-size", 64, "--test-size", 32,
-                 *flags, "--out", tmp_path, "--json")  # fmt: skip
+    result = run(
+        "generate",
+        "--profile",
+        "physical",
+        "--train-size",
+        64,
+        "--test-size",
+        32,
+        *flags,
+        "--out",
+        tmp_path,
+        "--json",
+    )
     assert result.exit_code == 0, result.output
     path = Path(json.loads(result.stdout)["datasets"][0]["path"])
     assert _content_digest(path) == BEFORE_PROFILES[options]
@@ -140,8 +155,20 @@ def test_the_physical_profile_writes_the_records_of_1_0_0(tmp_path, options):
 
 
 def test_the_default_is_the_paper_profile(tmp_path):
-    result = run("generate", "--classes", 32, "--noise", 0.2, "--train-size", 64,
-                 "--test-size", 32, "--out", tmp_path, "--json")  # fmt: skip
+    result = run(
+        "generate",
+        "--classes",
+        32,
+        "--noise",
+        0.2,
+        "--train-size",
+        64,
+        "--test-size",
+        32,
+        "--out",
+        tmp_path,
+        "--json",
+    )
     assert result.exit_code == 0, result.output
     path = Path(json.loads(result.stdout)["datasets"][0]["path"])
     assert path.name == "simlidar-32c-noise0.2-paper-v2.0.0"
@@ -169,26 +196,57 @@ def test_the_default_is_the_paper_profile(tmp_path):
 
 
 def test_options_override_the_profile_and_the_name_says_so(tmp_path):
-    result = run("generate", "--variation", 0.1, "--train-size", 32, "--test-size", 32,
-                 "--out", tmp_path, "--json")  # fmt: skip
+    result = run(
+        "generate",
+        "--variation",
+        0.1,
+        "--train-size",
+        32,
+        "--test-size",
+        32,
+        "--out",
+        tmp_path,
+        "--json",
+    )
     assert result.exit_code == 0
     assert "--variation 0.1 overrides profile paper's 0.05" in result.stderr
     path = json.loads(result.stdout)["datasets"][0]["path"]
     assert path.endswith("simlidar-32c-noise0.2-paper-var0.1-v2.0.0")
-    same = run("generate", "--variation", 0.05, "--train-size", 32, "--test-size", 32,
-               "--out", tmp_path / "b", "--json")  # fmt: skip
+    same = run(
+        "generate",
+        "--variation",
+        0.05,
+        "--train-size",
+        32,
+        "--test-size",
+        32,
+        "--out",
+        tmp_path / "b",
+        "--json",
+    )
     assert "overrides" not in same.stderr  # the profile's own value: nothing to say
     assert json.loads(same.stdout)["datasets"][0]["path"].endswith("noise0.2-paper-v2.0.0")
-    assert dataset_name(GeneratorConfig.from_profile(load_profile("physical"), shift_max=0.1,
-                                                     noise=0.5)) == (
-        "simlidar-32c-noise0.5-physical-shift0.1-v1.0.0")  # fmt: skip
+    assert dataset_name(
+        GeneratorConfig.from_profile(load_profile("physical"), shift_max=0.1, noise=0.5)
+    ) == ("simlidar-32c-noise0.5-physical-shift0.1-v1.0.0")
 
 
 def test_a_profile_file_regenerates_from_its_card(tmp_path):
-    path = _write(tmp_path, GOOD.replace('noise_on = "all"', 'noise_on = "returns"'),
-                  "zero-quiet.toml")  # fmt: skip
-    result = run("generate", "--profile", path, "--train-size", 32, "--test-size", 32,
-                 "--out", tmp_path / "a", "--json")  # fmt: skip
+    path = _write(
+        tmp_path, GOOD.replace('noise_on = "all"', 'noise_on = "returns"'), "zero-quiet.toml"
+    )
+    result = run(
+        "generate",
+        "--profile",
+        path,
+        "--train-size",
+        32,
+        "--test-size",
+        32,
+        "--out",
+        tmp_path / "a",
+        "--json",
+    )
     assert result.exit_code == 0, result.output
     first = Path(json.loads(result.stdout)["datasets"][0]["path"])
     assert first.name == "simlidar-32c-noise0.2-zero-quiet-v2.0.0"
@@ -209,8 +267,22 @@ def test_a_profile_file_regenerates_from_its_card(tmp_path):
 
 @pytest.mark.parametrize("profile", ["paper", "physical"])
 def test_the_card_command_regenerates_a_shipped_profile(tmp_path, profile):
-    result = run("generate", "--profile", profile, "--train-size", 32, "--test-size", 32,
-                 "--noise", 0.33, "--shift", 0.02, "--out", tmp_path / "a", "--json")  # fmt: skip
+    result = run(
+        "generate",
+        "--profile",
+        profile,
+        "--train-size",
+        32,
+        "--test-size",
+        32,
+        "--noise",
+        0.33,
+        "--shift",
+        0.02,
+        "--out",
+        tmp_path / "a",
+        "--json",
+    )
     first = Path(json.loads(result.stdout)["datasets"][0]["path"])
     card = (first / "README.md").read_text()
     command = card.split("## Regenerate")[1].split("```\n")[1].strip().split()
@@ -229,8 +301,20 @@ def test_the_encoding_follows_the_profile(tmp_path):
 
     paths = {}
     for profile in ("paper", "physical"):
-        result = run("generate", "--profile", profile, "--train-size", 64, "--test-size", 32,
-                     "--noise", 0.1, "--out", tmp_path, "--json")  # fmt: skip
+        result = run(
+            "generate",
+            "--profile",
+            profile,
+            "--train-size",
+            64,
+            "--test-size",
+            32,
+            "--noise",
+            0.1,
+            "--out",
+            tmp_path,
+            "--json",
+        )
         paths[profile] = Path(json.loads(result.stdout)["datasets"][0]["path"])
     attrs = {p: read_split_info(paths[p] / "train.h5").attrs for p in paths}
     assert spike_threshold(attrs["paper"]) == np.inf and spike_threshold(attrs["physical"]) == 1

@@ -24,8 +24,9 @@ def decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test"):
         tof_max_ns = float(f.attrs["tof_max_ns"]) if "tof_max_ns" in f.attrs else None
     silent_from = spike_threshold(read_split_info(split_path(dataset, split)).attrs)
     weights = [m.weight.detach().double().numpy() for m in model.layers]
-    z = ttfs.encode(torch.from_numpy(x.astype(np.float64)).flatten(1), model.scale,
-                    silent_from).numpy()  # fmt: skip
+    z = ttfs.encode(
+        torch.from_numpy(x.astype(np.float64)).flatten(1), model.scale, silent_from
+    ).numpy()
     return [decide(weights, sample) for sample in z], y, tof_max_ns
 
 

@@ -61,16 +61,23 @@ def accuracy_by_noise(cells: list[dict], paper: dict) -> list[str]:
              "| model | " + " | ".join(f"noise {v:g}" for v in levels) + " |",
              "|---" * (len(levels) + 1) + "|"]  # fmt: skip
     for m in models:
-        row = [f"{_pct([c['accuracy'] for c in by[m, v]])} ({len(by[m, v])}){_capped(by[m, v])}"
-               if by[m, v] else "–" for v in levels]  # fmt: skip
+        row = [
+            f"{_pct([c['accuracy'] for c in by[m, v]])} ({len(by[m, v])}){_capped(by[m, v])}"
+            if by[m, v]
+            else "–"
+            for v in levels
+        ]
         lines.append(f"| {m} | " + " | ".join(row) + " |")
     reported = dict(zip(paper["simlidar"]["noise"], paper["simlidar"]["snn_accuracy"]))
     row = [f"{reported[v]:.2f}" if v in reported else "–" for v in levels]
     lines.append("| *paper: SNN 256-400-32* | " + " | ".join(row) + " |")
     if any(c.get("stopped_by_time") for c in sim):
-        lines += ["", f"{CAPPED} at least one seed stopped on the suite's time cap "
-                  "(`max_seconds`) before its epoch budget: a figure of the machine's speed and "
-                  "load, not of the model."]  # fmt: skip
+        lines += [
+            "",
+            f"{CAPPED} at least one seed stopped on the suite's time cap "
+            "(`max_seconds`) before its epoch budget: a figure of the machine's speed and "
+            "load, not of the model.",
+        ]
     return lines + [""]
 
 

@@ -79,15 +79,15 @@ def claim(out: Path, suite: Suite) -> None:
             )
         return
     litter = {"cells", ".suite.json.partial"}  # what a claim that failed midway left
-    if out.exists() and any(p.name not in litter or (p.is_dir() and any(p.iterdir()))
-                            for p in out.iterdir()):  # fmt: skip
+    if out.exists() and any(
+        p.name not in litter or (p.is_dir() and any(p.iterdir())) for p in out.iterdir()
+    ):
         raise DatasetError(f"--out {out}: not empty and not a benchmark output directory; "
                            "expected a new or empty directory")  # fmt: skip
     created = not out.exists()
     try:
         (out / "cells").mkdir(parents=True, exist_ok=True)
-        _write_json(marker, {"name": suite.name, "sha256": suite.sha256,
-                             "path": str(suite.path)})  # fmt: skip
+        _write_json(marker, {"name": suite.name, "sha256": suite.sha256, "path": str(suite.path)})
     except BaseException:  # undo, so that a rerun can claim the folder
         shutil.rmtree(out if created else out / "cells", ignore_errors=True)
         (out / ".suite.json.partial").unlink(missing_ok=True)

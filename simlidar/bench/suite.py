@@ -100,8 +100,13 @@ def load_suite(name_or_path: str | Path) -> Suite:
                               f"{sorted(KEYS)}")  # fmt: skip
     name = data.get("name", path.stem)
     if not (isinstance(name, str) and SUITE_NAME.match(name)):
-        raise _fail(path, "name", "letters, digits, '_', '-' or '.', not starting with '.' (it "
-                    "names the output folder bench/<name>)", name)  # fmt: skip
+        raise _fail(
+            path,
+            "name",
+            "letters, digits, '_', '-' or '.', not starting with '.' (it "
+            "names the output folder bench/<name>)",
+            name,
+        )
     models = data.get("models")
     if not isinstance(models, list) or not models or not all(isinstance(m, str) for m in models):
         raise _fail(path, "models", "a non-empty list of recipe names", models)

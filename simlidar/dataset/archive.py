@@ -19,7 +19,7 @@ import urllib.request
 from pathlib import Path
 
 from simlidar.dataset.checksums import is_os_litter, is_sha256, sha256_file
-from simlidar.dataset.claim import Temporary
+from simlidar.dataset.claim import Temporary, claim_folder
 from simlidar.dataset.verify import verify
 from simlidar.errors import ConfigError, DatasetError
 
@@ -200,14 +200,11 @@ def fetch(url: str, sha256: str | None = None, out: str | Path = ".", timeout: f
     are removed by the next run in ``out`` (a warning each). ``out`` itself is removed again if
     this call created it and nothing was installed.
     """
-    from simlidar.dataset.generate import _clean_stale, _make_out
-
     if sha256 is not None and not is_sha256(sha256):
         raise FetchError("checksum", f"--sha256 {sha256!r}: expected 64 hexadecimal digits")
     timeout = check_timeout(timeout)
     out = Path(out)
-    created = _make_out(out)
-    _clean_stale(out)
+    created = claim_folder(out)
     work = None
     try:
         work = Temporary(out, _work_name(url), "fetch")

@@ -131,8 +131,17 @@ def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
     from simlidar.profiles import load_profile, profile_names
 
     default = GeneratorConfig()
-    cli_fields = {"classes", "noise", "train_size", "test_size", "seed", "width", "shift_max",
-                  "variation", "profile"}  # fmt: skip
+    cli_fields = {
+        "classes",
+        "noise",
+        "train_size",
+        "test_size",
+        "seed",
+        "width",
+        "shift_max",
+        "variation",
+        "profile",
+    }
     other = {k for k, v in config.to_dict().items() if k not in cli_fields}
     shipped = config.profile is None or (
         config.profile.name in profile_names()
@@ -169,11 +178,13 @@ def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
 
 def _profile_line(config: GeneratorConfig) -> str:
     rule = config.pulse_rule
-    return (f"missing return written as {rule['missing_delay']!r}, noise on "
-            f"{'every pixel' if rule['noise_on'] == 'all' else 'returns only'}, input spikes: "
-            f"{'every pixel' if rule['spikes'] == 'all' else 'returns only'}; scene variation "
-            f"{config.variation!r}, delay shift {config.shift_max!r} (simlidar's "
-            "`docs/profiles.md`)")  # fmt: skip
+    return (
+        f"missing return written as {rule['missing_delay']!r}, noise on "
+        f"{'every pixel' if rule['noise_on'] == 'all' else 'returns only'}, input spikes: "
+        f"{'every pixel' if rule['spikes'] == 'all' else 'returns only'}; scene variation "
+        f"{config.variation!r}, delay shift {config.shift_max!r} (simlidar's "
+        "`docs/profiles.md`)"
+    )
 
 
 def _noised(config: GeneratorConfig) -> str:
@@ -191,8 +202,10 @@ def _noise_details(config: GeneratorConfig) -> str:
 def _missing_meaning(config: GeneratorConfig) -> str:
     if config.pulse_rule["missing_delay"] == 1.0:
         return ""
-    return (" Under this dataset's profile a missing return is written as 0.0 (before noise), "
-            "not 1.0, and every pixel is an input spike (the paper's protocol).")  # fmt: skip
+    return (
+        " Under this dataset's profile a missing return is written as 0.0 (before noise), "
+        "not 1.0, and every pixel is an input spike (the paper's protocol)."
+    )
 
 
 def _table(header: list[str], rows: list[list]) -> str:

@@ -21,6 +21,7 @@ import os
 import re
 import shutil
 import tempfile
+import warnings
 from pathlib import Path
 
 from simlidar.errors import DatasetError
@@ -92,8 +93,10 @@ def install(temp: Temporary, final: Path, force: bool) -> None:
             if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY):
                 raise
     if not force:
-        raise DatasetError(f"{final} already exists (it appeared while this run was writing): "
-                           "nothing replaced; pass --force to overwrite it")  # fmt: skip
+        raise DatasetError(
+            f"{final} already exists (it appeared while this run was writing): "
+            "nothing replaced; pass --force to overwrite it"
+        )
     if _LIBC is not None:
         try:
             _rename(temp.path, final, _RENAME_EXCHANGE)  # temp.path now holds the old one
@@ -140,6 +143,30 @@ def clean_stale(out: Path) -> tuple[list[Path], list[Path]]:
         elif entry.is_dir() and _LEGACY.match(entry.name):
             unknown.append(entry)
     return removed, unknown
+
+
+def claim_folder(out: Path) -> bool:
+    """Make ``out`` an output folder: create it if needed (True when this call created it),
+    check that it is writable, and remove dead runs' temporaries from it with a one-line
+    warning each (those of simlidar 0.1.0, which carry no lock, are only reported)."""
+    created = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DatasetError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
+    if not out.is_dir() or not os.access(out, os.W_OK | os.X_OK):
+        raise DatasetError(f"--out {out}: expected a writable folder")
+    removed, unknown = clean_stale(out)
+    for folder in removed:
+        warnings.warn(f"removed {folder}, left by a run that did not finish", stacklevel=3)
+    if unknown:
+        names = " ".join(str(u) for u in unknown)
+        warnings.warn(
+            f"{len(unknown)} temporary folder(s) of older simlidar runs in {out}; if "
+            f"none is running there, remove them with: rm -rf {names}",
+            stacklevel=3,
+        )
+    return created
 
 
 def write_file(path: str | Path, write) -> Path:

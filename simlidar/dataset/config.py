@@ -69,8 +69,13 @@ class GeneratorConfig:
             raise ConfigError(f"shift_max={self.shift_max!r}: expected a value in [0, 1)")
 
     @classmethod
-    def from_profile(cls, profile: Profile, variation: float | None = None,
-                     shift_max: float | None = None, **fields) -> "GeneratorConfig":  # fmt: skip
+    def from_profile(
+        cls,
+        profile: Profile,
+        variation: float | None = None,
+        shift_max: float | None = None,
+        **fields,
+    ) -> "GeneratorConfig":
         """A config that follows ``profile``; ``variation`` and ``shift_max`` given here
         override the profile's. The shipped ``physical`` profile is stored as None (the 1.0.0
         rule), so that its datasets keep the bytes of 1.0.0."""
@@ -78,8 +83,9 @@ class GeneratorConfig:
         return cls(
             variation=profile.variation if variation is None else variation,
             shift_max=profile.shift if shift_max is None else shift_max,
-            profile=None if physical else profile, **fields,
-        )  # fmt: skip
+            profile=None if physical else profile,
+            **fields,
+        )
 
     @property
     def profile_name(self) -> str:

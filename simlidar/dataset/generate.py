@@ -8,8 +8,6 @@ on any failure the temporary folders are removed and nothing appears under a fin
 """
 
 import json
-import os
-import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -21,7 +19,7 @@ import numpy as np
 from simlidar import __version__
 from simlidar.dataset.card import write_card
 from simlidar.dataset.checksums import write_sums
-from simlidar.dataset.claim import Temporary, clean_stale, install
+from simlidar.dataset.claim import Temporary, claim_folder, install
 from simlidar.dataset.config import GeneratorConfig
 from simlidar.dataset.croissant import write_croissant
 from simlidar.dataset.h5 import SPLITS, SplitWriter
@@ -50,8 +48,10 @@ def dataset_name(config: GeneratorConfig) -> str:
     over = config.overrides
     variation = f"-var{float(over['variation'])!r}" if "variation" in over else ""
     shift = f"-shift{float(over['shift_max'])!r}" if "shift_max" in over else ""
-    return (f"simlidar-{config.classes}c-noise{float(config.noise)!r}-{config.profile_name}"
-            f"{variation}{shift}-v{dataset_version(config)}")  # fmt: skip
+    return (
+        f"simlidar-{config.classes}c-noise{float(config.noise)!r}-{config.profile_name}"
+        f"{variation}{shift}-v{dataset_version(config)}"
+    )
 
 
 def split_attrs(config: GeneratorConfig, catalog: Catalog, split: str) -> dict:
@@ -92,18 +92,6 @@ def split_attrs(config: GeneratorConfig, catalog: Catalog, split: str) -> dict:
     return attrs
 
 
-def _make_out(out: Path) -> bool:
-    """Create ``out`` if needed (True when this call created it); fail if it is not writable."""
-    created = not out.exists()
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise DatasetError(f"--out {out}: cannot create the folder ({exc.strerror})") from None
-    if not out.is_dir() or not os.access(out, os.W_OK | os.X_OK):
-        raise DatasetError(f"--out {out}: expected a writable folder")
-    return created
-
-
 def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalog,
              out: str | Path, batch_size: int = 1024, force: bool = False,
              progress: bool = True, preview: bool = True) -> list[Written]:  # fmt: skip
@@ -121,8 +109,7 @@ def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalo
     existing = [str(f) for f in finals if f.exists()]
     if existing and not force:
         raise DatasetError(f"{existing[0]} already exists: pass --force to overwrite it")
-    created = _make_out(out)
-    _clean_stale(out)
+    created = claim_folder(out)
     claims: list[Temporary] = []
     bar = None
     writers: list[SplitWriter] = []
@@ -138,8 +125,11 @@ def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalo
             writers = []
             for cfg, temp in zip(configs, temps):
                 attrs = split_attrs(cfg, catalog, split)
-                writers.append(SplitWriter(temp / f"{split}.h5", size, cfg.width, cfg.noise,
-                                           attrs, cfg.pulse_rule))  # fmt: skip
+                writers.append(
+                    SplitWriter(
+                        temp / f"{split}.h5", size, cfg.width, cfg.noise, attrs, cfg.pulse_rule
+                    )
+                )
             for start in range(0, size, batch_size):
                 stop = min(start + batch_size, size)
                 samples = simulate(config, catalog, split, start, stop)
@@ -171,20 +161,6 @@ def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalo
     return [Written(f, c.noise, c.classes, dict(c.split_sizes)) for f, c in zip(finals, configs)]
 
 
-def _clean_stale(out: Path) -> None:
-    """Remove dead runs' temporaries from ``out``; warn (one line each) about what was done."""
-    removed, unknown = clean_stale(out)
-    for folder in removed:
-        warnings.warn(f"removed {folder}, left by a run that did not finish", stacklevel=3)
-    if unknown:
-        names = " ".join(str(u) for u in unknown)
-        warnings.warn(
-            f"{len(unknown)} temporary folder(s) of older simlidar runs in {out}; if "
-            f"none is running there, remove them with: rm -rf {names}",
-            stacklevel=3,
-        )
-
-
 @contextmanager
 def building(out: str | Path, name: str, force: bool = False) -> Iterator[Path]:
     """A hidden locked folder ``out/.<name>.partial-<random>`` (:mod:`simlidar.dataset.claim`)
@@ -199,8 +175,7 @@ def building(out: str | Path, name: str, force: bool = False) -> Iterator[Path]:
     final = out / name
     if final.exists() and not force:
         raise DatasetError(f"{final} already exists: pass --force to overwrite it")
-    created = _make_out(out)
-    _clean_stale(out)
+    created = claim_folder(out)
     claim = Temporary(out, name)
     try:
         yield claim.path

@@ -115,8 +115,9 @@ class RowWriter:
         self.written = 0
         self.pending: dict[str, list[np.ndarray]] = {name: [] for name in shapes}
         self.path = Path(path)
-        self.file = h5py.File(path, "w", libver=("earliest", "v110"), track_order=False,
-                              rdcc_nbytes=0)  # fmt: skip
+        self.file = h5py.File(
+            path, "w", libver=("earliest", "v110"), track_order=False, rdcc_nbytes=0
+        )
         self.datasets = {}
         for name, (dtype, tail) in shapes.items():
             shape = (size, *tail)
@@ -190,8 +191,7 @@ class SplitWriter(RowWriter):
         too (missing returns at ``missing_delay``), before noise
     """
 
-    def __init__(self, path: Path, size: int, width: int, noise: float, attrs: dict,
-                 rule: dict):  # fmt: skip
+    def __init__(self, path: Path, size: int, width: int, noise: float, attrs: dict, rule: dict):
         self.noise = noise
         self.rule = rule
         shapes = {name: (dtype, tail(width)) for name, (dtype, tail, _) in SCHEMA.items()}
@@ -274,8 +274,9 @@ def written_version(attrs) -> str | None:
 _warned: set[tuple[str, str]] = set()
 
 
-def check_version(path: Path, version: str, source: str = GENERATOR,
-                  writes: str | None = None) -> None:  # fmt: skip
+def check_version(
+    path: Path, version: str, source: str = GENERATOR, writes: str | None = None
+) -> None:
     """Refuse a dataset from a newer MAJOR version; warn once about an older one.
 
     source : the split's ``source``; each source has its own version line

@@ -43,8 +43,15 @@ def write_preview(dataset: str | Path, out: str | Path, split: str = "test",
             ax.imshow(delays[rows[c]], cmap="gray", vmin=0.0, vmax=1.0, interpolation="nearest")
         else:  # not white: that would read as "no return"
             ax.set_facecolor("#f2d0d0")
-            ax.text(0.5, 0.5, f"no {split} sample", ha="center", va="center", fontsize=7,
-                    transform=ax.transAxes)  # fmt: skip
+            ax.text(
+                0.5,
+                0.5,
+                f"no {split} sample",
+                ha="center",
+                va="center",
+                fontsize=7,
+                transform=ax.transAxes,
+            )
         ax.set_title(name.replace("_", " "), fontsize=8)
     missing = info.attrs.get("no_return_delay", 1.0)
     if info.source != GENERATOR:
@@ -52,8 +59,11 @@ def write_preview(dataset: str | Path, out: str | Path, split: str = "test",
     elif missing == 1.0:
         what = f"noisy delays (black = 0, white = 1 = no return), noise {info.attrs['noise']}"
     else:
-        what = (f"noisy delays (black = 0, white = 1), a missing return written as "
-                f"{missing:g} plus noise, noise {info.attrs['noise']}")  # fmt: skip
+        what = (
+            f"noisy delays (black = 0, white = 1), a missing return written as "
+            f"{missing:g} plus noise, noise {info.attrs['noise']}"
+        )
     fig.suptitle(f"{title or Path(dataset).name}: {split} split, {what}", fontsize=9)
-    return write_file(out, lambda tmp: fig.savefig(tmp, format="png", dpi=80,
-                                                   metadata={"Software": None}))  # fmt: skip
+    return write_file(
+        out, lambda tmp: fig.savefig(tmp, format="png", dpi=80, metadata={"Software": None})
+    )

@@ -61,14 +61,15 @@ def _check_split(path: Path, expected_size: int | None) -> list[str]:
             return problems
         split = _decode(f.attrs["split"])
         if split != path.stem:
-            problems.append(f"{path}: holds the {split!r} split, expected {path.stem!r} (files "
-                            "swapped or renamed?)")  # fmt: skip
+            problems.append(
+                f"{path}: holds the {split!r} split, expected {path.stem!r} (files "
+                "swapped or renamed?)"
+            )
         if expected_size is not None and size != expected_size:
             problems.append(f"{path}: {size} samples, the card says {expected_size}")
         classes = len(f.attrs["class_names"])
         if "classes" in f.attrs and int(f.attrs["classes"]) != classes:
-            problems.append(f"{path}: {classes} class_names for {int(f.attrs['classes'])} "
-                            "classes")  # fmt: skip
+            problems.append(f"{path}: {classes} class_names for {int(f.attrs['classes'])} classes")
         try:
             for start in range(0, size, _BLOCK):
                 rows = slice(start, start + _BLOCK)
@@ -131,8 +132,11 @@ def verify(path: str | Path) -> list[str]:
         meta = read_front_matter(path)
         sizes = {s["name"]: s["num_examples"] for s in meta["dataset_info"]["splits"]}
     except (DatasetError, KeyError, TypeError) as exc:
-        card.append(str(exc) if isinstance(exc, DatasetError)
-                    else f"{path / 'README.md'}: dataset_info.splits malformed")  # fmt: skip
+        card.append(
+            str(exc)
+            if isinstance(exc, DatasetError)
+            else f"{path / 'README.md'}: dataset_info.splits malformed"
+        )
     for split in SPLITS:
         file = path / f"{split}.h5"
         if not file.is_file():

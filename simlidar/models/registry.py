@@ -83,8 +83,10 @@ def check_training(recipe: dict, where: str | None = None) -> dict:
             raise ConfigError(f"{where}: key 'training.{key}': expected one of "
                               f"{list(choices)}, got {training[key]!r}")  # fmt: skip
     if not isinstance(training.get("noise_augment", False), bool):
-        raise ConfigError(f"{where}: key 'training.noise_augment': expected true or false, got "
-                          f"{training['noise_augment']!r}")  # fmt: skip
+        raise ConfigError(
+            f"{where}: key 'training.noise_augment': expected true or false, got "
+            f"{training['noise_augment']!r}"
+        )
     for key in ("logit_scale", "fire_penalty", "fire_margin", "weight_sum_penalty", "l2",
                 "early_penalty"):  # fmt: skip
         value = training.get(key, 1.0 if key == "logit_scale" else 0.0)

@@ -211,8 +211,14 @@ def test_a_cell_stopped_by_the_time_cap_is_marked_in_the_report():
     from simlidar.bench.report import CAPPED, accuracy_by_noise, paper_numbers
 
     def cell(seed, capped):
-        return {"source": "simlidar-generator", "noise": 0.1, "model": "cnn", "seed": seed,
-                "accuracy": 0.5, "stopped_by_time": capped}  # fmt: skip
+        return {
+            "source": "simlidar-generator",
+            "noise": 0.1,
+            "model": "cnn",
+            "seed": seed,
+            "accuracy": 0.5,
+            "stopped_by_time": capped,
+        }
 
     clean = "\n".join(accuracy_by_noise([cell(0, False), cell(1, False)], paper_numbers()))
     assert CAPPED not in clean

@@ -127,8 +127,20 @@ def test_a_full_disk_stops_generate_at_the_first_error_and_leaves_nothing(tmp_pa
 
     calls = _full_disk_after(monkeypatch, 30)
     out = tmp_path / "out"
-    result = CliRunner().invoke(main, ["generate", "--out", str(out), "--noise", "0.1,0.3",
-                                       "--train-size", "2048", "--batch-size", "256"])  # fmt: skip
+    result = CliRunner().invoke(
+        main,
+        [
+            "generate",
+            "--out",
+            str(out),
+            "--noise",
+            "0.1,0.3",
+            "--train-size",
+            "2048",
+            "--batch-size",
+            "256",
+        ],
+    )
     assert result.exit_code == 1
     assert "cannot write (No space left on device)" in result.stderr
     assert "Traceback" not in result.output and result.stderr.count("Error") == 1
@@ -136,8 +148,9 @@ def test_a_full_disk_stops_generate_at_the_first_error_and_leaves_nothing(tmp_pa
     assert not out.exists()  # created by the run, left empty: removed
 
 
-def test_a_full_disk_while_saving_a_checkpoint_leaves_no_partial_file(tmp_path, monkeypatch,
-                                                                      datasets):  # fmt: skip
+def test_a_full_disk_while_saving_a_checkpoint_leaves_no_partial_file(
+    tmp_path, monkeypatch, datasets
+):
     import errno
 
     pytest.importorskip("torch")
