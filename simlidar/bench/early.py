@@ -2,7 +2,6 @@
 
 from pathlib import Path
 
-import h5py
 import numpy as np
 import torch
 
@@ -20,9 +19,9 @@ def decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test"):
         dataset is not a time-of-flight one)
     """
     x, y = load_split(dataset, split)
-    with h5py.File(split_path(dataset, split)) as f:
-        tof_max_ns = float(f.attrs["tof_max_ns"]) if "tof_max_ns" in f.attrs else None
-    silent_from = spike_threshold(read_split_info(split_path(dataset, split)).attrs)
+    attrs = read_split_info(split_path(dataset, split)).attrs  # one read of the attributes
+    tof_max_ns = float(attrs["tof_max_ns"]) if "tof_max_ns" in attrs else None
+    silent_from = spike_threshold(attrs)
     weights = [m.weight.detach().double().numpy() for m in model.layers]
     z = ttfs.encode(
         torch.from_numpy(x.astype(np.float64)).flatten(1), model.scale, silent_from
