@@ -422,6 +422,28 @@ def _need_torch(command: str) -> None:
         ) from None
 
 
+_selection_options = [
+    click.option(
+        "--validation",
+        type=click.FloatRange(0, 1, max_open=True),
+        default=None,
+        help="Override the fraction of each class held out for model selection (0: none).",
+    ),
+    click.option(
+        "--patience",
+        type=click.IntRange(1, MAX_EPOCHS),
+        default=None,
+        help="Override the epochs without a better validation score before training stops.",
+    ),
+]
+
+
+def _selection(command):
+    for option in reversed(_selection_options):
+        command = option(command)
+    return command
+
+
 @main.command()
 @click.option(
     "--model",
@@ -455,9 +477,11 @@ def _need_torch(command: str) -> None:
     default=None,
     help="Override the recipe's time budget (inf: none).",
 )
+@_selection
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-def train(model, dataset, out, seed, epochs, max_seconds, as_json):  # fmt: skip
-    """Train a model on a dataset's train split, score it on the test split, save a checkpoint."""
+def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, as_json):
+    """Train a model on a dataset's train split, keep the epoch with the best accuracy on a
+    held-out validation part of it, score that once on the test split, save a checkpoint."""
     _need_torch("train")
     from simlidar.bench.train import check_writable, save_checkpoint
     from simlidar.bench.train import train as run
@@ -465,13 +489,16 @@ def train(model, dataset, out, seed, epochs, max_seconds, as_json):  # fmt: skip
     from simlidar.models.registry import load_recipe
 
     recipe = load_recipe(model)
+    given = {"validation": validation, "patience": patience}
+    recipe["training"].update({k: v for k, v in given.items() if v is not None})
     check_trainable(dataset)  # a sound dataset, or a one-line error
     check_writable(out)  # before training, not after
     result = run(recipe, dataset, seed=seed, epochs=epochs, max_seconds=max_seconds)
     path = save_checkpoint(result, out / f"{recipe['name']}-seed{seed}.pt")
     record = {"model": recipe["name"], "dataset": str(dataset), "seed": seed,
               "test_accuracy": round(result.test_accuracy, 4), "epochs": result.epochs,
-              "seconds": round(result.seconds, 1), "checkpoint": str(path)}  # fmt: skip
+              **result.selection(), "seconds": round(result.seconds, 1),
+              "checkpoint": str(path)}  # fmt: skip
     if recipe["model"] == "snn":  # dense spiking network: how early it decides
         from simlidar.bench.early import early_decisions
 
@@ -479,8 +506,13 @@ def train(model, dataset, out, seed, epochs, max_seconds, as_json):  # fmt: skip
     if as_json:
         click.echo(json.dumps(record))
         return
-    click.echo(f"{recipe['name']}: test accuracy {result.test_accuracy:.4f} after "
-               f"{result.epochs} epochs, {result.seconds:.0f} s; wrote {path}")  # fmt: skip
+    chosen = (f"epoch {result.best_epoch + 1} of {result.epochs} kept (best validation "
+              f"accuracy of {result.validation_size} held-out samples)" if result.validation_size
+              else f"{result.epochs} epochs, no validation")  # fmt: skip
+    why = {"plateau": "stopped on a validation plateau", "epochs": "ran every epoch",
+           "time": "stopped by the time cap"}[result.stopped]  # fmt: skip
+    click.echo(f"{recipe['name']}: test accuracy {result.test_accuracy:.4f}, {chosen}, {why}, "
+               f"{result.seconds:.0f} s; wrote {path}")  # fmt: skip
     if "early" in record:
         from simlidar.bench.early import format_early
 
@@ -511,8 +543,21 @@ def train(model, dataset, out, seed, epochs, max_seconds, as_json):  # fmt: skip
     default=None,
     help="Output directory (default: bench/<suite name>).",
 )
+@click.option(
+    "--epochs",
+    type=click.IntRange(1, MAX_EPOCHS),
+    default=None,
+    help="Override every model's epochs (the suite's and the recipes').",
+)
+@click.option(
+    "--max-seconds",
+    type=FiniteRange(min=0),
+    default=None,
+    help="Override every cell's time cap (inf: none).",
+)
+@_selection
 @click.option("--json", "as_json", is_flag=True, help="Print results.json's content on stdout.")
-def bench(suite, models, dataset, out, as_json):
+def bench(suite, models, dataset, out, epochs, max_seconds, validation, patience, as_json):
     """Train and score the suite's models on its datasets: accuracy, how early spiking networks
     decide, energy, latency, size. Writes results.json, report.md and pictures; a rerun into
     the same directory skips the cells already finished."""
@@ -534,6 +579,8 @@ def bench(suite, models, dataset, out, as_json):
                 load_recipe(name)
         except ConfigError as exc:
             raise click.BadParameter(str(exc), param_hint="'--models'") from None
+    chosen = chosen.with_budget(epochs=epochs, max_seconds=max_seconds, validation=validation,
+                                patience=patience)  # fmt: skip
     out = out if out is not None else Path("bench") / chosen.name
     results = run_suite(chosen, out, models=names, dataset=dataset, progress=not as_json)
     if as_json:

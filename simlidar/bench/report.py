@@ -63,6 +63,7 @@ def accuracy_by_noise(cells: list[dict], paper: dict) -> list[str]:
     for m in models:
         row = [
             f"{_pct([c['accuracy'] for c in by[m, v]])} ({len(by[m, v])}){_capped(by[m, v])}"
+            f"{_open(by[m, v])}{_spread(by[m, v])}"
             if by[m, v]
             else "–"
             for v in levels
@@ -78,15 +79,80 @@ def accuracy_by_noise(cells: list[dict], paper: dict) -> list[str]:
             "(`max_seconds`) before its epoch budget: a figure of the machine's speed and "
             "load, not of the model.",
         ]
+    if any(_open(group) for group in by.values()):
+        lines += [
+            "",
+            f"{OPEN} at least one seed ran to its epoch cap with its validation score still "
+            "improving (its best epoch among the last `patience`): not converged, the "
+            "figure would rise with a longer budget.",
+        ]
+    if any(_spread(group) for group in by.values()):
+        lines += [
+            "",
+            f"{SPREAD} the seeds disagree by more than {SPREAD_POINTS:g} points (sample "
+            "standard deviation): the mean says less than its digits suggest; see the "
+            "training table below (epochs, stops) for where the seeds went apart.",
+        ]
     return lines + [""]
 
 
 CAPPED = "†"
+OPEN = "§"
+SPREAD = "‡"
+SPREAD_POINTS = 2.0  # a sample standard deviation over seeds above this is marked
 
 
 def _capped(cells: list[dict]) -> str:
     """A mark for a group of cells of which one stopped on the time cap."""
     return f" {CAPPED}" if any(c.get("stopped_by_time") for c in cells) else ""
+
+
+def still_improving(cell: dict) -> bool:
+    """Whether a cell ended on its epoch cap with its best validation epoch among the last
+    ``patience`` (a cell without validation: never known, so False)."""
+    patience = cell.get("inputs", {}).get("rules", {}).get("patience")
+    if cell.get("stopped") != "epochs" or not cell.get("validation_size") or patience is None:
+        return False
+    return cell["epochs_run"] - 1 - cell["best_epoch"] < patience
+
+
+def _open(cells: list[dict]) -> str:
+    """A mark for a group of cells of which one was still improving at its epoch cap."""
+    return f" {OPEN}" if any(still_improving(c) for c in cells) else ""
+
+
+def _spread(cells: list[dict]) -> str:
+    """A mark for a group of seeds whose accuracies spread over more than SPREAD_POINTS."""
+    std = _stats([100 * c["accuracy"] for c in cells])[1]
+    return f" {SPREAD}" if std > SPREAD_POINTS else ""
+
+
+def training_table(cells: list[dict]) -> list[str]:
+    """Per model: how training ended (model selection, docs/benchmark.md) and how long it took."""
+    if not cells:
+        return []
+    lines = ["## Training: selection, stops and time per model", "",
+             "Over every cell of the model (all datasets and seeds). Epochs are counted from 1; "
+             "the kept epoch is the one with the best validation accuracy.", "",
+             "| model | cells | epoch budget | epochs run | kept epoch (median) | stopped: "
+             "plateau / epoch cap / time cap | still improving at the cap | validation samples "
+             "| minutes a cell (mean, max) | minutes in all |", "|---" * 10 + "|"]  # fmt: skip
+    for (model,), runs in sorted(_groups(cells, "model").items()):
+        stops = [c.get("stopped", "time" if c.get("stopped_by_time") else "epochs")
+                 for c in runs]  # fmt: skip
+        budget = sorted({str(c.get("budget", {}).get("epochs", "recipe")) for c in runs})
+        run = [c["epochs"] for c in runs]
+        kept = [c["best_epoch"] + 1 for c in runs if c.get("best_epoch") is not None]
+        minutes = [c["seconds"] / 60 for c in runs]
+        held = sorted({c.get("validation_size", 0) for c in runs})
+        lines.append(
+            f"| {model} | {len(runs)} | {', '.join(budget)} | {min(run)}–{max(run)} | "
+            f"{_num(float(np.median(kept)) if kept else None, '{:.0f}')} | "
+            f"{stops.count('plateau')} / {stops.count('epochs')} / {stops.count('time')} | "
+            f"{sum(map(still_improving, runs))} | {', '.join(map(str, held))} | "
+            f"{np.mean(minutes):.1f}, {max(minutes):.1f} | {sum(minutes):.0f} |"
+        )
+    return lines + [""]
 
 
 def by_model(cells: list[dict], paper: dict) -> list[str]:
@@ -267,10 +333,13 @@ def write_report(results: dict, out: Path) -> Path:
         ("confusion.png", plot_confusions(cells, out / "confusion.png"), "confusion matrices"),
     ]  # fmt: skip
     lines += [f"![{alt}]({name})\n" for name, made, alt in pictures if made]
+    lines += training_table(cells)
     lines += by_model(cells, paper)
     lines += [
         "## How the figures are measured", "",
-        "* accuracy: test split; a spiking network whose outputs never fire counts as wrong.",
+        "* accuracy: test split, scored once with the weights of the epoch that did best on "
+        "a validation part held out of the train split (stratified, 10 % by default); a "
+        "spiking network whose outputs never fire counts as wrong.",
         "* decision ns, input spikes used, R_data, hidden spikes: the event-driven evaluator "
         "(dense spiking networks), means over test samples; R_data = input spikes consumed "
         "before the decision / all input spikes of the sample.",

@@ -25,12 +25,19 @@ from simlidar import __version__
 from simlidar.bench import metrics
 from simlidar.bench.early import early_decisions
 from simlidar.bench.suite import Suite
-from simlidar.bench.train import is_spiking, predictions, train
+from simlidar.bench.train import (
+    PATIENCE,
+    SELECTION,
+    VALIDATION,
+    is_spiking,
+    train,
+    validation_split,
+)
 from simlidar.data import load_split
-from simlidar.dataset.h5 import dataset_splits
+from simlidar.dataset.h5 import dataset_splits, load_arrays
 from simlidar.dataset.verify import check_trainable
 from simlidar.dataset.version import GENERATOR
-from simlidar.errors import DatasetError
+from simlidar.errors import ConfigError, DatasetError
 from simlidar.models.registry import load_recipe
 
 _NUMBERS = re.compile(r"\[[-0-9.eE+,\s]*\]")  # a list of numbers spread over lines
@@ -118,48 +125,80 @@ def cell_id(dataset: Path, model: str, seed: int) -> str:
     return f"{dataset.name}__{Path(model).stem}__seed{seed}"
 
 
-def cell_inputs(dataset: Path, model: str) -> dict:
+def training_rules(model: str, budget: dict) -> dict:
+    """The rules a cell trains by: the recipe's [training] with the suite's budget over it
+    (epochs, time cap, validation fraction, patience), defaults filled in, and the selection
+    rule's name."""
+    training = {**load_recipe(model)["training"], **budget}
+    return {
+        "epochs": training["epochs"],
+        "max_seconds": training.get("max_seconds", float("inf")),
+        "validation": training.get("validation", VALIDATION),
+        "patience": training.get("patience", PATIENCE),
+        "selection": SELECTION,
+    }
+
+
+def cell_inputs(dataset: Path, model: str, budget: dict) -> dict:
     """Fingerprints of what a cell was made from: the dataset (sha256 of its SHA256SUMS, which
-    lists every file's sha256) and the recipe (sha256 of its content)."""
+    lists every file's sha256), the recipe (sha256 of its content) and the training rules."""
     sums = dataset / "SHA256SUMS"
     recipe = load_recipe(model)
     return {
         "dataset_sha256": hashlib.sha256(sums.read_bytes()).hexdigest() if sums.is_file() else None,
         "recipe_sha256": hashlib.sha256(json.dumps(recipe, sort_keys=True).encode()).hexdigest(),
+        "rules": training_rules(model, budget),
     }
 
 
-def finished(out: Path, dataset: Path, model: str, seed: int) -> bool:
-    """Whether the cell is done in ``out``; a cell made from another dataset or recipe of the
-    same name is refused (results are never silently reused for different inputs)."""
+def finished(out: Path, dataset: Path, model: str, seed: int, budget: dict) -> bool:
+    """Whether the cell is done in ``out``; a cell made from another dataset, recipe of the
+    same name or other training rules is refused (results are never silently reused for
+    different inputs)."""
     path = out / "cells" / f"{cell_id(dataset, model, seed)}.json"
     if not path.is_file():
         return False
     recorded = json.loads(path.read_text()).get("inputs")
-    if recorded is not None:  # cells of runs before fingerprints were recorded lack them
-        current = cell_inputs(dataset, model)
-        for key, value in current.items():
-            if recorded.get(key) != value:
-                raise DatasetError(
-                    f"--out {out}: cell {path.stem} was made from another "
-                    f"{key.split('_')[0]} ({key} {str(recorded.get(key))[:12]}, now "
-                    f"{str(value)[:12]}); expected the same inputs: use a new --out"
-                )
+    if recorded is None:  # made before fingerprints and model selection were recorded
+        recorded = {"rules": "none recorded (a run before model selection)"}
+    for key, value in cell_inputs(dataset, model, budget).items():
+        if recorded.get(key) == value:
+            continue
+        if key == "rules":
+            raise DatasetError(
+                f"--out {out}: cell {path.stem} was made with other training rules "
+                f"({_rules(recorded.get(key))}; now {_rules(value)}); expected the same "
+                "rules: use a new --out"
+            )
+        raise DatasetError(
+            f"--out {out}: cell {path.stem} was made from another "
+            f"{key.split('_')[0]} ({key} {str(recorded.get(key))[:12]}, now "
+            f"{str(value)[:12]}); expected the same inputs: use a new --out"
+        )
     return True
+
+
+def _rules(rules) -> str:
+    if not isinstance(rules, dict):
+        return str(rules)
+    return ", ".join(f"{k} {v}" for k, v in rules.items())
 
 
 def run_cell(dataset: Path, model: str, seed: int, suite: Suite) -> dict:
     """Train one model on one dataset with one seed and measure it (docs/benchmark.md)."""
     recipe = load_recipe(model)
     budget = suite.budget_for(model)
+    recipe["training"].update(budget)  # the suite's budget over the recipe's values
     splits = dataset_splits(dataset)
     attrs = splits["test"].attrs
-    result = train(recipe, dataset, seed=seed, epochs=budget.get("epochs"),
-                   max_seconds=budget.get("max_seconds"), progress=False)  # fmt: skip
+    timing = {}
+    start = time.perf_counter()
+    result = train(recipe, dataset, seed=seed, progress=False)
+    timing["train"] = time.perf_counter() - start
     model_ = result.model
     x, y = load_split(dataset, "test")
     x = torch.from_numpy(x)[:, None]
-    predicted = predictions(model_, x).numpy()
+    predicted = result.test_predictions
     classes = len(attrs["class_names"])
     record = {
         "dataset": dataset.name,
@@ -175,23 +214,57 @@ def run_cell(dataset: Path, model: str, seed: int, suite: Suite) -> dict:
         "test_size": splits["test"].size,
         "input_shape": list(x.shape[1:]),
         "epochs": result.epochs,
-        "stopped_by_time": result.epochs < budget.get("epochs", recipe["training"]["epochs"]),
+        **result.selection(),
+        "stopped_by_time": result.stopped == "time",
         "train_seconds": round(result.seconds, 2),
         "budget": budget,
         **metrics.footprint(model_),
     }
+    start = time.perf_counter()
     if record["kind"] == "spiking":
         early = None
         if recipe["model"] == "snn":  # the event-driven evaluator runs dense networks
             early = early_decisions(model_, dataset, per_sample=True)
             record["per_sample"] = early.pop("per_sample")
             record["early"] = early
+        timing["early_decisions"] = time.perf_counter() - start
+        start = time.perf_counter()
         figures = metrics.spiking_figures(model_, x, early)
     else:
         figures = metrics.conventional_figures(model_, x, suite.board_power_w)
+    timing["latency_and_counts"] = time.perf_counter() - start
     record.update(figures)
     record["confusion"] = metrics.confusion_matrix(y, predicted, classes).tolist()
+    record["timing_seconds"] = {k: round(v, 2) for k, v in timing.items()}
     return record
+
+
+def check_validation(suite: Suite, models: list[str], dataset: Path | None) -> None:
+    """Every model's validation fraction leaves every class of every dataset of the run a
+    training and a validation sample; a ConfigError naming the suite or recipe key otherwise
+    (before anything is written: generated datasets label sample i as i mod classes)."""
+    if dataset is None and suite.generate is not None:
+        from simlidar.scene.recipe import load_catalog
+        from simlidar.simulate import class_plan
+
+        plan = class_plan(load_catalog(), suite.generate.classes)
+        labelled = [(np.arange(suite.generate.train_size) % plan.classes, plan.names)]
+    else:
+        labelled = []
+        for path in [dataset] if dataset is not None else suite.datasets:
+            info = dataset_splits(path)["train"]
+            labels = load_arrays(info.path, ("labels",))["labels"]
+            labelled.append((labels, [str(n) for n in info.attrs["class_names"]]))
+    for model in models:
+        fraction = training_rules(model, suite.budget_for(model))["validation"]
+        where = (f"suite {suite.path}: key 'budget.validation'"
+                 if "validation" in suite.budget_for(model)
+                 else f"recipe {model}: key 'training.validation'")  # fmt: skip
+        for labels, names in labelled:
+            try:
+                validation_split(labels, fraction, 0, names)
+            except ConfigError as exc:
+                raise ConfigError(f"{where}: {exc}") from None
 
 
 def run_suite(suite: Suite, out: Path, models: list[str] | None = None,
@@ -209,10 +282,11 @@ def run_suite(suite: Suite, out: Path, models: list[str] | None = None,
         load_recipe(model)  # unknown recipes fail before anything is written
     for path in [dataset] if dataset is not None else suite.datasets:
         check_trainable(path)  # every given dataset is sound, before anything is written
+    check_validation(suite, models, dataset)
     claim(out, suite)
     datasets = resolve_datasets(suite, out, dataset, progress)
     cells = [(d, m, s) for d in datasets for m in models for s in suite.seeds]
-    todo = [c for c in cells if not finished(out, *c)]
+    todo = [c for c in cells if not finished(out, *c, suite.budget_for(c[1]))]
     bar = tqdm(todo, desc=f"bench {suite.name}", unit="cell", disable=not progress,
                dynamic_ncols=True)  # fmt: skip
     for d, m, s in bar:
@@ -220,7 +294,8 @@ def run_suite(suite: Suite, out: Path, models: list[str] | None = None,
         start = time.perf_counter()
         record = run_cell(d, m, s, suite)
         record["seconds"] = round(time.perf_counter() - start, 2)
-        record.update(inputs=cell_inputs(d, m), machine=machine(), simlidar_version=__version__)
+        record.update(inputs=cell_inputs(d, m, suite.budget_for(m)), machine=machine(),
+                      simlidar_version=__version__)  # fmt: skip
         _write_json(out / "cells" / f"{cell_id(d, m, s)}.json", record, indent=None)
     results = collect(out, suite)
     write_report(results, out)

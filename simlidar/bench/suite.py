@@ -15,9 +15,11 @@ A suite is a TOML file (``benchmark/<name>.toml`` or any path)::
 
     # datasets = ["data/my-dataset"]     # ... or dataset directories instead of [generate]
 
-    [budget]                             # per (dataset, model, seed) cell
-    epochs = 5
+    [budget]                             # per (dataset, model, seed) cell; each key overrides
+    epochs = 5                           # the recipe's [training] value of the same name
     max_seconds = 60
+    patience = 10                        # epochs without a better validation score
+    validation = 0.1                     # fraction of each class held out for selection
     [budget.snn_simlidar]                # per model, overriding the defaults above
     epochs = 10
 """
@@ -25,19 +27,19 @@ A suite is a TOML file (``benchmark/<name>.toml`` or any path)::
 import hashlib
 import re
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from simlidar.content import content_dir
 from simlidar.dataset.config import GeneratorConfig
 from simlidar.errors import ConfigError
-from simlidar.models.registry import load_recipe
+from simlidar.models.registry import check_selection, load_recipe
 from simlidar.profiles import DEFAULT_PROFILE, load_profile
 
 SUITE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,99}$")
 KEYS = {"name", "description", "models", "seeds", "board_power_w", "generate", "datasets",
         "budget"}  # fmt: skip
-BUDGET_KEYS = {"epochs", "max_seconds"}
+BUDGET_KEYS = {"epochs", "max_seconds", "patience", "validation"}
 
 
 @dataclass(frozen=True)
@@ -51,11 +53,18 @@ class Suite:
     generate: GeneratorConfig | None  # datasets made on the fly, one per noise level ...
     noise: tuple[float, ...]
     datasets: tuple[Path, ...]  # ... or existing dataset directories
-    budget: dict = field(default_factory=dict)  # model -> {"epochs", "max_seconds"}
+    budget: dict = field(default_factory=dict)  # model ("*": all) -> {key: value}
     board_power_w: float | None = None
 
     def budget_for(self, model: str) -> dict:
         return {**self.budget.get("*", {}), **self.budget.get(model, {})}
+
+    def with_budget(self, **overrides) -> "Suite":
+        """The suite with ``overrides`` (budget keys; None: not given) set for every model,
+        over the suite's own values (``simlidar bench --epochs/--max-seconds``)."""
+        given = {k: v for k, v in overrides.items() if v is not None}
+        budget = {model: {**table, **given} for model, table in self.budget.items()}
+        return replace(self, budget=budget)
 
 
 def suite_names() -> list[str]:
@@ -75,7 +84,9 @@ def _budget(path: Path, table: dict, key: str) -> dict:
     for name, value in table.items():
         if name not in BUDGET_KEYS:
             raise _fail(path, f"{key}.{name}", f"one of {sorted(BUDGET_KEYS)}", value)
-        if not _number(value, 1 if name == "epochs" else 0, integer=name == "epochs"):
+        if name in ("patience", "validation"):
+            check_selection({name: value}, f"suite {path}", f"{key}.")
+        elif not _number(value, 1 if name == "epochs" else 0, integer=name == "epochs"):
             kind = "an integer >= 1" if name == "epochs" else "a number of seconds >= 0"
             raise _fail(path, f"{key}.{name}", kind, value)
     return dict(table)

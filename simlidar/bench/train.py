@@ -1,5 +1,13 @@
-"""Seeded training of any registered model on a dataset in the simlidar schema."""
+"""Seeded training of any registered model on a dataset in the simlidar schema.
 
+Model selection (docs/benchmark.md, Training and model selection): a stratified validation
+split is carved out of the train split (``[training] validation``, a fraction, default 0.1;
+seeded by the training seed), the weights of the epoch with the best validation accuracy are
+kept (ties: the lower validation loss), training stops once ``patience`` epochs (default 10)
+brought no improvement, and the test split is read once, at the end.
+"""
+
+import copy
 import os
 import tempfile
 import time
@@ -17,15 +25,34 @@ from simlidar.models import ttfs
 from simlidar.models.registry import build_model, check_training
 from simlidar.pulses import noisy_delays
 
+VALIDATION = 0.1  # default fraction of each class's training samples held out for selection
+PATIENCE = 10  # default epochs without a better validation score before training stops
+STOPS = ("plateau", "epochs", "time")  # why training stopped (TrainResult.stopped)
+SELECTION = "best-validation-accuracy-then-loss/v1"  # the rule's name, recorded by every cell
+
 
 @dataclass
 class TrainResult:
-    model: torch.nn.Module
+    model: torch.nn.Module  # with the weights of ``best_epoch``
     recipe: dict
     test_accuracy: float
     seconds: float
-    epochs: int
-    history: list[dict] = field(default_factory=list)  # per epoch: loss, lr, accuracy, seconds
+    epochs: int  # epochs run
+    history: list[dict] = field(default_factory=list)  # per epoch: loss, lr, val_*, seconds
+    best_epoch: int = 0  # 0-based epoch whose weights were kept (the last without validation)
+    stopped: str = "epochs"  # one of STOPS
+    validation_size: int = 0
+    test_predictions: np.ndarray | None = None  # predicted class of every test sample (-1: none)
+
+    def selection(self) -> dict:
+        """What a benchmark cell records about the selection (docs/benchmark.md)."""
+        return {
+            "best_epoch": self.best_epoch,
+            "epochs_run": self.epochs,
+            "stopped": self.stopped,
+            "validation_size": self.validation_size,
+            "validation_curve": [h.get("val_accuracy") for h in self.history],
+        }
 
 
 def _optimizer(params, training: dict):
@@ -72,16 +99,48 @@ def _loss(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training: di
     return loss, total
 
 
-def _fresh_noise(dataset, attrs: dict, seed: int):
+def validation_split(labels: np.ndarray, fraction: float, seed: int,
+                     class_names) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """(training rows, validation rows) of a train split, stratified by class.
+
+    From each class with n training samples, ``max(1, round(fraction * n))`` rows are drawn
+    without replacement for validation (a generator seeded by ``seed``: the same rows for the
+    same seed); ``fraction`` 0 keeps every row for training. A ConfigError names a class that
+    would be left without a training sample.
+    """
+    rows = np.arange(len(labels))
+    if fraction == 0:
+        return rows, rows[:0]
+    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(11,))))
+    held = []
+    for label, name in enumerate(class_names):
+        mine = rows[labels == label]
+        if len(mine) == 0:
+            continue
+        take = max(1, int(np.floor(fraction * len(mine) + 0.5)))
+        if take >= len(mine):
+            raise ConfigError(
+                f"validation fraction {fraction} leaves class {name!r} ({len(mine)} training "
+                "sample(s)) with no sample to train on; expected a fraction that keeps at least "
+                "one sample of every class for training and one for validation, or 0 (no "
+                "validation; on the command line --validation 0)"
+            )
+        held.append(rng.permutation(mine)[:take])
+    validation = np.sort(np.concatenate(held)) if held else rows[:0]
+    return np.setdiff1d(rows, validation), validation
+
+
+def _fresh_noise(dataset, attrs: dict, seed: int, rows: np.ndarray):
     """``noise_augment``: a function drawing the train split's noise anew (same level, same
     profile rule, from ``clean_delays``) for each epoch: the paper's "adding noise randomly"
-    as augmentation rather than one fixed draw per sample. Seeded by the training seed."""
+    as augmentation rather than one fixed draw per sample, for the training ``rows`` (the
+    validation rows keep the file's draw, like the test split). Seeded by the training seed."""
     if "source" in attrs or "noise" not in attrs:
         raise ConfigError(
             f"{dataset}: training option noise_augment: expected a generated dataset "
             "(clean_delays and a noise level), got converted data"
         )
-    clean, _ = load_split(dataset, "train", field="clean_delays")
+    clean = load_split(dataset, "train", field="clean_delays")[0][rows]
     level = float(attrs["noise"])
     missing = float(attrs.get("no_return_delay", 1.0))
     noise_on = attrs.get("noise_on", "returns")
@@ -104,26 +163,63 @@ def predictions(model: torch.nn.Module, x: torch.Tensor, batch: int = 500) -> to
     return torch.cat([o.argmax(1) for o in outs])
 
 
+def evaluate(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training: dict,
+             batch: int = 500) -> tuple[float, float | None]:  # fmt: skip
+    """(accuracy, mean cross-entropy with the recipe's logits) on ``x``, in eval mode; the loss
+    is None where it is not finite (a spiking network whose correct output never fired)."""
+    kind, scale = training.get("logits", "z"), training.get("logit_scale", 1.0)
+    model.eval()
+    correct, loss = 0, 0.0
+    with torch.no_grad():
+        for i in range(0, len(x), batch):
+            out = model(x[i : i + batch])
+            predicted = ttfs.predict(out) if is_spiking(model) else out.argmax(1)
+            correct += int((predicted == y[i : i + batch]).sum())
+            loss += F.cross_entropy(logits(model, out, kind, scale), y[i : i + batch],
+                                    reduction="sum").item()  # fmt: skip
+    loss /= len(x)
+    return correct / len(x), (loss if np.isfinite(loss) else None)
+
+
+def _better(score: tuple[float, float | None], best: tuple[float, float | None] | None) -> bool:
+    """A higher validation accuracy, or the same with a lower (finite) validation loss."""
+    if best is None or score[0] != best[0]:
+        return best is None or score[0] > best[0]
+    return score[1] is not None and (best[1] is None or score[1] < best[1])
+
+
 def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None = None,
           max_seconds: float | None = None, progress: bool = True) -> TrainResult:  # fmt: skip
-    """Train the recipe's model on ``dataset``'s train split; score it on the test split.
+    """Train the recipe's model on ``dataset``'s train split (less the validation rows), keep
+    the epoch with the best validation score, and score it once on the test split.
 
     Deterministic for a given seed, recipe, dataset and thread count (one torch.Generator
-    drives the initial weights and the batch order).
+    drives the initial weights and the batch order; the validation rows are drawn from the
+    seed too).
     """
     from tqdm import tqdm
 
     training = check_training(recipe)
-    x_train, y_train = (torch.from_numpy(a) for a in load_split(dataset, "train"))
-    x_test, y_test = (torch.from_numpy(a) for a in load_split(dataset, "test"))
-    x_train, x_test = x_train[:, None], x_test[:, None]  # (N, 1, H, W)
+    x_all, y_all = (torch.from_numpy(a) for a in load_split(dataset, "train"))
     attrs = read_split_info(split_path(dataset, "train")).attrs
     classes = len(attrs["class_names"])
+    try:
+        rows, held = validation_split(y_all.numpy(), training.get("validation", VALIDATION), seed,
+                                      [str(n) for n in attrs["class_names"]])  # fmt: skip
+    except ConfigError as exc:
+        raise ConfigError(f"recipe {recipe.get('name', '?')}: key 'training.validation': "
+                          f"{exc}") from None  # fmt: skip
+    x_all = x_all[:, None]  # (N, 1, H, W)
+    x_train, y_train = x_all[rows], y_all[rows]
+    x_val, y_val = x_all[held], y_all[held]
+    patience = training.get("patience", PATIENCE)
     generator = torch.Generator().manual_seed(seed)
     model = build_model(recipe, tuple(x_train.shape[1:]), classes, generator)
     if is_spiking(model):
         model.silent_from = spike_threshold(attrs)  # the encoding follows the data's profile
-    fresh_noise = _fresh_noise(dataset, attrs, seed) if training.get("noise_augment") else None
+    fresh_noise = None
+    if training.get("noise_augment"):
+        fresh_noise = _fresh_noise(dataset, attrs, seed, rows)
     optimizer = _optimizer(model.parameters(), training)
     epochs = epochs if epochs is not None else training.get("epochs", 100)
     budget = max_seconds if max_seconds is not None else training.get("max_seconds", np.inf)
@@ -133,6 +229,7 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
         schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, max(epochs, 1))
     start = time.perf_counter()
     history = []
+    best, best_epoch, best_state, stopped = None, 0, None, "epochs"
     bar = tqdm(range(epochs), desc=f"train {recipe.get('name', '')}", disable=not progress)
     for epoch in bar:
         model.train()
@@ -152,15 +249,34 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
         lr = optimizer.param_groups[0]["lr"]  # the rate this epoch trained with
         if schedule is not None:
             schedule.step()
-        accuracy = (predictions(model, x_test) == y_test).float().mean().item()
-        seconds = time.perf_counter() - start
-        history.append({"epoch": epoch, "loss": float(np.mean(losses)), "lr": lr,
-                        "test_accuracy": accuracy, "seconds": seconds})  # fmt: skip
-        bar.set_postfix(loss=f"{np.mean(losses):.3f}", test=f"{accuracy:.3f}")
-        if seconds > budget:
+        record = {"epoch": epoch, "loss": float(np.mean(losses)), "lr": lr}
+        if len(held):
+            score = evaluate(model, x_val, y_val, training)
+            record.update(val_accuracy=score[0], val_loss=score[1])
+            bar.set_postfix(loss=f"{record['loss']:.3f}", val=f"{score[0]:.3f}")
+            if _better(score, best):
+                best, best_epoch = score, epoch
+                best_state = copy.deepcopy(model.state_dict())
+        else:
+            best_epoch = epoch  # no validation: the last epoch is kept
+            bar.set_postfix(loss=f"{record['loss']:.3f}")
+        record["seconds"] = time.perf_counter() - start
+        history.append(record)
+        if epoch == epochs - 1:
             break
-    return TrainResult(model, recipe, history[-1]["test_accuracy"], history[-1]["seconds"],
-                       len(history), history)  # fmt: skip
+        if len(held) and epoch - best_epoch >= patience:
+            stopped = "plateau"
+            break
+        if record["seconds"] > budget:
+            stopped = "time"
+            break
+    if best_state is not None:
+        model.load_state_dict(best_state)
+    x_test, y_test = (torch.from_numpy(a) for a in load_split(dataset, "test"))
+    predicted = predictions(model, x_test[:, None])  # the test split, read once, at the end
+    accuracy = (predicted == y_test).float().mean().item()
+    return TrainResult(model, recipe, accuracy, history[-1]["seconds"], len(history), history,
+                       best_epoch, stopped, len(held), predicted.numpy())  # fmt: skip
 
 
 def check_writable(folder: str | Path) -> None:

@@ -18,7 +18,7 @@ MODELS: dict[str, Callable] = {}
 TRAINING_KEYS = {  # every key a recipe's [training] table may hold (docs/snn.md, Training)
     "optimizer", "lr", "momentum", "batch_size", "l2", "clip_grad_norm", "epochs",
     "max_seconds", "weight_sum_penalty", "logits", "logit_scale", "fire_penalty", "fire_margin",
-    "lr_schedule", "early_penalty", "noise_augment",
+    "lr_schedule", "early_penalty", "noise_augment", "validation", "patience",
 }  # fmt: skip
 LOGITS = ("z", "time")  # a spiking model's logits: -z (the paper's) or -t = -ln z
 SCHEDULES = ("constant", "cosine")  # cosine: from lr down to 0 over the run's epochs
@@ -87,6 +87,7 @@ def check_training(recipe: dict, where: str | None = None) -> dict:
             f"{where}: key 'training.noise_augment': expected true or false, got "
             f"{training['noise_augment']!r}"
         )
+    check_selection(training, where, "training.")
     for key in ("logit_scale", "fire_penalty", "fire_margin", "weight_sum_penalty", "l2",
                 "early_penalty"):  # fmt: skip
         value = training.get(key, 1.0 if key == "logit_scale" else 0.0)
@@ -95,6 +96,19 @@ def check_training(recipe: dict, where: str | None = None) -> dict:
             raise ConfigError(f"{where}: key 'training.{key}': expected a finite number "
                               f"{'>' if positive else '>='} 0, got {value!r}")  # fmt: skip
     return training
+
+
+def check_selection(table: dict, where: str, prefix: str) -> None:
+    """``validation`` (a fraction in [0, 1)) and ``patience`` (an integer >= 1) of a recipe's
+    [training] or a suite's [budget], if present; a ConfigError names the bad one."""
+    value = table.get("validation", 0.0)
+    if not _number(value) or not 0 <= value < 1:
+        raise ConfigError(f"{where}: key '{prefix}validation': expected a fraction >= 0 and < 1 "
+                          f"of the train split (0: no validation), got {value!r}")  # fmt: skip
+    value = table.get("patience", 1)
+    if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
+        raise ConfigError(f"{where}: key '{prefix}patience': expected an integer >= 1 (epochs "
+                          f"without a better validation score), got {value!r}")  # fmt: skip
 
 
 def build_model(recipe: dict, input_shape: tuple[int, ...], classes: int, generator=None):

@@ -41,11 +41,17 @@ def tiny_suite(tmp_path, datasets):
 
 
 def test_shipped_suites_load():
-    assert {"quick", "paper"} <= set(suite_names())
+    assert {"quick", "paper", "physical"} <= set(suite_names())
     paper = load_suite("paper")
     assert paper.noise == (0.1, 0.2, 0.33, 0.5) and paper.seeds == (0, 1, 2)
     assert paper.generate.train_size == 3000 and paper.generate.test_size == 600
-    assert {"snn_simlidar", "cnn", "vgg16", "resnet50"} <= set(paper.models)
+    assert paper.generate.profile_name == "paper"
+    models = {"snn_simlidar", "snn_simlidar_tuned", "mlp", "cnn", "vgg16", "resnet18", "resnet50"}
+    assert set(paper.models) == models
+    physical = load_suite("physical")  # the same models, budgets and seeds on another profile
+    assert physical.generate.profile_name == "physical"
+    for key in ("models", "seeds", "noise", "budget"):
+        assert getattr(physical, key) == getattr(paper, key)
     quick = load_suite("quick")
     assert quick.budget_for("resnet18")["epochs"] < quick.budget_for("cnn")["epochs"]
 
@@ -63,6 +69,13 @@ def test_a_suite_runs_reruns_and_reports(tiny_suite, tmp_path, datasets):
         confusion = cell["confusion"]
         assert sum(map(sum, confusion)) == 64  # every test sample once
         assert cell["accuracy"] == pytest.approx(sum(r[i] for i, r in enumerate(confusion)) / 64)
+        # the selection: 32 of the 96 train samples held out (one a class), one epoch run
+        assert cell["validation_size"] == 32 and cell["best_epoch"] == 0
+        assert cell["epochs_run"] == 1 and cell["stopped"] == "epochs"
+        assert len(cell["validation_curve"]) == 1 and 0 <= cell["validation_curve"][0] <= 1
+        rules = cell["inputs"]["rules"]
+        assert rules["validation"] == 0.1 and rules["epochs"] == 1 and rules["patience"] == 10
+        assert set(cell["timing_seconds"]) >= {"train", "latency_and_counts"}
     snn = [c for c in cells if c["model"] == "snn_simlidar"]
     cnn = [c for c in cells if c["model"] == "cnn"]
     for c in snn:  # event-driven figures agree with the batched accuracy
@@ -91,6 +104,14 @@ def test_a_suite_runs_reruns_and_reports(tiny_suite, tmp_path, datasets):
     assert all(after[name] == data for name, data in before.items())
     assert len(after) == 6 and len(again["cells"]) == 6
 
+    # the same cells under other training rules are refused, not mixed in
+    from simlidar.errors import DatasetError
+
+    for rules in ({"patience": 3}, {"validation": 0.2}, {"epochs": 2}):
+        with pytest.raises(DatasetError, match="was made with other training rules"):
+            run_suite(suite.with_budget(**rules), out, models=["cnn"], progress=False)
+    assert {p.name: p.read_bytes() for p in (out / "cells").iterdir()} == after
+
 
 def test_one_cell_is_seeded(tiny_suite, tmp_path, datasets):
     suite = load_suite(tiny_suite)
@@ -101,10 +122,18 @@ def test_one_cell_is_seeded(tiny_suite, tmp_path, datasets):
 
 def test_generated_datasets_are_made_once(tmp_path):
     path = tmp_path / "gen.toml"
-    path.write_text('models = ["cnn"]\n[generate]\nnoise = [0.2]\ntrain_size = 32\n'
-                    "test_size = 32\n[budget]\nepochs = 1\n")  # fmt: skip
+    text = ('models = ["cnn"]\n[generate]\nnoise = [0.2]\ntrain_size = 32\n'
+            "test_size = 32\n[budget]\nepochs = 1\n")  # fmt: skip
+    path.write_text(text)
     out = tmp_path / "out"
+    # one sample a class: nothing to hold out for validation; refused before anything is made
+    with pytest.raises(ConfigError, match=r"recipe cnn: key 'training.validation': validation "
+                       r"fraction 0.1 leaves class 'tunnel/none' \(1 training sample"):  # fmt: skip
+        run_suite(load_suite(path), out, progress=False)
+    assert not out.exists()
+    path.write_text(text + "validation = 0\n")  # no validation: the last epoch is kept
     results = run_suite(load_suite(path), out, progress=False)
+    assert results["cells"][0]["validation_size"] == 0
     assert results["cells"][0]["dataset"] == "simlidar-32c-noise0.2-paper-v2.0.0"
     assert (out / "datasets" / "simlidar-32c-noise0.2-paper-v2.0.0" / "train.h5").is_file()
 
@@ -121,6 +150,18 @@ def test_generated_datasets_are_made_once(tmp_path):
         ('models = ["cnn"]\n[generate]\nnoise = [0.1]\ncolour = 1', "key 'generate.colour'"),
         ('models = ["cnn"]\ndatasets = ["x"]\n[budget]\nepochs = 0', "key 'budget.epochs'"),
         ('models = ["cnn"]\ndatasets = ["x"]\n[budget.vgg16]\nepochs = 2', "key 'budget.vgg16'"),
+        (
+            'models = ["cnn"]\ndatasets = ["x"]\n[budget]\npatience = 0',
+            r"key 'budget.patience': expected an integer >= 1",
+        ),
+        (
+            'models = ["cnn"]\ndatasets = ["x"]\n[budget.cnn]\npatience = 1.5',
+            r"key 'budget.cnn.patience': expected an integer >= 1",
+        ),
+        (
+            'models = ["cnn"]\ndatasets = ["x"]\n[budget]\nvalidation = 1',
+            r"key 'budget.validation': expected a fraction >= 0 and < 1",
+        ),
         ('models = ["cnn"', "not valid TOML"),
         ('models = ["cnn"]\ngenerate = 5', r"key 'generate': expected a table"),
         ('models = ["cnn"]\ndatasets = ["x"]\nbudget = [1]', r"key 'budget': expected a table"),
@@ -156,7 +197,7 @@ def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets):
         errors = [line for line in result.output.splitlines() if line.startswith("Error")]
         assert len(errors) == 1 and text in errors[0]  # one line says it
 
-    fails(["--suite", "nope"], 2, "expected one of ['paper', 'quick'] or a .toml file")
+    fails(["--suite", "nope"], 2, "expected one of ['paper', 'physical', 'quick'] or a .toml file")
     fails(["--suite", str(tiny_suite), "--models", "cnn,nope"], 2, "model recipe 'nope'")
     fails(["--suite", str(tiny_suite), "--dataset", str(tmp_path / "missing"),
            "--out", str(out)], 1, "expected a dataset directory")  # fmt: skip
@@ -167,10 +208,23 @@ def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets):
     fails(["--suite", str(tiny_suite), "--dataset", str(not_schema), "--out", str(out)], 1,
           "cannot read as HDF5")  # fmt: skip
     fails(["--suite", "quick", "--out", str(out)], 1, "belongs to suite 'tiny'")
+    fails(["--suite", str(tiny_suite), "--epochs", "0"], 2, "'--epochs': 0 is not in the range")
+    fails(["--suite", str(tiny_suite), "--max-seconds", "-1"], 2, "'--max-seconds'")
+    fails(["--suite", str(tiny_suite), "--max-seconds", "nan"], 2, "'--max-seconds'")
+    other_rules = ["--models", "cnn", "--dataset", str(datasets[0.1]), "--out", str(out)]
+    fails(["--suite", str(tiny_suite), *other_rules, "--epochs", "2"], 1,
+          "was made with other training rules")  # fmt: skip
     fails(["--suite", str(tiny_suite), "--out", str(not_schema)], 1,
           "not a benchmark output directory")  # fmt: skip
     assert (out / "results.json").read_bytes() == results  # nothing touched
     assert (not_schema / "train.h5").read_text() == "not hdf5"
+    longer = runner.invoke(main, ["bench", "--suite", str(tiny_suite), "--models", "cnn",
+                                  "--dataset", str(datasets[0.1]), "--out", str(tmp_path / "e2"),
+                                  "--epochs", "2", "--max-seconds", "inf", "--json"])  # fmt: skip
+    assert longer.exit_code == 0, longer.output
+    cell = json.loads(longer.stdout)["cells"][0]
+    assert cell["budget"] == {"epochs": 2, "max_seconds": float("inf")}
+    assert len(cell["validation_curve"]) == cell["epochs_run"] <= 2
 
 
 def test_a_cell_from_other_inputs_is_refused_not_reused(tiny_suite, tmp_path, datasets, catalog):
@@ -186,7 +240,7 @@ def test_a_cell_from_other_inputs_is_refused_not_reused(tiny_suite, tmp_path, da
     run_suite(suite, out, [str(recipe)], datasets[0.1], progress=False)
     before = (out / "results.json").read_bytes()
     # the same directory name, other samples (another seed)
-    other = generate(GeneratorConfig(train_size=32, test_size=32, seed=7), [0.1], catalog,
+    other = generate(GeneratorConfig(train_size=64, test_size=32, seed=7), [0.1], catalog,
                      tmp_path / "other", progress=False)[0].path  # fmt: skip
     assert other.name == datasets[0.1].name
     with pytest.raises(DatasetError, match="was made from another dataset"):
@@ -224,3 +278,36 @@ def test_a_cell_stopped_by_the_time_cap_is_marked_in_the_report():
     assert CAPPED not in clean
     marked = "\n".join(accuracy_by_noise([cell(0, False), cell(1, True)], paper_numbers()))
     assert f"50.00 ± 0.00 (2) {CAPPED}" in marked and "stopped on the suite's time cap" in marked
+
+
+def test_seeds_that_disagree_are_marked_and_training_is_tabled():
+    from simlidar.bench.report import (
+        CAPPED,
+        OPEN,
+        SPREAD,
+        accuracy_by_noise,
+        paper_numbers,
+        training_table,
+    )
+
+    def cell(seed, accuracy, stopped="plateau", best=4, seconds=90.0):
+        return {"source": "simlidar-generator", "noise": 0.1, "model": "cnn", "seed": seed,
+                "accuracy": accuracy, "stopped_by_time": stopped == "time", "stopped": stopped,
+                "epochs": min(best + 3, 40), "best_epoch": best, "budget": {"epochs": 40},
+                "validation_size": 288, "seconds": seconds}  # fmt: skip
+
+    close = [cell(0, 0.95), cell(1, 0.96), cell(2, 0.97)]  # std 1 point
+    apart = [cell(0, 0.90), cell(1, 0.96), cell(2, 0.97)]  # std 3.8 points
+    assert SPREAD not in "\n".join(accuracy_by_noise(close, paper_numbers()))
+    marked = "\n".join(accuracy_by_noise(apart, paper_numbers()))
+    assert f"94.33 ± 3.79 (3) {SPREAD}" in marked and "disagree by more than 2 points" in marked
+    mixed = [cell(0, 0.9), cell(1, 0.9, "epochs", 39, 150.0), cell(2, 0.9, "time", 9, 300.0)]
+    table = "\n".join(training_table(mixed))
+    # 3 cells, budget 40, epochs run 7-40, kept epoch median 10 (1-based), stops 1 / 1 / 1
+    assert "| cnn | 3 | 40 | 7–40 | 10 | 1 / 1 / 1 | 0 | 288 | 3.0, 5.0 | 9 |" in table
+    # an epoch-cap stop whose best epoch is among the last `patience`: still improving
+    for c in mixed:
+        c.update(epochs_run=c["epochs"], inputs={"rules": {"patience": 5}})
+    assert "| 1 / 1 / 1 | 1 | 288 |" in "\n".join(training_table(mixed))
+    marked = "\n".join(accuracy_by_noise(mixed, paper_numbers()))
+    assert f"(3) {CAPPED} {OPEN}" in marked and "still improving" in marked

@@ -326,8 +326,12 @@ def test_cli_converts_the_sample_and_benches_it_end_to_end(kitti_sample, tmp_pat
     suite = tmp_path / "kitti.toml"
     suite.write_text(f'models = ["cnn", "{scnn}"]\ndatasets = ["{record["path"]}"]\n'
                      "[budget]\nepochs = 1\n")  # fmt: skip
-    bench = runner.invoke(main, ["bench", "--suite", str(suite), "--out", str(tmp_path / "b"),
-                                 "--json"])  # fmt: skip
+    args = ["bench", "--suite", str(suite), "--out", str(tmp_path / "b"), "--json"]
+    few = runner.invoke(main, args)  # 4 crops: nothing to hold out for model selection
+    assert few.exit_code == 2 and not (tmp_path / "b").exists()
+    assert few.output.count("\n") == 1 and "recipe cnn: key 'training.validation': " in few.output
+    assert "--validation 0" in few.output
+    bench = runner.invoke(main, [*args, "--validation", "0"])
     assert bench.exit_code == 0, bench.output
     cells = json.loads(bench.output)["cells"]
     assert {c["model"] for c in cells} == {"cnn", "scnn_small"}

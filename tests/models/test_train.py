@@ -16,7 +16,8 @@ from simlidar.models.registry import load_recipe
 def _small_recipe():
     recipe = load_recipe("snn_simlidar")
     recipe["architecture"]["hidden"] = [64]
-    recipe["training"].update(optimizer="adam", lr=3e-3, batch_size=32)
+    # 3 samples a class here: these tests train on all of them (selection is tested below)
+    recipe["training"].update(optimizer="adam", lr=3e-3, batch_size=32, validation=0)
     return recipe
 
 
@@ -56,7 +57,16 @@ def test_the_train_command(datasets, tmp_path):
                                      "1"])  # fmt: skip
     assert text.exit_code == 0 and "snn_simlidar: test accuracy" in text.stdout
     assert "event-driven: accuracy" in text.stdout and "pJ at 45 pJ/spike" in text.stdout
+    assert "epoch 1 of 1 kept (best validation accuracy of 32 held-out samples)" in text.stdout
     assert (tmp_path / "snn_simlidar-seed0.pt").is_file()
+    base = ["train", "--model", "mlp", "--dataset", str(datasets[0.1]), "--out", str(tmp_path)]
+    whole = CliRunner().invoke(main, [*base, "--epochs", "3", "--validation", "0", "--json"])
+    assert whole.exit_code == 0, whole.output
+    record = json.loads(whole.stdout)
+    assert record["validation_size"] == 0 and record["best_epoch"] == 2
+    for option, value in (("--validation", "1"), ("--validation", "-0.5"), ("--patience", "0")):
+        bad = CliRunner().invoke(main, [*base, option, value])
+        assert bad.exit_code == 2 and f"Invalid value for '{option}'" in bad.stderr
 
 
 def test_time_logits_are_minus_ln_z_and_the_choice_is_checked(datasets):
@@ -129,6 +139,12 @@ def test_the_penalties_enter_the_loss_as_the_recipe_weighs_them():
         ("logit_scale", float("nan"), r"training.logit_scale': expected a finite number > 0"),
         ("optimizer", "rmsprop", r"training.optimizer': expected one of \['sgd', 'adam'\]"),
         ("noise_augment", 1, r"training.noise_augment': expected true or false, got 1"),
+        ("validation", 1.0, r"training.validation': expected a fraction >= 0 and < 1 .*got 1.0"),
+        ("validation", -0.1, r"training.validation': expected a fraction >= 0 and < 1"),
+        ("validation", "10%", r"training.validation': expected a fraction .*got '10%'"),
+        ("patience", 0, r"training.patience': expected an integer >= 1 .*got 0"),
+        ("patience", 2.5, r"training.patience': expected an integer >= 1 .*got 2.5"),
+        ("patience", True, r"training.patience': expected an integer >= 1 .*got True"),
     ],
 )
 def test_training_keys_are_checked(datasets, key, value, message):
@@ -160,14 +176,14 @@ def test_noise_augment_draws_the_noise_anew_each_epoch(datasets):
     attrs = read_split_info(path / "train.h5").attrs
     clean, _ = load_split(path, "train", field="clean_delays")
     stored, _ = load_split(path, "train")
-    draw = _fresh_noise(path, attrs, seed=3)
+    draw = _fresh_noise(path, attrs, seed=3, rows=np.arange(len(clean)))
     first, second = draw()[:, 0].numpy(), draw()[:, 0].numpy()
     assert first.shape == clean.shape and not np.array_equal(first, second)
     assert not np.array_equal(first, stored)  # not the file's draw
     for x in (first, second):  # the physical rule: returns delayed by at most 0.5, clipped
         assert (x >= clean).all() and (x - clean <= 0.5 + 1e-6).all() and x.max() <= 1.0
         assert (x[clean == 1.0] == 1.0).all()  # a missing return stays missing
-    again = _fresh_noise(path, attrs, seed=3)()[:, 0].numpy()
+    again = _fresh_noise(path, attrs, seed=3, rows=np.arange(len(clean)))()[:, 0].numpy()
     assert np.array_equal(again, first)  # seeded
     recipe = _small_recipe()
     recipe["training"]["noise_augment"] = True
