@@ -33,6 +33,7 @@ from simlidar.bench.train import (
     train,
     validation_split,
 )
+from simlidar.content import content_dir
 from simlidar.data import load_split
 from simlidar.dataset.h5 import dataset_splits, load_arrays
 from simlidar.dataset.verify import check_trainable
@@ -94,11 +95,20 @@ def claim(out: Path, suite: Suite) -> None:
     created = not out.exists()
     try:
         (out / "cells").mkdir(parents=True, exist_ok=True)
-        _write_json(marker, {"name": suite.name, "sha256": suite.sha256, "path": str(suite.path)})
+        _write_json(marker, {"name": suite.name, "sha256": suite.sha256, "path": _shown(suite)})
     except BaseException:  # undo, so that a rerun can claim the folder
         shutil.rmtree(out if created else out / "cells", ignore_errors=True)
         (out / ".suite.json.partial").unlink(missing_ok=True)
         raise
+
+
+def _shown(suite: Suite) -> str:
+    """The suite file as a reader can find it: ``benchmark/<name>.toml`` for a shipped suite
+    (not this machine's install path), the path as given otherwise."""
+    shipped = content_dir("benchmark") / suite.path.name
+    if shipped.is_file() and shipped.resolve() == suite.path.resolve():
+        return f"benchmark/{suite.path.name}"
+    return str(suite.path)
 
 
 def resolve_datasets(suite: Suite, out: Path, dataset: Path | None, progress: bool) -> list[Path]:

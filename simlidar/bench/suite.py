@@ -147,10 +147,10 @@ def load_suite(name_or_path: str | Path) -> Suite:
             bad = sorted(unknown | ({"sensor"} & set(table)))[0]
             raise _fail(path, f"generate.{bad}", "a GeneratorConfig field", table[bad])
         try:
-            name = table.pop("profile", DEFAULT_PROFILE)
-            if not isinstance(name, str):
-                raise _fail(path, "generate.profile", "a profile name or .toml path", name)
-            profile = load_profile(name)
+            chosen = table.pop("profile", DEFAULT_PROFILE)
+            if not isinstance(chosen, str):
+                raise _fail(path, "generate.profile", "a profile name or .toml path", chosen)
+            profile = load_profile(chosen)
             config = GeneratorConfig.from_profile(profile, **table)
             for level in levels:
                 config.with_noise(level)

@@ -54,6 +54,8 @@ def test_shipped_suites_load():
         assert getattr(physical, key) == getattr(paper, key)
     quick = load_suite("quick")
     assert quick.budget_for("resnet18")["epochs"] < quick.budget_for("cnn")["epochs"]
+    # each suite keeps its own name (the default output folder), not its profile's
+    assert (quick.name, paper.name, physical.name) == ("quick", "paper", "physical")
 
 
 def test_a_suite_runs_reruns_and_reports(tiny_suite, tmp_path, datasets):
