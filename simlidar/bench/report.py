@@ -82,9 +82,10 @@ def accuracy_by_noise(cells: list[dict], paper: dict) -> list[str]:
     if any(_open(group) for group in by.values()):
         lines += [
             "",
-            f"{OPEN} at least one seed ran to its epoch cap with its validation score still "
-            "improving (its best epoch among the last `patience`): not converged, the "
-            "figure would rise with a longer budget.",
+            f"{OPEN} at least one seed ran to its epoch cap with its validation score "
+            "(accuracy, then loss) still improving, its best epoch among the last `patience`: "
+            "not converged by the suite's rule (at a validation accuracy of 100 % only the "
+            "loss was still falling).",
         ]
     if any(_spread(group) for group in by.values()):
         lines += [

@@ -5,6 +5,7 @@ Output directory layout::
     <out>/suite.json          which suite (name, sha256 of its file) owns the directory
     <out>/datasets/...        datasets generated on the fly by the suite
     <out>/cells/<id>.json     one finished cell (written atomically): a rerun skips it
+    <out>/checkpoints/<id>.pt its kept weights (save_checkpoint; not published: re-measuring)
     <out>/results.json        every finished cell plus suite, versions, machine, time taken
     <out>/report.md, *.png    tables beside the paper's numbers, and pictures
 """
@@ -30,6 +31,7 @@ from simlidar.bench.train import (
     SELECTION,
     VALIDATION,
     is_spiking,
+    save_checkpoint,
     train,
     validation_split,
 )
@@ -194,8 +196,10 @@ def _rules(rules) -> str:
     return ", ".join(f"{k} {v}" for k, v in rules.items())
 
 
-def run_cell(dataset: Path, model: str, seed: int, suite: Suite) -> dict:
-    """Train one model on one dataset with one seed and measure it (docs/benchmark.md)."""
+def run_cell(dataset: Path, model: str, seed: int, suite: Suite,
+             checkpoint: Path | None = None) -> dict:  # fmt: skip
+    """Train one model on one dataset with one seed and measure it (docs/benchmark.md); with
+    ``checkpoint``, save the kept weights there (a figure can be re-measured later)."""
     recipe = load_recipe(model)
     budget = suite.budget_for(model)
     recipe["training"].update(budget)  # the suite's budget over the recipe's values
@@ -205,6 +209,8 @@ def run_cell(dataset: Path, model: str, seed: int, suite: Suite) -> dict:
     start = time.perf_counter()
     result = train(recipe, dataset, seed=seed, progress=False)
     timing["train"] = time.perf_counter() - start
+    if checkpoint is not None:
+        save_checkpoint(result, checkpoint)
     model_ = result.model
     x, y = load_split(dataset, "test")
     x = torch.from_numpy(x)[:, None]
@@ -302,7 +308,7 @@ def run_suite(suite: Suite, out: Path, models: list[str] | None = None,
     for d, m, s in bar:
         bar.set_postfix_str(cell_id(d, m, s))
         start = time.perf_counter()
-        record = run_cell(d, m, s, suite)
+        record = run_cell(d, m, s, suite, out / "checkpoints" / f"{cell_id(d, m, s)}.pt")
         record["seconds"] = round(time.perf_counter() - start, 2)
         record.update(inputs=cell_inputs(d, m, suite.budget_for(m)), machine=machine(),
                       simlidar_version=__version__)  # fmt: skip

@@ -88,6 +88,13 @@ def test_a_suite_runs_reruns_and_reports(tiny_suite, tmp_path, datasets):
         assert c["kind"] == "conventional" and c["macs"] == 644_096  # see test_metrics
         assert c["energy_pj_mac"] == pytest.approx(c["macs"] * 4.6)
     assert {c["noise"] for c in cells} == {0.1, 0.5}
+    # every cell's kept weights, to re-measure a figure without training again
+    from simlidar.bench.train import load_checkpoint
+
+    saved = sorted((out / "checkpoints").glob("*.pt"))
+    assert [p.stem for p in saved] == sorted(p.stem for p in (out / "cells").glob("*.json"))
+    _, data = load_checkpoint(saved[0], (1, 16, 16), 32)
+    assert len(data["history"]) == 1
     written = json.loads((out / "results.json").read_text())
     assert written["machine"]["cores"] and written["suite"]["name"] == "tiny"
     report = (out / "report.md").read_text()
@@ -313,3 +320,10 @@ def test_seeds_that_disagree_are_marked_and_training_is_tabled():
     assert "| 1 / 1 / 1 | 1 | 288 |" in "\n".join(training_table(mixed))
     marked = "\n".join(accuracy_by_noise(mixed, paper_numbers()))
     assert f"(3) {CAPPED} {OPEN}" in marked and "still improving" in marked
+
+
+def test_suite_json_names_a_shipped_suite_by_its_repository_path(tiny_suite):
+    from simlidar.bench.run import _shown
+
+    assert _shown(load_suite("quick")) == "benchmark/quick.toml"  # not the install path
+    assert _shown(load_suite(tiny_suite)) == str(tiny_suite)
