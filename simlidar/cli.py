@@ -556,8 +556,14 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
     help="Override every cell's time cap (inf: none).",
 )
 @_selection
+@click.option(
+    "--remeasure",
+    is_flag=True,
+    help="Measure the finished cells of --out again from their checkpoints (no training).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print results.json's content on stdout.")
-def bench(suite, models, dataset, out, epochs, max_seconds, validation, patience, as_json):
+def bench(suite, models, dataset, out, epochs, max_seconds, validation, patience, remeasure,
+          as_json):  # fmt: skip
     """Train and score the suite's models on its datasets: accuracy, how early spiking networks
     decide, energy, latency, size. Writes results.json, report.md and pictures; a rerun into
     the same directory skips the cells already finished."""
@@ -582,7 +588,19 @@ def bench(suite, models, dataset, out, epochs, max_seconds, validation, patience
     chosen = chosen.with_budget(epochs=epochs, max_seconds=max_seconds, validation=validation,
                                 patience=patience)  # fmt: skip
     out = out if out is not None else Path("bench") / chosen.name
-    results = run_suite(chosen, out, models=names, dataset=dataset, progress=not as_json)
+    if remeasure:
+        given = {"--models": models, "--dataset": dataset, "--epochs": epochs,
+                 "--max-seconds": max_seconds, "--validation": validation,
+                 "--patience": patience}  # fmt: skip
+        extra = [name for name, value in given.items() if value is not None]
+        if extra:
+            raise click.UsageError(f"--remeasure re-measures the finished cells of --out as they "
+                                   f"were trained; expected no {extra[0]}")  # fmt: skip
+        from simlidar.bench.run import remeasure as run_remeasure
+
+        results = run_remeasure(out, chosen, progress=not as_json)
+    else:
+        results = run_suite(chosen, out, models=names, dataset=dataset, progress=not as_json)
     if as_json:
         click.echo(json.dumps(results))
         return

@@ -31,8 +31,9 @@ def decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test"):
 
 def early_decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test",
                     per_sample: bool = False) -> dict:  # fmt: skip
-    """Summarise :func:`decisions` over a split (means over samples); with ``per_sample``,
-    also the decision time (ns, None if undecided) and input spikes consumed of each sample."""
+    """Summarise :func:`decisions` over a split (means over samples, ``accumulates_mean`` being
+    NeuroBench's effective synaptic operations per sample); with ``per_sample``, also the
+    decision time (ns, None if undecided) and input spikes consumed of each sample."""
     runs, y, tof_max_ns = decisions(model, dataset, split)
     decided = [d for d in runs if d.label >= 0]
     spikes = np.array([d.spikes for d in runs])
@@ -49,6 +50,7 @@ def early_decisions(model: torch.nn.Module, dataset: str | Path, split: str = "t
         "input_spikes_total_mean": float(np.mean([d.input_total for d in runs])),
         "data_ratio_mean": float(np.mean([d.data_ratio for d in runs])),
         "hidden_spikes_mean": float(np.mean([d.hidden_spikes for d in runs])),
+        "accumulates_mean": float(np.mean([d.accumulates for d in runs])),
         "energy_pj_mean": {str(a): float(spikes.mean() * a) for a in ALPHAS_PJ},
     }
     if per_sample:

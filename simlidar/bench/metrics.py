@@ -1,10 +1,17 @@
 """What the benchmark measures on a trained model, besides accuracy.
 
-Names follow NeuroBench (Yik et al. 2024) where it has one: ``footprint`` (bytes of parameters
-and buffers), ``connection_sparsity`` (fraction of zero weights), ``activation_sparsity``
-(fraction of neuron outputs that are zero, or silent for a spiking network) and
-``synaptic_operations`` (multiply-accumulates of a conventional network; accumulates, one per
-spike and outgoing synapse, of a spiking one).
+Figures under NeuroBench's names (Yik et al. 2024) follow the definitions of its library,
+NeuroBench 2.3.0, and ``tests/bench/test_metrics.py`` checks them against that library on a CNN,
+an MLP and a ResNet: ``params`` (ParameterCount), ``footprint`` (Footprint: bytes of parameters
+and buffers), ``connection_sparsity`` (ConnectionSparsity: fraction of zero weights of the
+connection layers), ``activation_sparsity`` (ActivationSparsity: fraction of zero outputs of the
+ReLU and Sigmoid modules over the whole evaluated split) and ``synaptic_operations``
+(SynapticOperations: ``effective_macs``, ``effective_acs`` and ``dense`` per sample). NeuroBench
+is not imported here: it brings numba, librosa, scikit-learn and a torchaudio that need not
+load beside the installed torch, too much for a runtime dependency, so it is the tests' oracle
+(docs/benchmark.md, "NeuroBench metrics"). For the spiking networks, which NeuroBench cannot run
+(they are not snnTorch models and decide event by event), the same definitions are applied to the
+event-driven run (:mod:`simlidar.models.events`).
 """
 
 import statistics
@@ -14,7 +21,13 @@ import numpy as np
 import torch
 from torch import nn
 
+from simlidar.models.layers import ConvTTFS, DenseTTFS
+
 MAC_PJ = 4.6  # energy of a 32-bit float multiply-accumulate at 45 nm (Horowitz, ISSCC 2014)
+# the layers NeuroBench counts synaptic operations and connection sparsity of (its
+# STATELESS_LAYERS; our models have no recurrent ones), and its activation modules
+CONNECTION_LAYERS = (nn.Linear, nn.Conv1d, nn.Conv2d, nn.Conv3d)
+ACTIVATIONS = (nn.ReLU, nn.Sigmoid)
 
 
 def confusion_matrix(labels: np.ndarray, predicted: np.ndarray, classes: int) -> np.ndarray:
@@ -26,54 +39,130 @@ def confusion_matrix(labels: np.ndarray, predicted: np.ndarray, classes: int) ->
 
 
 def footprint(model: nn.Module) -> dict:
-    """Parameter count, footprint in bytes, and connection sparsity."""
+    """NeuroBench's static metrics: ``params`` (every parameter), ``footprint`` (bytes of
+    parameters and buffers) and ``connection_sparsity`` (zero weights / weights of the
+    connection layers: linear and convolution layers, and the spiking layers' synapses; biases,
+    batch norm and buffers are not connections). NeuroBench rounds the sparsity to 4 decimals;
+    it is kept whole here."""
     params = list(model.parameters())
-    weights = [p for p in params if p.dim() > 1]
+    weights = [m.weight for m in model.modules()
+               if isinstance(m, (*CONNECTION_LAYERS, DenseTTFS, ConvTTFS))]  # fmt: skip
     zeros = sum(int((w == 0).sum()) for w in weights)
     total = sum(w.numel() for w in weights)
     size = sum(t.numel() * t.element_size() for t in (*params, *model.buffers()))
     return {
         "params": sum(p.numel() for p in params),
         "footprint": size,
-        "connection_sparsity": zeros / total if total else 0.0,
+        "connection_sparsity": zeros / total if total else None,
     }
 
 
-def macs(model: nn.Module, sample: torch.Tensor) -> dict:
-    """Multiply-accumulates per sample of a conventional network (convolutions and linear
-    layers, counted with forward hooks on one sample) and the activation sparsity of its ReLUs.
+def macs(model: nn.Module, sample: torch.Tensor) -> int:
+    """Multiply-accumulates per sample of a conventional network, counted by hand: every output
+    of a convolution or linear layer times its full kernel (in_channels / groups x kernel, or
+    in_features), zero padding included, bias excluded. Not NeuroBench's dense count, which
+    leaves out the products with padding (:func:`layer_operations`).
 
     sample : (C, H, W) one input
     """
-    counts = {"macs": 0, "relu_zero": 0, "relu_total": 0}
+    count = 0
 
     def conv(m, inputs, out):
-        counts["macs"] += out.numel() * m.in_channels // m.groups * m.kernel_size[0] * \
-            m.kernel_size[1]  # fmt: skip
+        nonlocal count
+        count += out.numel() * m.in_channels // m.groups * int(np.prod(m.kernel_size))
 
     def linear(m, inputs, out):
-        counts["macs"] += out.numel() * m.in_features
-
-    def relu(m, inputs, out):
-        counts["relu_zero"] += int((out == 0).sum())
-        counts["relu_total"] += out.numel()
+        nonlocal count
+        count += out.numel() * m.in_features
 
     hooks = []
     for m in model.modules():
-        if isinstance(m, nn.Conv2d):
+        if isinstance(m, (nn.Conv1d, nn.Conv2d, nn.Conv3d)):
             hooks.append(m.register_forward_hook(conv))
         elif isinstance(m, nn.Linear):
             hooks.append(m.register_forward_hook(linear))
-        elif isinstance(m, nn.ReLU):
-            hooks.append(m.register_forward_hook(relu))
     model.eval()
+    try:
+        with torch.no_grad():
+            model(sample[None])
+    finally:
+        for h in hooks:
+            h.remove()
+    return count
+
+
+def layer_operations(layer: nn.Module, x: torch.Tensor) -> tuple[int, int]:
+    """NeuroBench's synaptic operations of one connection layer on a batch: (effective, dense).
+
+    The layer is applied with its weights and inputs made binary and its bias dropped, and the
+    outputs summed. Effective: non-zero weights reaching non-zero inputs. Dense: every weight
+    and every input set to 1, so that every product is counted except those with the zero
+    padding of a convolution (the padded border is not an input). The dense count depends on
+    shapes alone and is taken on one sample. Outputs are whole numbers, summed in float64.
+
+    layer : one of CONNECTION_LAYERS
+    x : (B, ...) the layer's input
+    """
+    w = layer.weight
     with torch.no_grad():
-        model(sample[None])
-    for h in hooks:
-        h.remove()
-    # residual blocks apply torch.relu (not a module): their outputs are not counted
-    sparsity = counts["relu_zero"] / counts["relu_total"] if counts["relu_total"] else None
-    return {"macs": counts["macs"], "activation_sparsity": sparsity}
+        ones = torch.ones_like(w)
+        if isinstance(layer, nn.Linear):
+            effective = nn.functional.linear((x != 0).to(w.dtype), (w != 0).to(w.dtype))
+            dense = nn.functional.linear(torch.ones_like(x[:1]), ones)
+        else:  # the layer's own padding mode, stride, dilation and groups
+            effective = layer._conv_forward((x != 0).to(w.dtype), (w != 0).to(w.dtype), None)
+            dense = layer._conv_forward(torch.ones_like(x[:1]), ones, None)
+    return (int(effective.sum(dtype=torch.float64)),
+            int(dense.sum(dtype=torch.float64)) * len(x))  # fmt: skip
+
+
+def workload(model: nn.Module, x: torch.Tensor, batch_size: int = 64) -> dict:
+    """NeuroBench's workload metrics of a conventional network over a whole split.
+
+    ``activation_sparsity``: zero outputs / outputs of every ReLU and Sigmoid module, over all
+    samples (None without such a module; a functional ``torch.relu``, as after a residual
+    addition, is not a module and not counted, as in NeuroBench). ``synaptic_operations``: per
+    sample, ``effective_macs`` and ``effective_acs`` (:func:`layer_operations`, effective; a
+    layer whose input batch holds only 0, 1 and -1 is taken to receive spikes, and its
+    operations are accumulates, as NeuroBench decides it batch by batch: only binary input
+    data can make it so here) and ``dense``.
+
+    x : (N, C, H, W) inputs
+    """
+    counts = {"macs": 0, "acs": 0, "dense": 0, "zero": 0, "outputs": 0}
+
+    def connection(m, inputs):
+        effective, dense = layer_operations(m, inputs[0])
+        spikes = bool(((inputs[0] == 0) | (inputs[0] == 1) | (inputs[0] == -1)).all())
+        counts["acs" if spikes else "macs"] += effective
+        counts["dense"] += dense
+
+    def activation(m, inputs, out):
+        counts["zero"] += int((out == 0).sum())
+        counts["outputs"] += out.numel()
+
+    hooks = []
+    for m in model.modules():
+        if isinstance(m, CONNECTION_LAYERS):
+            hooks.append(m.register_forward_pre_hook(connection))
+        elif isinstance(m, ACTIVATIONS):
+            hooks.append(m.register_forward_hook(activation))
+    model.eval()
+    try:
+        with torch.no_grad():
+            for batch in torch.split(x, batch_size):
+                model(batch)
+    finally:
+        for h in hooks:
+            h.remove()
+    return {
+        "activation_sparsity": counts["zero"] / counts["outputs"] if counts["outputs"] else None,
+        "synaptic_operations": {
+            "effective_macs": counts["macs"] / len(x),
+            "effective_acs": counts["acs"] / len(x),
+            "dense": counts["dense"] / len(x),
+        },
+    }
 
 
 def latency(model: nn.Module, x: torch.Tensor, repeats: int = 30, big_batch: int = 512,
@@ -108,7 +197,12 @@ def latency(model: nn.Module, x: torch.Tensor, repeats: int = 30, big_batch: int
 
 
 def conventional_figures(model: nn.Module, x: torch.Tensor, board_power_w: float | None) -> dict:
-    """MACs, energy at 4.6 pJ per MAC, and the paper's own estimate: board power x latency."""
+    """Latency and throughput, NeuroBench's workload metrics over the split (:func:`workload`),
+    the hand count of MACs (:func:`macs`) with its energy at 4.6 pJ per MAC, and the paper's own
+    estimate: board power x latency.
+
+    x : (N, C, H, W) the evaluated split
+    """
     counted = macs(model, x[0])
     timing = latency(model, x)
     board = None
@@ -116,32 +210,37 @@ def conventional_figures(model: nn.Module, x: torch.Tensor, board_power_w: float
         board = board_power_w * timing["latency_ms"] * 1e-3 * 1e12  # W x s -> pJ
     return {
         **timing,
-        "macs": counted["macs"],
-        "energy_pj_mac": counted["macs"] * MAC_PJ,
+        "macs": counted,
+        "energy_pj_mac": counted * MAC_PJ,
         "energy_pj_board": board,
-        "activation_sparsity": counted["activation_sparsity"],
-        "synaptic_operations": {"effective_macs": counted["macs"], "effective_acs": 0},
+        **workload(model, x),
     }
 
 
 def spiking_figures(model: nn.Module, x: torch.Tensor, early: dict | None) -> dict:
     """Latency and throughput of a spiking network's batched forward pass; with the summary of
-    :func:`simlidar.bench.early.early_decisions` (dense networks), its activation sparsity
-    (neurons silent before the decision) and accumulates per decision.
+    :func:`simlidar.bench.early.early_decisions` (dense networks of any depth), NeuroBench's
+    workload metrics of the event-driven run, over the split:
 
-    The accumulate count is exact for one hidden layer (input spikes x hidden width + hidden
-    spikes x classes); it is left out (None) for deeper networks, whose evaluator does not
-    count spikes per layer.
+    * ``activation_sparsity``: the fraction of (sample, hidden or output neuron) pairs without a
+      spike before the decision. NeuroBench counts a spiking layer's zero outputs per time step;
+      an event-driven run has no time steps, and a neuron spikes at most once, so each neuron
+      has one output per sample.
+    * ``synaptic_operations``: ``effective_acs``, accumulates per sample (one per non-zero
+      synapse reached by an input or hidden spike delivered before the decision);
+      ``effective_macs`` 0; ``dense``, every synapse once (each neuron spikes at most once).
+
+    Without ``early`` (the spiking CNN has no event-driven evaluator) all but ``effective_macs``
+    are None.
     """
     figures = {**latency(model, x), "activation_sparsity": None,
-               "synaptic_operations": {"effective_macs": 0, "effective_acs": None}}  # fmt: skip
+               "synaptic_operations": {"effective_macs": 0, "effective_acs": None,
+                                       "dense": None}}  # fmt: skip
     if early is None:
         return figures
-    widths = [m.weight.shape[1] for m in model.layers]
+    neurons = sum(m.weight.shape[1] for m in model.layers)  # hidden and output
     fired = early["hidden_spikes_mean"] + (1 - early["no_decision"] / early["samples"])
-    figures["activation_sparsity"] = 1.0 - fired / sum(widths)
-    if len(widths) == 2:
-        figures["synaptic_operations"]["effective_acs"] = (
-            early["input_spikes_mean"] * widths[0] + early["hidden_spikes_mean"] * widths[1]
-        )
+    figures["activation_sparsity"] = 1.0 - fired / neurons
+    figures["synaptic_operations"]["effective_acs"] = early["accumulates_mean"]
+    figures["synaptic_operations"]["dense"] = sum(m.weight.numel() for m in model.layers)
     return figures

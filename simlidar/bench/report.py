@@ -355,7 +355,8 @@ def write_report(results: dict, out: Path) -> Path:
         "samples/s: one batch of up to 512. Indicative only: both depend on what else the "
         "machine was doing (a benchmark script, not a training suite, measures speed).",
         "* params, footprint (bytes of parameters and buffers), connection and activation "
-        "sparsity, synaptic operations: NeuroBench names, in `results.json`.", "",
+        "sparsity, synaptic operations: NeuroBench 2.3.0's definitions, checked against the "
+        "library in the tests (docs/benchmark.md, NeuroBench metrics), in `results.json`.", "",
     ]  # fmt: skip
     path = out / "report.md"
     path.write_text("\n".join(lines))

@@ -31,6 +31,7 @@ from simlidar.bench.train import (
     SELECTION,
     VALIDATION,
     is_spiking,
+    predictions,
     save_checkpoint,
     train,
     validation_split,
@@ -211,48 +212,112 @@ def run_cell(dataset: Path, model: str, seed: int, suite: Suite,
     timing["train"] = time.perf_counter() - start
     if checkpoint is not None:
         save_checkpoint(result, checkpoint)
-    model_ = result.model
-    x, y = load_split(dataset, "test")
-    x = torch.from_numpy(x)[:, None]
-    predicted = result.test_predictions
-    classes = len(attrs["class_names"])
     record = {
         "dataset": dataset.name,
         "source": attrs.get("source", GENERATOR),
         "noise": float(attrs["noise"]),
         "model": recipe["name"],
         "seed": seed,
-        "accuracy": float(np.mean(predicted == y)),
-        "kind": "spiking" if is_spiking(model_) else "conventional",
+        "kind": "spiking" if is_spiking(result.model) else "conventional",
         "family": recipe["model"],
-        "classes": classes,
+        "classes": len(attrs["class_names"]),
         "train_size": splits["train"].size,
         "test_size": splits["test"].size,
-        "input_shape": list(x.shape[1:]),
         "epochs": result.epochs,
         **result.selection(),
         "stopped_by_time": result.stopped == "time",
         "train_seconds": round(result.seconds, 2),
         "budget": budget,
-        **metrics.footprint(model_),
+    }
+    record.update(measure(result.model, recipe, dataset, suite, result.test_predictions, timing))
+    return record
+
+
+METRICS = "neurobench-2.3.0-definitions/v1"  # what measure() computes; a cell records it
+
+
+def measure(model: torch.nn.Module, recipe: dict, dataset: Path, suite: Suite,
+            predicted: np.ndarray, timing: dict) -> dict:  # fmt: skip
+    """Everything a cell measures on its trained model besides training: accuracy, confusion,
+    footprint, latency, NeuroBench's workload metrics, early decisions; ``timing`` gets the
+    seconds of each part, and is recorded."""
+    attrs = dataset_splits(dataset)["test"].attrs
+    x, y = load_split(dataset, "test")
+    x = torch.from_numpy(x)[:, None]
+    classes = len(attrs["class_names"])
+    record = {
+        "accuracy": float(np.mean(predicted == y)),
+        "input_shape": list(x.shape[1:]),
+        **metrics.footprint(model),
+        "metrics": METRICS,
     }
     start = time.perf_counter()
-    if record["kind"] == "spiking":
+    if is_spiking(model):
         early = None
         if recipe["model"] == "snn":  # the event-driven evaluator runs dense networks
-            early = early_decisions(model_, dataset, per_sample=True)
+            early = early_decisions(model, dataset, per_sample=True)
             record["per_sample"] = early.pop("per_sample")
             record["early"] = early
         timing["early_decisions"] = time.perf_counter() - start
         start = time.perf_counter()
-        figures = metrics.spiking_figures(model_, x, early)
+        figures = metrics.spiking_figures(model, x, early)
     else:
-        figures = metrics.conventional_figures(model_, x, suite.board_power_w)
+        figures = metrics.conventional_figures(model, x, suite.board_power_w)
     timing["latency_and_counts"] = time.perf_counter() - start
     record.update(figures)
     record["confusion"] = metrics.confusion_matrix(y, predicted, classes).tolist()
     record["timing_seconds"] = {k: round(v, 2) for k, v in timing.items()}
     return record
+
+
+def remeasure(out: Path, suite: Suite, progress: bool = True) -> dict:
+    """Measure every finished cell of ``out`` again from its checkpoint (no training): the
+    figures of :func:`measure` are replaced, the training record is kept. A checkpoint whose
+    test predictions do not give the cell's recorded accuracy is refused (it is not the cell's
+    model; one sample may differ, as float rounding differs with the thread count). Writes
+    results.json and the report; returns the results."""
+    from tqdm import tqdm
+
+    from simlidar.bench.report import write_report
+    from simlidar.bench.train import load_checkpoint
+
+    if not (out / "suite.json").is_file():
+        raise DatasetError(f"--out {out}: no benchmark run to re-measure; expected a directory "
+                           "written by simlidar bench")  # fmt: skip
+    claim(out, suite)  # the suite must own the directory
+    cells = sorted((out / "cells").glob("*.json"))
+    missing = [c.stem for c in cells if not (out / "checkpoints" / f"{c.stem}.pt").is_file()]
+    if missing:
+        raise DatasetError(f"--out {out}: cell {missing[0]} has no checkpoint "
+                           f"(checkpoints/{missing[0]}.pt; {len(missing)} cells lack one); "
+                           "expected every cell's weights, as bench saves them")  # fmt: skip
+    for path in tqdm(cells, desc="re-measure", unit="cell", disable=not progress):
+        record = json.loads(path.read_text())
+        dataset = _dataset_of(out, suite, record["dataset"])
+        model, data = load_checkpoint(out / "checkpoints" / f"{path.stem}.pt",
+                                      tuple(record["input_shape"]), record["classes"])  # fmt: skip
+        x, y = load_split(dataset, "test")
+        predicted = predictions(model, torch.from_numpy(x)[:, None]).numpy()
+        if abs(float(np.sum(predicted == y)) - record["accuracy"] * len(y)) > 1.5:
+            raise DatasetError(f"--out {out}: checkpoint of cell {path.stem} scores "
+                               f"{np.mean(predicted == y):.4f}, the cell {record['accuracy']:.4f}; "
+                               "expected the cell's own model")  # fmt: skip
+        timing = {k: v for k, v in record.get("timing_seconds", {}).items() if k == "train"}
+        record.update(measure(model, data["recipe"], dataset, suite, predicted, timing))
+        _write_json(path, record, indent=None)
+    results = collect(out, suite)
+    write_report(results, out)
+    return results
+
+
+def _dataset_of(out: Path, suite: Suite, name: str) -> Path:
+    """The directory of a cell's dataset: generated under ``<out>/datasets`` or one of the
+    suite's."""
+    for path in [out / "datasets" / name, *suite.datasets]:
+        if path.name == name and path.is_dir():
+            return path
+    raise DatasetError(f"--out {out}: dataset {name} of a cell is not there; expected it under "
+                       f"{out / 'datasets'} or among the suite's datasets")  # fmt: skip
 
 
 def check_validation(suite: Suite, models: list[str], dataset: Path | None) -> None:

@@ -9,7 +9,9 @@ form's "before the next input" is strict).
 
 The result per sample: the class, the decision time (network time ln z and sensor
 nanoseconds), the input spikes consumed and their fraction of all input spikes (the paper's
-R_data), the hidden spikes emitted before the decision, and the energy spikes x alpha.
+R_data), the hidden spikes emitted before the decision, the accumulates they caused (NeuroBench's
+effective synaptic operations of a spiking network: one per non-zero synapse a delivered spike
+reaches) and the energy spikes x alpha.
 """
 
 from dataclasses import dataclass
@@ -28,6 +30,7 @@ class Decision:
     input_spikes: int  # input spikes delivered before the decision
     input_total: int  # input spikes of the sample
     hidden_spikes: int  # spikes of hidden neurons before the decision
+    accumulates: int  # synapses (non-zero weights) reached by the spikes delivered before it
 
     @property
     def time(self) -> float:
@@ -56,6 +59,10 @@ class Decision:
 def decide(weights: list[np.ndarray], z_in: np.ndarray) -> Decision:
     """Run a dense TTFS network on one sample, event by event, until the first output spike.
 
+    Every input spike consumed and every hidden spike is delivered to the next layer, and adds
+    one accumulate per non-zero weight it reaches (a row of that layer's weights); the output
+    spike that decides is delivered nowhere.
+
     weights : per layer (N_in, N_out) float64 arrays, input layer first
     z_in : (N,) input spikes in the z domain, inf = no spike
     """
@@ -67,10 +74,14 @@ def decide(weights: list[np.ndarray], z_in: np.ndarray) -> Decision:
     swz = [np.zeros(w.shape[1]) for w in weights]  # sum of received w * z
     fired = [np.zeros(w.shape[1], bool) for w in weights]
     pending = [np.full(w.shape[1], np.inf) for w in weights]  # when each would fire
+    fan_out = [np.count_nonzero(w, axis=1) for w in weights]  # (N_in,) synapses per source
     hidden = 0
+    accumulates = 0
     next_input = 0
 
     def deliver(layer: int, source: int, z: float) -> None:
+        nonlocal accumulates
+        accumulates += int(fan_out[layer][source])
         w = weights[layer][source]
         sw[layer] += w
         swz[layer] += w * z
@@ -88,14 +99,15 @@ def decide(weights: list[np.ndarray], z_in: np.ndarray) -> Decision:
             if pending[layer][j] < best_z:
                 best_layer, best_neuron, best_z = layer, j, pending[layer][j]
         if z_next <= best_z:  # deliver the input spike first (ties included)
-            if not np.isfinite(z_next):
-                return Decision(-1, np.inf, next_input, len(order), hidden)  # all silent
+            if not np.isfinite(z_next):  # nothing left to deliver or fire: undecided
+                return Decision(-1, np.inf, next_input, len(order), hidden, accumulates)
             deliver(0, order[next_input], z_next)
             next_input += 1
             continue
         fired[best_layer][best_neuron] = True
         pending[best_layer][best_neuron] = np.inf
         if best_layer == n_layers - 1:
-            return Decision(best_neuron, float(best_z), next_input, len(order), hidden)
+            return Decision(best_neuron, float(best_z), next_input, len(order), hidden,
+                            accumulates)  # fmt: skip
         hidden += 1
         deliver(best_layer + 1, best_neuron, best_z)

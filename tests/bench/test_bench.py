@@ -8,7 +8,7 @@ from click.testing import CliRunner
 from simlidar.bench.run import run_suite
 from simlidar.bench.suite import load_suite, suite_names
 from simlidar.cli import main
-from simlidar.errors import ConfigError
+from simlidar.errors import ConfigError, DatasetError
 
 TINY = """
 name = "tiny"
@@ -95,6 +95,26 @@ def test_a_suite_runs_reruns_and_reports(tiny_suite, tmp_path, datasets):
     assert [p.stem for p in saved] == sorted(p.stem for p in (out / "cells").glob("*.json"))
     _, data = load_checkpoint(saved[0], (1, 16, 16), 32)
     assert len(data["history"]) == 1
+
+    # re-measuring from the checkpoints gives the same figures, keeps the training record
+    from simlidar.bench.run import remeasure
+
+    first = sorted((out / "cells").glob("*.json"))[0]
+    measured = json.loads(first.read_text())
+    changed = dict(measured, activation_sparsity=123.0, params=-1)
+    first.write_text(json.dumps(changed))
+    again = remeasure(out, suite, progress=False)
+    redone = json.loads(first.read_text())
+    stable = ("activation_sparsity", "params", "accuracy", "confusion", "synaptic_operations",
+              "validation_curve", "best_epoch", "inputs", "metrics")  # fmt: skip
+    for key in stable:
+        assert redone[key] == measured[key], key
+    assert len(again["cells"]) == 4
+    saved[0].unlink()
+    with pytest.raises(DatasetError, match=f"cell {saved[0].stem} has no checkpoint"):
+        remeasure(out, suite, progress=False)
+    run_suite(suite, out, progress=False)  # nothing to train: the checkpoint stays missing
+    assert not saved[0].exists()
     written = json.loads((out / "results.json").read_text())
     assert written["machine"]["cores"] and written["suite"]["name"] == "tiny"
     report = (out / "report.md").read_text()
@@ -114,8 +134,6 @@ def test_a_suite_runs_reruns_and_reports(tiny_suite, tmp_path, datasets):
     assert len(after) == 6 and len(again["cells"]) == 6
 
     # the same cells under other training rules are refused, not mixed in
-    from simlidar.errors import DatasetError
-
     for rules in ({"patience": 3}, {"validation": 0.2}, {"epochs": 2}):
         with pytest.raises(DatasetError, match="was made with other training rules"):
             run_suite(suite.with_budget(**rules), out, models=["cnn"], progress=False)
@@ -223,6 +241,11 @@ def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets):
     other_rules = ["--models", "cnn", "--dataset", str(datasets[0.1]), "--out", str(out)]
     fails(["--suite", str(tiny_suite), *other_rules, "--epochs", "2"], 1,
           "was made with other training rules")  # fmt: skip
+    fails(["--suite", str(tiny_suite), "--out", str(out), "--remeasure", "--epochs", "2"], 2,
+          "--remeasure re-measures the finished cells of --out as they were trained; expected "
+          "no --epochs")  # fmt: skip
+    fails(["--suite", str(tiny_suite), "--out", str(tmp_path / "none"), "--remeasure"], 1,
+          "no benchmark run to re-measure")  # fmt: skip
     fails(["--suite", str(tiny_suite), "--out", str(not_schema)], 1,
           "not a benchmark output directory")  # fmt: skip
     assert (out / "results.json").read_bytes() == results  # nothing touched
