@@ -85,7 +85,8 @@ def accuracy_by_noise(cells: list[dict], paper: dict) -> list[str]:
             f"{OPEN} at least one seed ran to its epoch cap with its validation score "
             "(accuracy, then loss) still improving, its best epoch among the last `patience`: "
             "not converged by the suite's rule (at a validation accuracy of 100 % only the "
-            "loss was still falling).",
+            "loss was still falling). A cosine schedule, which anneals the rate to 0 at the "
+            "cap, is not marked: its last epochs are the schedule's end.",
         ]
     if any(_spread(group) for group in by.values()):
         lines += [
@@ -110,9 +111,12 @@ def _capped(cells: list[dict]) -> str:
 
 def still_improving(cell: dict) -> bool:
     """Whether a cell ended on its epoch cap with its best validation epoch among the last
-    ``patience`` (a cell without validation: never known, so False)."""
+    ``patience``. Not for a cell without validation (never known), nor for one whose learning
+    rate schedule anneals to 0 at the cap (cosine): its last epochs are the schedule's end."""
     patience = cell.get("inputs", {}).get("rules", {}).get("patience")
     if cell.get("stopped") != "epochs" or not cell.get("validation_size") or patience is None:
+        return False
+    if cell.get("lr_schedule") == "cosine":
         return False
     return cell["epochs_run"] - 1 - cell["best_epoch"] < patience
 

@@ -250,6 +250,7 @@ def measure(model: torch.nn.Module, recipe: dict, dataset: Path, suite: Suite,
         "input_shape": list(x.shape[1:]),
         **metrics.footprint(model),
         "metrics": METRICS,
+        "lr_schedule": recipe["training"].get("lr_schedule", "constant"),
     }
     start = time.perf_counter()
     if is_spiking(model):

@@ -343,6 +343,9 @@ def test_seeds_that_disagree_are_marked_and_training_is_tabled():
     assert "| 1 / 1 / 1 | 1 | 288 |" in "\n".join(training_table(mixed))
     marked = "\n".join(accuracy_by_noise(mixed, paper_numbers()))
     assert f"(3) {CAPPED} {OPEN}" in marked and "still improving" in marked
+    for c in mixed:  # a cosine schedule ends at rate 0 on its cap: converged by construction
+        c["lr_schedule"] = "cosine"
+    assert "| 1 / 1 / 1 | 0 | 288 |" in "\n".join(training_table(mixed))
 
 
 def test_suite_json_names_a_shipped_suite_by_its_repository_path(tiny_suite):
