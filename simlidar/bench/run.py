@@ -75,19 +75,30 @@ def machine() -> dict:
 
 def claim(out: Path, suite: Suite) -> None:
     """Make ``out`` the suite's output directory, or refuse one that belongs to another suite
-    (nothing in it is touched)."""
+    (nothing in it is touched).
+
+    A directory belongs to a suite's name and its data (``[generate]`` or ``datasets``): the
+    suite file may change otherwise (models, seeds, budgets, description), as every cell
+    carries the rules it was trained by and a cell made under other rules is refused by
+    :func:`finished`. ``suite.json`` then records the file's new sha256.
+    """
     marker = out / "suite.json"
     if marker.is_file():
         try:
             owner = json.loads(marker.read_text())
         except (OSError, ValueError):
             owner = {}
-        if owner.get("sha256") != suite.sha256:
+        if owner.get("sha256") == suite.sha256:
+            return
+        if owner.get("name") != suite.name or owner.get("data_sha256") != suite.data_sha256:
+            other = "data" if owner.get("name") == suite.name else "suite"
             raise DatasetError(
-                f"--out {out}: belongs to suite {owner.get('name', '?')!r} "
-                f"(sha256 {str(owner.get('sha256'))[:12]}), not to {suite.name!r} (sha256 "
-                f"{suite.sha256[:12]}); expected a new directory or one of this suite"
+                f"--out {out}: belongs to suite {owner.get('name', '?')!r} (data sha256 "
+                f"{str(owner.get('data_sha256'))[:12]}), not to {suite.name!r} (data sha256 "
+                f"{suite.data_sha256[:12]}): another {other}; expected a new directory or one "
+                "of this suite"
             )
+        _write_json(marker, _ownership(suite))  # the same suite and data, the file edited
         return
     litter = {"cells", ".suite.json.partial"}  # what a claim that failed midway left
     if out.exists() and any(
@@ -98,11 +109,16 @@ def claim(out: Path, suite: Suite) -> None:
     created = not out.exists()
     try:
         (out / "cells").mkdir(parents=True, exist_ok=True)
-        _write_json(marker, {"name": suite.name, "sha256": suite.sha256, "path": _shown(suite)})
+        _write_json(marker, _ownership(suite))
     except BaseException:  # undo, so that a rerun can claim the folder
         shutil.rmtree(out if created else out / "cells", ignore_errors=True)
         (out / ".suite.json.partial").unlink(missing_ok=True)
         raise
+
+
+def _ownership(suite: Suite) -> dict:
+    return {"name": suite.name, "sha256": suite.sha256, "data_sha256": suite.data_sha256,
+            "path": _shown(suite)}  # fmt: skip
 
 
 def _shown(suite: Suite) -> str:

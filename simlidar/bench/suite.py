@@ -25,6 +25,7 @@ A suite is a TOML file (``benchmark/<name>.toml`` or any path)::
 """
 
 import hashlib
+import json
 import re
 import tomllib
 from dataclasses import dataclass, field, replace
@@ -46,7 +47,8 @@ BUDGET_KEYS = {"epochs", "max_seconds", "patience", "validation"}
 class Suite:
     name: str
     path: Path
-    sha256: str  # of the suite file's bytes: an output directory belongs to one suite
+    sha256: str  # of the suite file's bytes
+    data_sha256: str  # of its [generate] table or datasets list: an output directory's data
     description: str
     models: tuple[str, ...]
     seeds: tuple[int, ...]
@@ -174,8 +176,10 @@ def load_suite(name_or_path: str | Path) -> Suite:
     if power is not None and not _number(power, 0):
         raise _fail(path, "board_power_w", "watts >= 0", power)
     return Suite(
-        name=name, path=path,
-        sha256=hashlib.sha256(raw).hexdigest(), description=str(data.get("description", "")),
+        name=name, path=path, sha256=hashlib.sha256(raw).hexdigest(),
+        data_sha256=hashlib.sha256(json.dumps(data.get("generate", data.get("datasets")),
+                                              sort_keys=True).encode()).hexdigest(),
+        description=str(data.get("description", "")),
         models=tuple(models), seeds=tuple(seeds), generate=config, noise=noise,
         datasets=datasets, budget=budget, board_power_w=power,
     )  # fmt: skip

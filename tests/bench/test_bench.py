@@ -139,6 +139,22 @@ def test_a_suite_runs_reruns_and_reports(tiny_suite, tmp_path, datasets):
             run_suite(suite.with_budget(**rules), out, models=["cnn"], progress=False)
     assert {p.name: p.read_bytes() for p in (out / "cells").iterdir()} == after
 
+    # the suite file edited (a model's budget), same name and data: the directory stays its
+    # own; the cells of the untouched model are kept, those of the changed one refused
+    tiny_suite.write_text(tiny_suite.read_text() + "[budget.cnn]\npatience = 4\n")
+    edited = load_suite(tiny_suite)
+    assert edited.sha256 != suite.sha256 and edited.data_sha256 == suite.data_sha256
+    assert len(run_suite(edited, out, models=["snn_simlidar"], progress=False)["cells"]) == 6
+    assert json.loads((out / "suite.json").read_text())["sha256"] == edited.sha256
+    with pytest.raises(DatasetError, match="cnn__seed0 was made with other training rules"):
+        run_suite(edited, out, models=["cnn"], progress=False)
+    other_data = tmp_path / "tiny2.toml"
+    one_more = f'"{datasets[0.5]}", "{datasets[0.1]}"'  # the datasets list changed
+    other_data.write_text(tiny_suite.read_text().replace(f'"{datasets[0.5]}"', one_more))
+    with pytest.raises(DatasetError, match="not to 'tiny' .*: another data"):
+        run_suite(load_suite(other_data), out, progress=False)
+    assert {p.name: p.read_bytes() for p in (out / "cells").iterdir()} == after
+
 
 def test_one_cell_is_seeded(tiny_suite, tmp_path, datasets):
     suite = load_suite(tiny_suite)
