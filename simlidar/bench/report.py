@@ -62,8 +62,7 @@ def accuracy_by_noise(cells: list[dict], paper: dict) -> list[str]:
              "|---" * (len(levels) + 1) + "|"]  # fmt: skip
     for m in models:
         row = [
-            f"{_pct([c['accuracy'] for c in by[m, v]])} ({len(by[m, v])}){_capped(by[m, v])}"
-            f"{_open(by[m, v])}{_spread(by[m, v])}"
+            f"{_pct([c['accuracy'] for c in by[m, v]])} ({len(by[m, v])}){_marks(by[m, v])}"
             if by[m, v]
             else "–"
             for v in levels
@@ -72,41 +71,10 @@ def accuracy_by_noise(cells: list[dict], paper: dict) -> list[str]:
     reported = dict(zip(paper["simlidar"]["noise"], paper["simlidar"]["snn_accuracy"]))
     row = [f"{reported[v]:.2f}" if v in reported else "–" for v in levels]
     lines.append("| *paper: SNN 256-400-32* | " + " | ".join(row) + " |")
-    if any(c.get("stopped_by_time") for c in sim):
-        lines += [
-            "",
-            f"{CAPPED} at least one seed stopped on the suite's time cap "
-            "(`max_seconds`) before its epoch budget: a figure of the machine's speed and "
-            "load, not of the model.",
-        ]
-    if any(_open(group) for group in by.values()):
-        lines += [
-            "",
-            f"{OPEN} at least one seed ran to its epoch cap with its validation score "
-            "(accuracy, then loss) still improving, its best epoch among the last `patience`: "
-            "not converged by the suite's rule (at a validation accuracy of 100 % only the "
-            "loss was still falling). A cosine schedule, which anneals the rate to 0 at the "
-            "cap, is not marked: its last epochs are the schedule's end.",
-        ]
-    if any(_spread(group) for group in by.values()):
-        lines += [
-            "",
-            f"{SPREAD} the seeds disagree by more than {SPREAD_POINTS:g} points (sample "
-            "standard deviation): the mean says less than its digits suggest; see the "
-            "training table below (epochs, stops) for where the seeds went apart.",
-        ]
+    for mark, applies, note in MARKS:
+        if any(applies(group) for group in by.values()):
+            lines += ["", f"{mark} {note}"]
     return lines + [""]
-
-
-CAPPED = "†"
-OPEN = "§"
-SPREAD = "‡"
-SPREAD_POINTS = 2.0  # a sample standard deviation over seeds above this is marked
-
-
-def _capped(cells: list[dict]) -> str:
-    """A mark for a group of cells of which one stopped on the time cap."""
-    return f" {CAPPED}" if any(c.get("stopped_by_time") for c in cells) else ""
 
 
 def still_improving(cell: dict) -> bool:
@@ -121,15 +89,33 @@ def still_improving(cell: dict) -> bool:
     return cell["epochs_run"] - 1 - cell["best_epoch"] < patience
 
 
-def _open(cells: list[dict]) -> str:
-    """A mark for a group of cells of which one was still improving at its epoch cap."""
-    return f" {OPEN}" if any(still_improving(c) for c in cells) else ""
+def _spread(cells: list[dict]) -> bool:
+    """Whether a group of seeds' accuracies spread over more than SPREAD_POINTS."""
+    return _stats([100 * c["accuracy"] for c in cells])[1] > SPREAD_POINTS
 
 
-def _spread(cells: list[dict]) -> str:
-    """A mark for a group of seeds whose accuracies spread over more than SPREAD_POINTS."""
-    std = _stats([100 * c["accuracy"] for c in cells])[1]
-    return f" {SPREAD}" if std > SPREAD_POINTS else ""
+CAPPED, OPEN, SPREAD = "†", "§", "‡"
+SPREAD_POINTS = 2.0  # a sample standard deviation over seeds above this is marked
+MARKS = (  # (mark, whether it applies to a group of cells, the note under the table)
+    (CAPPED, lambda cells: any(c.get("stopped_by_time") for c in cells),
+     "at least one seed stopped on the suite's time cap (`max_seconds`) before its epoch "
+     "budget: a figure of the machine's speed and load, not of the model."),
+    (OPEN, lambda cells: any(map(still_improving, cells)),
+     "at least one seed ran to its epoch cap with its validation score (accuracy, then loss) "
+     "still improving, its best epoch among the last `patience`: not converged by the suite's "
+     "rule (at a validation accuracy of 100 % only the loss was still falling). A cosine "
+     "schedule, which anneals the rate to 0 at the cap, is not marked: its last epochs are the "
+     "schedule's end."),
+    (SPREAD, _spread,
+     f"the seeds disagree by more than {SPREAD_POINTS:g} points (sample standard deviation): "
+     "the mean says less than its digits suggest; see the training table below (epochs, "
+     "stops) for where the seeds went apart."),
+)  # fmt: skip
+
+
+def _marks(cells: list[dict], which: tuple = MARKS) -> str:
+    """The marks of ``which`` that apply to a group of cells, each after a space."""
+    return "".join(f" {mark}" for mark, applies, _ in which if applies(cells))
 
 
 def training_table(cells: list[dict]) -> list[str]:
@@ -195,12 +181,13 @@ def by_model(cells: list[dict], paper: dict) -> list[str]:
                           _num(_mean(runs, lambda c: c["macs"]), "{:.3g}")]  # fmt: skip
             else:
                 timing = ["–"] * 6  # a spiking CNN: no event-driven evaluator yet
+            capped = _marks(runs, MARKS[:1])  # the epochs column: the time cap only
             lines.append(
                 f"| {model} | {_pct([c['accuracy'] for c in runs])} | " + " | ".join(timing)
                 + f" | {_mean(runs, lambda c: c['latency_ms']):.3f}"
                 f" | {_mean(runs, lambda c: c['throughput_per_s']):.0f}"
                 f" | {runs[0]['params']:,} | {runs[0]['footprint'] / 1e6:.2f}"
-                f" | {_num(_mean(runs, lambda c: c['epochs']), '{:.0f}')}{_capped(runs)} |"
+                f" | {_num(_mean(runs, lambda c: c['epochs']), '{:.0f}')}{capped} |"
             )  # fmt: skip
         if source == "kitti":
             lines += ["", f"The paper on KITTI ({paper['kitti']['train_size']:,} / "
