@@ -28,11 +28,11 @@ from simlidar.bench.early import early_decisions
 from simlidar.bench.suite import Suite
 from simlidar.bench.train import (
     PATIENCE,
-    SELECTION,
     VALIDATION,
     is_spiking,
     predictions,
     save_checkpoint,
+    selection_rule,
     train,
     validation_split,
 )
@@ -164,7 +164,7 @@ def training_rules(model: str, budget: dict) -> dict:
         "max_seconds": training.get("max_seconds", float("inf")),
         "validation": training.get("validation", VALIDATION),
         "patience": training.get("patience", PATIENCE),
-        "selection": SELECTION,
+        "selection": selection_rule(training),
     }
 
 

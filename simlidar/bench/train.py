@@ -4,7 +4,10 @@ Model selection (docs/benchmark.md, Training and model selection): a stratified 
 split is carved out of the train split (``[training] validation``, a fraction, default 0.1;
 seeded by the training seed), the weights of the epoch with the best validation accuracy are
 kept (ties: the lower validation loss), training stops once ``patience`` epochs (default 10)
-brought no improvement, and the test split is read once, at the end.
+brought no improvement, and the test split is read once, at the end. A learning rate schedule
+that anneals to 0 (``cosine``) defines its own end: such a run keeps its last epoch and runs
+every epoch, and the validation split only reports (choosing among the near-equal epochs of an
+annealed run picks the luckiest draw of a small validation split, not a better model).
 """
 
 import copy
@@ -29,6 +32,13 @@ VALIDATION = 0.1  # default fraction of each class's training samples held out f
 PATIENCE = 10  # default epochs without a better validation score before training stops
 STOPS = ("plateau", "epochs", "time")  # why training stopped (TrainResult.stopped)
 SELECTION = "best-validation-accuracy-then-loss/v1"  # the rule's name, recorded by every cell
+ANNEALED = "last-epoch-of-annealed-schedule/v1"  # the rule of a schedule that anneals to 0
+
+
+def selection_rule(training: dict) -> str:
+    """The name of the rule that picks a run's kept epoch: the best validation epoch, or the
+    last one where the learning rate schedule anneals to 0 (``cosine``)."""
+    return ANNEALED if training.get("lr_schedule", "constant") == "cosine" else SELECTION
 
 
 @dataclass
@@ -213,6 +223,7 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
     x_train, y_train = x_all[rows], y_all[rows]
     x_val, y_val = x_all[held], y_all[held]
     patience = training.get("patience", PATIENCE)
+    annealed = selection_rule(training) == ANNEALED
     generator = torch.Generator().manual_seed(seed)
     model = build_model(recipe, tuple(x_train.shape[1:]), classes, generator)
     if is_spiking(model):
@@ -254,7 +265,9 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
             score = evaluate(model, x_val, y_val, training)
             record.update(val_accuracy=score[0], val_loss=score[1])
             bar.set_postfix(loss=f"{record['loss']:.3f}", val=f"{score[0]:.3f}")
-            if _better(score, best):
+            if annealed:
+                best_epoch = epoch  # the schedule's end decides: validation only reports
+            elif _better(score, best):
                 best, best_epoch = score, epoch
                 best_state = copy.deepcopy(model.state_dict())
         else:

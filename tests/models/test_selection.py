@@ -93,3 +93,21 @@ def test_training_stops_on_a_validation_plateau(datasets):
 def test_a_time_cap_is_recorded_as_the_reason(datasets):
     result = train(_recipe(), datasets[0.1], seed=0, epochs=5, max_seconds=0, progress=False)
     assert result.stopped == "time" and result.epochs == 1
+
+
+def test_an_annealed_schedule_keeps_its_last_epoch_and_runs_every_epoch(datasets):
+    from simlidar.bench.train import ANNEALED, SELECTION, selection_rule
+
+    recipe = _recipe(validation=0.34, patience=1, lr_schedule="cosine")
+    result = train(recipe, datasets[0.1], seed=1, epochs=8, progress=False)
+    assert result.stopped == "epochs" and result.epochs == 8  # patience 1 does not stop it
+    assert result.best_epoch == 7  # the schedule's end, whatever the validation curve says
+    curve = [h["val_accuracy"] for h in result.history]
+    assert all(a is not None for a in curve)  # validation still reports every epoch
+    assert any(curve[e] <= max(curve[:e]) for e in range(1, 7))  # best-epoch rules would stop
+    x, y = (torch.from_numpy(a) for a in load_split(datasets[0.1], "train"))
+    _, held = validation_split(y.numpy(), 0.34, 1, [str(i) for i in range(32)])
+    accuracy, _ = evaluate(result.model, x[held][:, None], y[held], recipe["training"])
+    assert accuracy == pytest.approx(curve[-1])  # the returned weights are the last epoch's
+    assert selection_rule(recipe["training"]) == ANNEALED
+    assert selection_rule(_recipe()["training"]) == SELECTION
