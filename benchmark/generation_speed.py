@@ -79,8 +79,9 @@ def _unit_mesh(kind: str, segments: int):
     return mesh
 
 
-def naive_backend(catalog, layout, obj, layout_uniforms, object_uniforms, origins, directions,
-                  slots, max_range_m):  # fmt: skip
+def naive_backend(
+    catalog, layout, obj, layout_uniforms, object_uniforms, origins, directions, slots, max_range_m
+):
     """The naive way: per sample, trimesh primitives in one scene and trimesh's ray API."""
     import trimesh
 
@@ -104,16 +105,24 @@ def naive_backend(catalog, layout, obj, layout_uniforms, object_uniforms, origin
                 surfaces.append(inst.primitive.surface)
                 objects.append(inst.is_object)
         counts = [len(m.faces) for m in meshes]
-        results.append(_trimesh_hits(trimesh.util.concatenate(meshes),
-                                     np.repeat(surfaces, counts), np.repeat(objects, counts),
-                                     origins[k], directions[k], max_range_m))  # fmt: skip
+        results.append(
+            _trimesh_hits(
+                trimesh.util.concatenate(meshes),
+                np.repeat(surfaces, counts),
+                np.repeat(objects, counts),
+                origins[k],
+                directions[k],
+                max_range_m,
+            )
+        )
         poses.append(pose[0])
     hits = Hits(*(np.stack([r[i] for r in results]) for i in range(3)))
     return hits, np.stack(poses)
 
 
-def per_sample_cast_backend(catalog, layout, obj, layout_uniforms, object_uniforms, origins,
-                            directions, slots, max_range_m):  # fmt: skip
+def per_sample_cast_backend(
+    catalog, layout, obj, layout_uniforms, object_uniforms, origins, directions, slots, max_range_m
+):
     """simlidar's numpy builder, but one trimesh mesh and one ray query per sample."""
     import trimesh
 
@@ -123,8 +132,16 @@ def per_sample_cast_backend(catalog, layout, obj, layout_uniforms, object_unifor
         mine = np.nonzero(scene.sample == k)[0]
         tris = scene.triangles[mine]
         mesh = trimesh.Trimesh(**trimesh.triangles.to_kwargs(tris), process=False)
-        results.append(_trimesh_hits(mesh, scene.surface[mine], scene.is_object[mine],
-                                     origins[k], directions[k], max_range_m))  # fmt: skip
+        results.append(
+            _trimesh_hits(
+                mesh,
+                scene.surface[mine],
+                scene.is_object[mine],
+                origins[k],
+                directions[k],
+                max_range_m,
+            )
+        )
     hits = Hits(*(np.stack([r[i] for r in results]) for i in range(3)))
     return hits, scene.object_pose
 
@@ -160,8 +177,12 @@ def peak_memory_mb(samples: int, out: Path) -> float:
         " load_catalog(), sys.argv[2], progress=False, preview=False);"
         "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)"
     )
-    done = subprocess.run([sys.executable, "-c", code, str(samples), str(out)], check=True,
-                          capture_output=True, text=True)  # fmt: skip
+    done = subprocess.run(
+        [sys.executable, "-c", code, str(samples), str(out)],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     return int(done.stdout.split()[-1]) / 1024.0
 
 
@@ -182,12 +203,18 @@ def main() -> None:
             "cpu": platform.processor() or platform.machine(),
             "cores_used": 1,
             "python": platform.python_version(),
-        },  # fmt: skip
+        },
     }
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        generate(GeneratorConfig(train_size=64, test_size=32), [0.2], catalog, tmp / "warm",
-                 progress=False, preview=False)  # fmt: skip
+        generate(
+            GeneratorConfig(train_size=64, test_size=32),
+            [0.2],
+            catalog,
+            tmp / "warm",
+            progress=False,
+            preview=False,
+        )
         start = time.perf_counter()
         generate(config, [0.2], catalog, tmp / "fast", progress=False, preview=False)
         fast = args.samples / (time.perf_counter() - start)
@@ -209,8 +236,11 @@ def main() -> None:
                 f"{label:32s}: {rate:8.0f} samples/s  ({args.naive_samples} samples), "
                 f"simlidar is {fast / rate:5.1f} x faster; identical pulses {100 * same:.2f} %"
             )
-            figures[key] = {"samples_per_s": round(rate, 1), "ratio": round(fast / rate, 1),
-                            "identical_pulses": round(same, 5)}  # fmt: skip
+            figures[key] = {
+                "samples_per_s": round(rate, 1),
+                "ratio": round(fast / rate, 1),
+                "identical_pulses": round(same, 5),
+            }
 
         counts = [int(c) for c in args.memory.split(",") if c]
         if counts:
@@ -219,8 +249,10 @@ def main() -> None:
             figures["peak_memory_mb"] = {"1000": round(reference, 1)}
             for count in counts:
                 peak = peak_memory_mb(count, tmp / f"m-{count}")
-                print(f"peak memory, {count:,} samples: {peak:7.1f} MB "
-                      f"({peak / reference:.2f} x the reference)")  # fmt: skip
+                print(
+                    f"peak memory, {count:,} samples: {peak:7.1f} MB "
+                    f"({peak / reference:.2f} x the reference)"
+                )
                 figures["peak_memory_mb"][str(count)] = round(peak, 1)
     if args.json:
         args.json.write_text(json.dumps(figures, indent=2) + "\n")

@@ -41,10 +41,17 @@ def main() -> None:
     rows = []
     for factor in (float(f) for f in args.factors.split(",")):
         start = time.perf_counter()
-        config = GeneratorConfig(noise=args.noise, train_size=args.train_size,
-                                 test_size=args.test_size, variation=factor)  # fmt: skip
-        written = generate(config, [args.noise], load_catalog(),
-                           args.out / f"data-f{factor:g}", force=True, progress=False)  # fmt: skip
+        config = GeneratorConfig(
+            noise=args.noise, train_size=args.train_size, test_size=args.test_size, variation=factor
+        )
+        written = generate(
+            config,
+            [args.noise],
+            load_catalog(),
+            args.out / f"data-f{factor:g}",
+            force=True,
+            progress=False,
+        )
         dataset = written[0].path
         suite = args.out / f"suite-f{factor:g}.toml"
         suite.write_text(
@@ -54,8 +61,15 @@ def main() -> None:
         )
         results = run_suite(load_suite(suite), args.out / f"bench-f{factor:g}", progress=False)
         for cell in results["cells"]:
-            rows.append({"factor": factor, "model": cell["model"], "accuracy": cell["accuracy"],
-                         "epochs": cell["epochs"], "seconds": cell["seconds"]})  # fmt: skip
+            rows.append(
+                {
+                    "factor": factor,
+                    "model": cell["model"],
+                    "accuracy": cell["accuracy"],
+                    "epochs": cell["epochs"],
+                    "seconds": cell["seconds"],
+                }
+            )
             print(
                 f"f = {factor:<5g} {cell['model']:<14} accuracy {cell['accuracy']:.4f} "
                 f"({cell['epochs']} epochs, {cell['seconds']:.0f} s)",

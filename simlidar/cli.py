@@ -72,8 +72,9 @@ class NoiseLevels(click.ParamType):
             except ValueError:
                 self.fail(f"{part!r} is not a number; expected levels like 0.1,0.2", param, ctx)
             if not 0.0 <= level <= 1.0:
-                self.fail(f"{level:g} is outside [0, 1]; expected noise levels in [0, 1]",
-                          param, ctx)  # fmt: skip
+                self.fail(
+                    f"{level:g} is outside [0, 1]; expected noise levels in [0, 1]", param, ctx
+                )
             levels.append(level)
         if len(set(levels)) != len(levels):
             self.fail(f"{value!r} repeats a level; expected distinct levels", param, ctx)
@@ -264,8 +265,10 @@ def generate(
         click.echo(json.dumps(record))
     else:
         for w in written:
-            click.echo(f"wrote {w.path} (train {w.splits['train']}, test {w.splits['test']}, "
-                       f"noise {w.noise:g}) and its preview.png")  # fmt: skip
+            click.echo(
+                f"wrote {w.path} (train {w.splits['train']}, test {w.splits['test']}, "
+                f"noise {w.noise:g}) and its preview.png"
+            )
         click.echo(f"done in {seconds:.1f} s")
 
 
@@ -318,8 +321,9 @@ def preview(path, out, split):
     from simlidar.errors import DatasetError
 
     if out.suffix.lower() != ".png":
-        raise click.BadParameter(f"{out}: expected a file name ending in .png",
-                                 param_hint="'--out'")  # fmt: skip
+        raise click.BadParameter(
+            f"{out}: expected a file name ending in .png", param_hint="'--out'"
+        )
     if not out.parent.is_dir():
         raise DatasetError(f"--out {out}: folder {out.parent} does not exist")
     click.echo(f"wrote {write_preview(path, out, split)}")
@@ -356,8 +360,10 @@ def verify(path):
     splits = dataset_splits(path)
     sizes = ", ".join(f"{s} {info.size}" for s, info in splits.items())
     version = splits["train"].attrs["dataset_version"]
-    click.echo(f"{path}: OK (dataset version {version}, {sizes}; checksums, schema, value "
-               "ranges and card agree)")  # fmt: skip
+    click.echo(
+        f"{path}: OK (dataset version {version}, {sizes}; checksums, schema, value "
+        "ranges and card agree)"
+    )
 
 
 @main.command()
@@ -403,7 +409,7 @@ def _hex_sha256(ctx, param, value):
     help="Seconds to wait for the server (at most a day).",
 )
 @click.option("--force", is_flag=True, help="Replace an existing dataset of the same name.")
-def fetch(url, sha256, out, timeout, force):  # fmt: skip
+def fetch(url, sha256, out, timeout, force):
     """Download a dataset archive, check it, extract it safely, verify it, install it."""
     from simlidar.dataset.archive import fetch as run
 
@@ -495,10 +501,16 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
     check_writable(out)  # before training, not after
     result = run(recipe, dataset, seed=seed, epochs=epochs, max_seconds=max_seconds)
     path = save_checkpoint(result, out / f"{recipe['name']}-seed{seed}.pt")
-    record = {"model": recipe["name"], "dataset": str(dataset), "seed": seed,
-              "test_accuracy": round(result.test_accuracy, 4), "epochs": result.epochs,
-              **result.selection(), "seconds": round(result.seconds, 1),
-              "checkpoint": str(path)}  # fmt: skip
+    record = {
+        "model": recipe["name"],
+        "dataset": str(dataset),
+        "seed": seed,
+        "test_accuracy": round(result.test_accuracy, 4),
+        "epochs": result.epochs,
+        **result.selection(),
+        "seconds": round(result.seconds, 1),
+        "checkpoint": str(path),
+    }
     if recipe["model"] == "snn":  # dense spiking network: how early it decides
         from simlidar.bench.early import early_decisions
 
@@ -506,13 +518,21 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
     if as_json:
         click.echo(json.dumps(record))
         return
-    chosen = (f"epoch {result.best_epoch + 1} of {result.epochs} kept (best validation "
-              f"accuracy of {result.validation_size} held-out samples)" if result.validation_size
-              else f"{result.epochs} epochs, no validation")  # fmt: skip
-    why = {"plateau": "stopped on a validation plateau", "epochs": "ran every epoch",
-           "time": "stopped by the time cap"}[result.stopped]  # fmt: skip
-    click.echo(f"{recipe['name']}: test accuracy {result.test_accuracy:.4f}, {chosen}, {why}, "
-               f"{result.seconds:.0f} s; wrote {path}")  # fmt: skip
+    chosen = (
+        f"epoch {result.best_epoch + 1} of {result.epochs} kept (best validation "
+        f"accuracy of {result.validation_size} held-out samples)"
+        if result.validation_size
+        else f"{result.epochs} epochs, no validation"
+    )
+    why = {
+        "plateau": "stopped on a validation plateau",
+        "epochs": "ran every epoch",
+        "time": "stopped by the time cap",
+    }[result.stopped]
+    click.echo(
+        f"{recipe['name']}: test accuracy {result.test_accuracy:.4f}, {chosen}, {why}, "
+        f"{result.seconds:.0f} s; wrote {path}"
+    )
     if "early" in record:
         from simlidar.bench.early import format_early
 
@@ -562,8 +582,9 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
     help="Measure the finished cells of --out again from their checkpoints (no training).",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print results.json's content on stdout.")
-def bench(suite, models, dataset, out, epochs, max_seconds, validation, patience, remeasure,
-          as_json):  # fmt: skip
+def bench(
+    suite, models, dataset, out, epochs, max_seconds, validation, patience, remeasure, as_json
+):
     """Train and score the suite's models on its datasets: accuracy, how early spiking networks
     decide, energy, latency, size. Writes results.json, report.md and pictures; a rerun into
     the same directory skips the cells already finished."""
@@ -585,17 +606,25 @@ def bench(suite, models, dataset, out, epochs, max_seconds, validation, patience
                 load_recipe(name)
         except ConfigError as exc:
             raise click.BadParameter(str(exc), param_hint="'--models'") from None
-    chosen = chosen.with_budget(epochs=epochs, max_seconds=max_seconds, validation=validation,
-                                patience=patience)  # fmt: skip
+    chosen = chosen.with_budget(
+        epochs=epochs, max_seconds=max_seconds, validation=validation, patience=patience
+    )
     out = out if out is not None else Path("bench") / chosen.name
     if remeasure:
-        given = {"--models": models, "--dataset": dataset, "--epochs": epochs,
-                 "--max-seconds": max_seconds, "--validation": validation,
-                 "--patience": patience}  # fmt: skip
+        given = {
+            "--models": models,
+            "--dataset": dataset,
+            "--epochs": epochs,
+            "--max-seconds": max_seconds,
+            "--validation": validation,
+            "--patience": patience,
+        }
         extra = [name for name, value in given.items() if value is not None]
         if extra:
-            raise click.UsageError(f"--remeasure re-measures the finished cells of --out as they "
-                                   f"were trained; expected no {extra[0]}")  # fmt: skip
+            raise click.UsageError(
+                f"--remeasure re-measures the finished cells of --out as they "
+                f"were trained; expected no {extra[0]}"
+            )
         from simlidar.bench.run import remeasure as run_remeasure
 
         results = run_remeasure(out, chosen, progress=not as_json)
@@ -607,8 +636,10 @@ def bench(suite, models, dataset, out, epochs, max_seconds, validation, patience
     click.echo(f"{len(results['cells'])} cells in {out}: results.json, report.md")
     width = max((len(cell["model"]) for cell in results["cells"]), default=0)
     for cell in results["cells"]:
-        click.echo(f"  {cell['dataset']}  {cell['model']:<{width}}  seed {cell['seed']}  accuracy "
-                   f"{cell['accuracy']:.4f}  latency {cell['latency_ms']:.2f} ms")  # fmt: skip
+        click.echo(
+            f"  {cell['dataset']}  {cell['model']:<{width}}  seed {cell['seed']}  accuracy "
+            f"{cell['accuracy']:.4f}  latency {cell['latency_ms']:.2f} ms"
+        )
 
 
 @main.group()
@@ -635,11 +666,16 @@ _convert_options = [
         show_default=True,
         help="Folder for the dataset directory.",
     ),
-    click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True,
-                 help="Seed of the train/test split."),
+    click.option(
+        "--seed",
+        type=click.IntRange(0, 2**63 - 1),
+        default=0,
+        show_default=True,
+        help="Seed of the train/test split.",
+    ),
     click.option("--force", is_flag=True, help="Replace an existing dataset of the same name."),
     click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout."),
-]  # fmt: skip
+]
 
 
 def _with_convert_options(command):
@@ -686,24 +722,35 @@ def _with_convert_options(command):
     help="Fraction of frames in the test split.",
 )
 @_with_convert_options
-def convert_kitti(root, crop, res_h, res_v, max_range, test_fraction, out, seed, force,
-                  as_json):  # fmt: skip
+def convert_kitti(root, crop, res_h, res_v, max_range, test_fraction, out, seed, force, as_json):
     """KITTI 3D object benchmark (ROOT: training/ with velodyne/, label_2/, calib/, or its
     parent) -> front-view pulse crops around every labelled object, 8 classes, split by frame.
     See docs/converters.md."""
     from simlidar.convert import convert_kitti as run
 
-    path = run(root, out, crop=crop, res_h_deg=res_h, res_v_deg=res_v, max_range_m=max_range,
-               test_fraction=test_fraction, seed=seed, force=force,
-               progress=not as_json)  # fmt: skip
+    path = run(
+        root,
+        out,
+        crop=crop,
+        res_h_deg=res_h,
+        res_v_deg=res_v,
+        max_range_m=max_range,
+        test_fraction=test_fraction,
+        seed=seed,
+        force=force,
+        progress=not as_json,
+    )
     _converted(path, as_json)
 
 
 @convert.command("dvs-barrel")
 @click.argument("mat_file", type=click.Path(path_type=Path))
-@click.option("--labels", default=None,
-              help="One class character (0-9, A-Z) per recording, e.g. 0123...; default: the "
-                   "ROI struct's 'label' field.")  # fmt: skip
+@click.option(
+    "--labels",
+    default=None,
+    help="One class character (0-9, A-Z) per recording, e.g. 0123...; default: the "
+    "ROI struct's 'label' field.",
+)
 @click.option(
     "--window-us",
     type=click.FloatRange(min=0, min_open=True),
@@ -725,16 +772,25 @@ def convert_kitti(root, crop, res_h, res_v, max_range, test_fraction, out, seed,
     help="Fraction of each class's recordings in test.",
 )
 @_with_convert_options
-def convert_dvs(mat_file, labels, window_us, address_base, test_fraction, out, seed, force,
-                as_json):  # fmt: skip
+def convert_dvs(
+    mat_file, labels, window_us, address_base, test_fraction, out, seed, force, as_json
+):
     """DVS barrel MATLAB file (struct array ROI: x, y, polarity, timestamps in us; 32 x 32
     pixels, 36 characters) -> first-spike times per pixel, raw events kept alongside. See
     docs/converters.md."""
     from simlidar.convert import convert_dvs_barrel as run
 
-    path = run(mat_file, out, labels=tuple(labels) if labels else None, window_us=window_us,
-               address_base=int(address_base), test_fraction=test_fraction, seed=seed,
-               force=force, progress=not as_json)  # fmt: skip
+    path = run(
+        mat_file,
+        out,
+        labels=tuple(labels) if labels else None,
+        window_us=window_us,
+        address_base=int(address_base),
+        test_fraction=test_fraction,
+        seed=seed,
+        force=force,
+        progress=not as_json,
+    )
     _converted(path, as_json)
 
 

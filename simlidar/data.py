@@ -45,8 +45,9 @@ class _PulseSplit:
     field : "delays" (with noise, the default) or "clean_delays"
     """
 
-    def __init__(self, path: str | Path, split: str = "train", transform=None,
-                 field: str = "delays"):  # fmt: skip
+    def __init__(
+        self, path: str | Path, split: str = "train", transform=None, field: str = "delays"
+    ):
         self.file = split_path(path, split)
         self.field = field
         self.transform = transform
@@ -83,8 +84,11 @@ def __getattr__(name: str):
     if name == "PulseDataset":
         import torch.utils.data
 
-        cls = type("PulseDataset", (_PulseSplit, torch.utils.data.Dataset),
-                   {"__module__": __name__, "__doc__": _PulseSplit.__doc__})  # fmt: skip
+        cls = type(
+            "PulseDataset",
+            (_PulseSplit, torch.utils.data.Dataset),
+            {"__module__": __name__, "__doc__": _PulseSplit.__doc__},
+        )
         globals()[name] = cls
         return cls
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

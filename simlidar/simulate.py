@@ -56,8 +56,7 @@ def class_plan(catalog: Catalog, classes: int) -> ClassPlan:
     return ClassPlan(classes, mode, names)
 
 
-def factors(plan: ClassPlan, labels: np.ndarray, free: np.ndarray, n_layouts: int,
-            n_objects: int):  # fmt: skip
+def factors(plan: ClassPlan, labels: np.ndarray, free: np.ndarray, n_layouts: int, n_objects: int):
     """(layout id, object id) of each label; ``free`` (n, 2) uniforms pick the unfixed factor."""
     pick_layout = np.minimum((free[:, 0] * n_layouts).astype(np.int64), n_layouts - 1)
     pick_object = np.minimum((free[:, 1] * n_objects).astype(np.int64), n_objects - 1)
@@ -91,8 +90,17 @@ def _stream(seed: int, split: str, index: int) -> np.random.Generator:
     return np.random.Generator(np.random.PCG64(seq))
 
 
-def batched_backend(catalog: Catalog, layout, obj, layout_uniforms, object_uniforms, origins,
-                    directions, slots, max_range_m):  # fmt: skip
+def batched_backend(
+    catalog: Catalog,
+    layout,
+    obj,
+    layout_uniforms,
+    object_uniforms,
+    origins,
+    directions,
+    slots,
+    max_range_m,
+):
     """Scenes -> first hits for a whole batch: numpy triangles, one Embree scene, one call.
 
     returns : Hits, object pose (B, 3)
@@ -101,8 +109,14 @@ def batched_backend(catalog: Catalog, layout, obj, layout_uniforms, object_unifo
     return cast(scene, origins, directions, slots, max_range_m), scene.object_pose
 
 
-def simulate(config: GeneratorConfig, catalog: Catalog, split: str, start: int, stop: int,
-             backend=batched_backend) -> Samples:  # fmt: skip
+def simulate(
+    config: GeneratorConfig,
+    catalog: Catalog,
+    split: str,
+    start: int,
+    stop: int,
+    backend=batched_backend,
+) -> Samples:
     """Samples ``start .. stop - 1`` of ``split`` (at most MAX_BATCH of them).
 
     ``backend`` has the signature of :func:`batched_backend`; the speed benchmark swaps in the
@@ -137,10 +151,16 @@ def simulate(config: GeneratorConfig, catalog: Catalog, split: str, start: int, 
         u = np.stack([streams[r].random(columns) for r in pending])
         origins, directions = window_rays(sensor, width, config.fov_deg, u[:, 0])
         hits, object_pose = backend(
-            catalog, layout[pending], obj[pending], u[:, _FIXED_COLUMNS : _FIXED_COLUMNS + lc],
-            u[:, _FIXED_COLUMNS + lc :], origins, directions, index[pending] % MAX_BATCH,
+            catalog,
+            layout[pending],
+            obj[pending],
+            u[:, _FIXED_COLUMNS : _FIXED_COLUMNS + lc],
+            u[:, _FIXED_COLUMNS + lc :],
+            origins,
+            directions,
+            index[pending] % MAX_BATCH,
             sensor.max_range_m,
-        )  # fmt: skip
+        )
         r = quantise_range(hits.range_m, sensor)
         on_object = (hits.on_object & ~np.isnan(r)).sum(axis=(1, 2))
         ok = (obj[pending] == 0) | (on_object >= config.min_object_hits)

@@ -12,22 +12,35 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_generation_stages_times_every_stage():
     done = subprocess.run(
         [sys.executable, str(ROOT / "benchmark" / "generation_stages.py"), "--samples", "192"],
-        capture_output=True, text=True, check=True, timeout=300,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=300,
+    )
     lines = done.stdout.splitlines()
     if sys.platform.startswith("linux"):
         assert lines[0] == "shared Embree buffers: on"
     assert "192 samples in" in lines[1]
     stages = {line[:34].strip(): float(line[34:].split()[0]) for line in lines[2:]}
     assert set(stages) == {
-        "Embree BVH build + ray queries", "other", "HDF5 writing", "scene building (numpy)",
-        "back-face culling", "random streams (SeedSequence)", "window rays", "Embree geometry",
-    }  # fmt: skip
+        "Embree BVH build + ray queries",
+        "other",
+        "HDF5 writing",
+        "scene building (numpy)",
+        "back-face culling",
+        "random streams (SeedSequence)",
+        "window rays",
+        "Embree geometry",
+    }
     assert all(us > 0 for name, us in stages.items() if name != "other")
 
 
 @pytest.mark.parametrize("script", ["generation_speed.py", "generation_stages.py"])
 def test_scripts_explain_themselves(script):
-    done = subprocess.run([sys.executable, str(ROOT / "benchmark" / script), "--help"],
-                          capture_output=True, text=True, check=True)  # fmt: skip
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "benchmark" / script), "--help"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     assert "--samples" in done.stdout

@@ -21,8 +21,9 @@ def run():
 
 
 def test_generate_json_then_info_and_preview(run, tmp_path):
-    result = run("generate", *SMALL, "--noise", "0.1,0.33", "--out", tmp_path, "--json",
-                 "--batch-size", "20")  # fmt: skip
+    result = run(
+        "generate", *SMALL, "--noise", "0.1,0.33", "--out", tmp_path, "--json", "--batch-size", "20"
+    )
     assert result.exit_code == 0, result.output
     record = json.loads(result.stdout)  # stdout holds only the JSON object
     assert set(record) == {"datasets", "seconds"}
@@ -149,8 +150,9 @@ def test_file_system_errors_are_one_line(run, tmp_path, datasets):
 
 
 def test_classes_that_do_not_fit_a_custom_catalog(run, tmp_path, catalog_copy):
-    result = run("generate", *SMALL, "--scenes", catalog_copy, "--classes", "36",
-                 "--out", tmp_path / "o")  # fmt: skip
+    result = run(
+        "generate", *SMALL, "--scenes", catalog_copy, "--classes", "36", "--out", tmp_path / "o"
+    )
     assert result.exit_code == 2
     assert "classes=36: expected one of [4, 8, 32]" in result.stderr
     assert not (tmp_path / "o").exists()
@@ -158,8 +160,9 @@ def test_classes_that_do_not_fit_a_custom_catalog(run, tmp_path, catalog_copy):
 
 def test_an_object_that_is_never_seen_fails_cleanly(run, tmp_path, catalog_copy):
     recipe = catalog_copy / "objects" / "truck.toml"
-    recipe.write_text(recipe.read_text().replace("distance_m = [8.0, 25.0]",
-                                                 "distance_m = [-25.0, -8.0]"))  # fmt: skip
+    recipe.write_text(
+        recipe.read_text().replace("distance_m = [8.0, 25.0]", "distance_m = [-25.0, -8.0]")
+    )
     result = run("generate", *SMALL, "--scenes", catalog_copy, "--out", tmp_path / "o")
     assert result.exit_code == 1
     assert "truck): no draw in 200" in result.stderr
@@ -213,8 +216,9 @@ def test_variation_narrows_the_scenes_and_names_the_dataset(run, tmp_path):
             pose, labels = f["object_pose"][:], f["labels"][:]
             config = json.loads(f.attrs["config"])
         # spread of the object's distance and lateral offset within each class that has one
-        spread[variation] = np.nanmean([np.std(pose[labels == k, :2], axis=0)
-                                        for k in np.unique(labels) if k % 4], axis=0)  # fmt: skip
+        spread[variation] = np.nanmean(
+            [np.std(pose[labels == k, :2], axis=0) for k in np.unique(labels) if k % 4], axis=0
+        )
         assert np.bincount(labels).tolist() == [4] * 32
     assert path.endswith("-physical-var0.1-v1.0.0") and config["variation"] == 0.1
     card = (Path(path) / "README.md").read_text()

@@ -8,8 +8,10 @@ DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 def test_loading_examples(datasets):
     result = doctest.testfile(
-        str(DOCS / "loading.md"), module_relative=False, globs={"path": str(datasets[0.1])},
+        str(DOCS / "loading.md"),
+        module_relative=False,
+        globs={"path": str(datasets[0.1])},
         optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
-    )  # fmt: skip
+    )
     assert result.attempted >= 10
     assert result.failed == 0

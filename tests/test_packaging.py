@@ -19,10 +19,20 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
     wheels = tmp_path / "wheels"
     subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
-         "-w", str(wheels), str(ROOT)],
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--no-deps",
+            "--no-build-isolation",
+            "-q",
+            "-w",
+            str(wheels),
+            str(ROOT),
+        ],
         check=True,
-    )  # fmt: skip
+    )
     wheel = next(wheels.glob("simlidar-*.whl"))
     import zipfile
 
@@ -47,8 +57,10 @@ def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
     # found there, so an editable install of simlidar in the running environment stays unseen.
     parents = dict.fromkeys(sysconfig.get_paths()[k] for k in ("purelib", "platlib"))
     (Path(own_site) / "_parent_site.pth").write_text("".join(f"{d}\n" for d in parents))
-    subprocess.run([str(python), "-m", "pip", "install", "-q", "--no-deps", "--no-index",
-                    str(wheel)], check=True)  # fmt: skip
+    subprocess.run(
+        [str(python), "-m", "pip", "install", "-q", "--no-deps", "--no-index", str(wheel)],
+        check=True,
+    )
     work = tmp_path / "elsewhere"
     work.mkdir()
     check = (
@@ -56,11 +68,12 @@ def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
         "assert str(simlidar.__file__).startswith(sys.argv[1]), simlidar.__file__;"
         "assert '_content' in str(c.content_dir('scenes'))"
     )
-    subprocess.run([str(python), "-c", "import sys;" + check, str(env_dir)], cwd=work,
-                   check=True)  # fmt: skip
+    subprocess.run([str(python), "-c", "import sys;" + check, str(env_dir)], cwd=work, check=True)
     done = subprocess.run(
         [str(env_dir / "bin" / "simlidar"), "generate", "--train-size", "32", "--test-size", "32"],
-        cwd=work, capture_output=True, text=True,
-    )  # fmt: skip
+        cwd=work,
+        capture_output=True,
+        text=True,
+    )
     assert done.returncode == 0, done.stderr
     assert (work / "data" / "simlidar-32c-noise0.2-paper-v2.0.0" / "train.h5").is_file()

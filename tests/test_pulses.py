@@ -6,13 +6,13 @@ from hypothesis.extra.numpy import arrays
 from simlidar.pulses import NO_RETURN, add_noise, delays_from_range, quantise_range, shift_delays
 from simlidar.sensor import VLP16
 
-ranges = arrays(np.float64, (4, 16, 16), elements=st.one_of(
-    st.floats(0.0, 150.0), st.just(np.nan)))  # fmt: skip
+ranges = arrays(np.float64, (4, 16, 16), elements=st.one_of(st.floats(0.0, 150.0), st.just(np.nan)))
 
 
 def test_ranges_are_quantised_to_2_mm_and_limited():
-    r = quantise_range(np.array([0.5, 1.0, 10.0009, 10.0011, 99.9979, 99.999, 100.2, np.nan]),
-                       VLP16())  # fmt: skip
+    r = quantise_range(
+        np.array([0.5, 1.0, 10.0009, 10.0011, 99.9979, 99.999, 100.2, np.nan]), VLP16()
+    )
     np.testing.assert_allclose(r[1:5], [1.0, 10.0, 10.002, 99.998])
     # 99.999 m rounds to the maximum range, which is excluded: a return's delay stays < 1
     assert np.isnan(r[[0, 5, 6, 7]]).all()

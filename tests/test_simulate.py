@@ -50,8 +50,9 @@ def test_layouts_show_their_defining_surfaces(batch, catalog):
     assert checked >= 9  # both lamp rows and both walls count separately
 
 
-@pytest.mark.parametrize("name, median, share", [("car", 4, 0.95), ("truck", 4, 0.95),
-                                                  ("pedestrian", 2, 0.5)])  # fmt: skip
+@pytest.mark.parametrize(
+    "name, median, share", [("car", 4, 0.95), ("truck", 4, 0.95), ("pedestrian", 2, 0.5)]
+)
 def test_objects_cover_several_columns(batch, catalog, name, median, share):
     # the window is wide enough for the layouts and narrow enough that objects span columns
     columns = (batch.surface == catalog.surfaces.index(name)).any(axis=1).sum(axis=1)
@@ -127,8 +128,9 @@ def test_a_catalog_with_more_layouts_has_more_classes(catalog_copy):
     source = (catalog_copy / "layouts" / "open_road.toml").read_text()
     (catalog_copy / "layouts" / "country_road.toml").write_text(source)
     index = catalog_copy / "catalog.toml"
-    index.write_text(index.read_text().replace('"lamps_one_side"]', '"lamps_one_side",\n'
-                                               '"country_road"]'))  # fmt: skip
+    index.write_text(
+        index.read_text().replace('"lamps_one_side"]', '"lamps_one_side",\n"country_road"]')
+    )
     catalog = load_catalog(catalog_copy)
     assert class_plan(catalog, 36).names[-1] == "country_road/truck"
     assert class_plan(catalog, 9).mode == "layout"
@@ -142,8 +144,10 @@ def test_an_ambiguous_class_count_is_refused(catalog_copy):
     index = catalog_copy / "catalog.toml"
     text = index.read_text()
     start = text.index("layouts = [")
-    index.write_text(text[:start] + 'layouts = ["tunnel", "open_road", "lower_bridge", '
-                     '"upper_bridge"]\nobjects = ["car", "pedestrian", "truck"]\n')  # fmt: skip
+    index.write_text(
+        text[:start] + 'layouts = ["tunnel", "open_road", "lower_bridge", '
+        '"upper_bridge"]\nobjects = ["car", "pedestrian", "truck"]\n'
+    )
     with pytest.raises(ConfigError, match="classes=4 is ambiguous"):
         class_plan(load_catalog(catalog_copy), 4)
 

@@ -29,16 +29,18 @@ def decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test"):
     return [decide(weights, sample) for sample in z], y, tof_max_ns
 
 
-def early_decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test",
-                    per_sample: bool = False) -> dict:  # fmt: skip
+def early_decisions(
+    model: torch.nn.Module, dataset: str | Path, split: str = "test", per_sample: bool = False
+) -> dict:
     """Summarise :func:`decisions` over a split (means over samples, ``accumulates_mean`` being
     NeuroBench's effective synaptic operations per sample); with ``per_sample``, also the
     decision time (ns, None if undecided) and input spikes consumed of each sample."""
     runs, y, tof_max_ns = decisions(model, dataset, split)
     decided = [d for d in runs if d.label >= 0]
     spikes = np.array([d.spikes for d in runs])
-    times_ns = [d.time_ns(model.scale, tof_max_ns) if d.label >= 0 and tof_max_ns else None
-                for d in runs]  # fmt: skip
+    times_ns = [
+        d.time_ns(model.scale, tof_max_ns) if d.label >= 0 and tof_max_ns else None for d in runs
+    ]
     known = [t for t in times_ns if t is not None]
     summary = {
         "samples": len(runs),
@@ -54,8 +56,10 @@ def early_decisions(model: torch.nn.Module, dataset: str | Path, split: str = "t
         "energy_pj_mean": {str(a): float(spikes.mean() * a) for a in ALPHAS_PJ},
     }
     if per_sample:
-        summary["per_sample"] = {"decision_time_ns": times_ns,
-                                 "input_spikes": [d.input_spikes for d in runs]}  # fmt: skip
+        summary["per_sample"] = {
+            "decision_time_ns": times_ns,
+            "input_spikes": [d.input_spikes for d in runs],
+        }
     return summary
 
 

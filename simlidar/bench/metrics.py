@@ -45,8 +45,11 @@ def footprint(model: nn.Module) -> dict:
     batch norm and buffers are not connections). NeuroBench rounds the sparsity to 4 decimals;
     it is kept whole here."""
     params = list(model.parameters())
-    weights = [m.weight for m in model.modules()
-               if isinstance(m, (*CONNECTION_LAYERS, DenseTTFS, ConvTTFS))]  # fmt: skip
+    weights = [
+        m.weight
+        for m in model.modules()
+        if isinstance(m, (*CONNECTION_LAYERS, DenseTTFS, ConvTTFS))
+    ]
     zeros = sum(int((w == 0).sum()) for w in weights)
     total = sum(w.numel() for w in weights)
     size = sum(t.numel() * t.element_size() for t in (*params, *model.buffers()))
@@ -112,8 +115,7 @@ def layer_operations(layer: nn.Module, x: torch.Tensor) -> tuple[int, int]:
         else:  # the layer's own padding mode, stride, dilation and groups
             effective = layer._conv_forward((x != 0).to(w.dtype), (w != 0).to(w.dtype), None)
             dense = layer._conv_forward(torch.ones_like(x[:1]), ones, None)
-    return (int(effective.sum(dtype=torch.float64)),
-            int(dense.sum(dtype=torch.float64)) * len(x))  # fmt: skip
+    return (int(effective.sum(dtype=torch.float64)), int(dense.sum(dtype=torch.float64)) * len(x))
 
 
 def workload(model: nn.Module, x: torch.Tensor, batch_size: int = 64) -> dict:
@@ -165,8 +167,13 @@ def workload(model: nn.Module, x: torch.Tensor, batch_size: int = 64) -> dict:
     }
 
 
-def latency(model: nn.Module, x: torch.Tensor, repeats: int = 30, big_batch: int = 512,
-            max_seconds: float = 5.0) -> dict:  # fmt: skip
+def latency(
+    model: nn.Module,
+    x: torch.Tensor,
+    repeats: int = 30,
+    big_batch: int = 512,
+    max_seconds: float = 5.0,
+) -> dict:
     """Inference latency at batch 1 (median of ``repeats`` runs over different samples, after
     warm-up; fewer, but at least 5, once they take ``max_seconds``) in milliseconds, and
     throughput at a large batch in samples per second.
@@ -233,9 +240,11 @@ def spiking_figures(model: nn.Module, x: torch.Tensor, early: dict | None) -> di
     Without ``early`` (the spiking CNN has no event-driven evaluator) all but ``effective_macs``
     are None.
     """
-    figures = {**latency(model, x), "activation_sparsity": None,
-               "synaptic_operations": {"effective_macs": 0, "effective_acs": None,
-                                       "dense": None}}  # fmt: skip
+    figures = {
+        **latency(model, x),
+        "activation_sparsity": None,
+        "synaptic_operations": {"effective_macs": 0, "effective_acs": None, "dense": None},
+    }
     if early is None:
         return figures
     neurons = sum(m.weight.shape[1] for m in model.layers)  # hidden and output

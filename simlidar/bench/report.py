@@ -56,10 +56,14 @@ def accuracy_by_noise(cells: list[dict], paper: dict) -> list[str]:
     levels = sorted({c["noise"] for c in sim})
     models = sorted({c["model"] for c in sim})
     by = _groups(sim, "model", "noise")
-    lines = ["## Sim LiDAR: accuracy (%) by noise level", "",
-             "Mean ± sample standard deviation over seeds (number of seeds in brackets).", "",
-             "| model | " + " | ".join(f"noise {v:g}" for v in levels) + " |",
-             "|---" * (len(levels) + 1) + "|"]  # fmt: skip
+    lines = [
+        "## Sim LiDAR: accuracy (%) by noise level",
+        "",
+        "Mean ± sample standard deviation over seeds (number of seeds in brackets).",
+        "",
+        "| model | " + " | ".join(f"noise {v:g}" for v in levels) + " |",
+        "|---" * (len(levels) + 1) + "|",
+    ]
     for m in models:
         row = [
             f"{_pct([c['accuracy'] for c in by[m, v]])} ({len(by[m, v])}){_marks(by[m, v])}"
@@ -97,20 +101,29 @@ def _spread(cells: list[dict]) -> bool:
 CAPPED, OPEN, SPREAD = "†", "§", "‡"
 SPREAD_POINTS = 2.0  # a sample standard deviation over seeds above this is marked
 MARKS = (  # (mark, whether it applies to a group of cells, the note under the table)
-    (CAPPED, lambda cells: any(c.get("stopped_by_time") for c in cells),
-     "at least one seed stopped on the suite's time cap (`max_seconds`) before its epoch "
-     "budget: a figure of the machine's speed and load, not of the model."),
-    (OPEN, lambda cells: any(map(still_improving, cells)),
-     "at least one seed ran to its epoch cap with its validation score (accuracy, then loss) "
-     "still improving, its best epoch among the last `patience`: not converged by the suite's "
-     "rule (at a validation accuracy of 100 % only the loss was still falling). A cosine "
-     "schedule, which anneals the rate to 0 at the cap, is not marked: its last epochs are the "
-     "schedule's end."),
-    (SPREAD, _spread,
-     f"the seeds disagree by more than {SPREAD_POINTS:g} points (sample standard deviation): "
-     "the mean says less than its digits suggest; see the training table below (epochs, "
-     "stops) for where the seeds went apart."),
-)  # fmt: skip
+    (
+        CAPPED,
+        lambda cells: any(c.get("stopped_by_time") for c in cells),
+        "at least one seed stopped on the suite's time cap (`max_seconds`) before its epoch "
+        "budget: a figure of the machine's speed and load, not of the model.",
+    ),
+    (
+        OPEN,
+        lambda cells: any(map(still_improving, cells)),
+        "at least one seed ran to its epoch cap with its validation score (accuracy, then loss) "
+        "still improving, its best epoch among the last `patience`: not converged by the suite's "
+        "rule (at a validation accuracy of 100 % only the loss was still falling). A cosine "
+        "schedule, which anneals the rate to 0 at the cap, is not marked: its last epochs are the "
+        "schedule's end.",
+    ),
+    (
+        SPREAD,
+        _spread,
+        f"the seeds disagree by more than {SPREAD_POINTS:g} points (sample standard deviation): "
+        "the mean says less than its digits suggest; see the training table below (epochs, "
+        "stops) for where the seeds went apart.",
+    ),
+)
 
 
 def _marks(cells: list[dict], which: tuple = MARKS) -> str:
@@ -122,15 +135,19 @@ def training_table(cells: list[dict]) -> list[str]:
     """Per model: how training ended (model selection, docs/benchmark.md) and how long it took."""
     if not cells:
         return []
-    lines = ["## Training: selection, stops and time per model", "",
-             "Over every cell of the model (all datasets and seeds). Epochs are counted from 1; "
-             "the kept epoch is the one with the best validation accuracy.", "",
-             "| model | cells | epoch budget | epochs run | kept epoch (median) | stopped: "
-             "plateau / epoch cap / time cap | still improving at the cap | validation samples "
-             "| minutes a cell (mean, max) | minutes in all |", "|---" * 10 + "|"]  # fmt: skip
+    lines = [
+        "## Training: selection, stops and time per model",
+        "",
+        "Over every cell of the model (all datasets and seeds). Epochs are counted from 1; "
+        "the kept epoch is the one with the best validation accuracy.",
+        "",
+        "| model | cells | epoch budget | epochs run | kept epoch (median) | stopped: "
+        "plateau / epoch cap / time cap | still improving at the cap | validation samples "
+        "| minutes a cell (mean, max) | minutes in all |",
+        "|---" * 10 + "|",
+    ]
     for (model,), runs in sorted(_groups(cells, "model").items()):
-        stops = [c.get("stopped", "time" if c.get("stopped_by_time") else "epochs")
-                 for c in runs]  # fmt: skip
+        stops = [c.get("stopped", "time" if c.get("stopped_by_time") else "epochs") for c in runs]
         budget = sorted({str(c.get("budget", {}).get("epochs", "recipe")) for c in runs})
         run = [c["epochs"] for c in runs]
         kept = [c["best_epoch"] + 1 for c in runs if c.get("best_epoch") is not None]
@@ -152,15 +169,19 @@ def by_model(cells: list[dict], paper: dict) -> list[str]:
     kitti = paper["kitti"]["accuracy"]
     for (dataset,), group in sorted(_groups(cells, "dataset").items()):
         source = group[0]["source"]
-        lines += [f"## {dataset}", "",
-                  f"{group[0]['train_size']} train / {group[0]['test_size']} test samples, "
-                  f"input {' x '.join(map(str, group[0]['input_shape']))}, "
-                  f"{group[0]['classes']} classes, noise {group[0]['noise']:g}.", "",
-                  "| model | accuracy % | decision ns | input spikes used | R_data | "
-                  f"hidden spikes | energy pJ ({' / '.join(f'{a:g}' for a in ALPHAS_PJ)} pJ/spike; "
-                  f"{MAC_PJ:g} pJ/MAC) | MACs | "
-                  "latency ms | samples/s | params | footprint MB | epochs |",
-                  "|---" * 13 + "|"]  # fmt: skip
+        lines += [
+            f"## {dataset}",
+            "",
+            f"{group[0]['train_size']} train / {group[0]['test_size']} test samples, "
+            f"input {' x '.join(map(str, group[0]['input_shape']))}, "
+            f"{group[0]['classes']} classes, noise {group[0]['noise']:g}.",
+            "",
+            "| model | accuracy % | decision ns | input spikes used | R_data | "
+            f"hidden spikes | energy pJ ({' / '.join(f'{a:g}' for a in ALPHAS_PJ)} pJ/spike; "
+            f"{MAC_PJ:g} pJ/MAC) | MACs | "
+            "latency ms | samples/s | params | footprint MB | epochs |",
+            "|---" * 13 + "|",
+        ]
         for (model,), runs in sorted(_groups(group, "model").items()):
             early = [c for c in runs if c.get("early")]
             if early:
@@ -168,32 +189,50 @@ def by_model(cells: list[dict], paper: dict) -> list[str]:
                 def e(key, early=early):
                     return _mean(early, lambda cell, key=key: cell["early"][key])
 
-                pj = [_mean(early, lambda c, a=a: c["early"]["energy_pj_mean"][str(a)])
-                      for a in ALPHAS_PJ]  # fmt: skip
+                pj = [
+                    _mean(early, lambda c, a=a: c["early"]["energy_pj_mean"][str(a)])
+                    for a in ALPHAS_PJ
+                ]
                 energy = " / ".join(f"{v:.3g}" for v in pj)
                 spikes = f"{e('input_spikes_mean'):.1f} of {e('input_spikes_total_mean'):.1f}"
-                timing = [_num(e("decision_time_ns_mean"), "{:.0f}"), spikes,
-                          _num(e("data_ratio_mean"), "{:.3f}"),
-                          _num(e("hidden_spikes_mean"), "{:.1f}"), energy, "–"]  # fmt: skip
+                timing = [
+                    _num(e("decision_time_ns_mean"), "{:.0f}"),
+                    spikes,
+                    _num(e("data_ratio_mean"), "{:.3f}"),
+                    _num(e("hidden_spikes_mean"), "{:.1f}"),
+                    energy,
+                    "–",
+                ]
             elif runs[0]["kind"] == "conventional":
                 energy = _num(_mean(runs, lambda c: c["energy_pj_mac"]), "{:.3g}")
-                timing = ["–", "–", "–", "–", energy,
-                          _num(_mean(runs, lambda c: c["macs"]), "{:.3g}")]  # fmt: skip
+                timing = [
+                    "–",
+                    "–",
+                    "–",
+                    "–",
+                    energy,
+                    _num(_mean(runs, lambda c: c["macs"]), "{:.3g}"),
+                ]
             else:
                 timing = ["–"] * 6  # a spiking CNN: no event-driven evaluator yet
             capped = _marks(runs, MARKS[:1])  # the epochs column: the time cap only
             lines.append(
-                f"| {model} | {_pct([c['accuracy'] for c in runs])} | " + " | ".join(timing)
+                f"| {model} | {_pct([c['accuracy'] for c in runs])} | "
+                + " | ".join(timing)
                 + f" | {_mean(runs, lambda c: c['latency_ms']):.3f}"
                 f" | {_mean(runs, lambda c: c['throughput_per_s']):.0f}"
                 f" | {runs[0]['params']:,} | {runs[0]['footprint'] / 1e6:.2f}"
                 f" | {_num(_mean(runs, lambda c: c['epochs']), '{:.0f}')}{capped} |"
-            )  # fmt: skip
+            )
         if source == "kitti":
-            lines += ["", f"The paper on KITTI ({paper['kitti']['train_size']:,} / "
-                      f"{paper['kitti']['test_size']:,} crops): " + ", ".join(
-                f"{k} {v:.2f} %" for k, v in kitti.items()) + f"; the SCNN used "
-                f"{paper['kitti']['data_ratio_scnn']:.0%} of the input spikes."]  # fmt: skip
+            lines += [
+                "",
+                f"The paper on KITTI ({paper['kitti']['train_size']:,} / "
+                f"{paper['kitti']['test_size']:,} crops): "
+                + ", ".join(f"{k} {v:.2f} %" for k, v in kitti.items())
+                + f"; the SCNN used "
+                f"{paper['kitti']['data_ratio_scnn']:.0%} of the input spikes.",
+            ]
         lines.append("")
     return lines
 
@@ -212,10 +251,21 @@ def plot_accuracy(cells: list[dict], paper: dict, path: Path) -> bool:
         by = _groups(runs, "noise")
         levels = sorted(k[0] for k in by)
         stats = [_stats([100 * c["accuracy"] for c in by[(v,)]]) for v in levels]
-        ax.errorbar(levels, [s[0] for s in stats], yerr=[s[1] for s in stats], marker="o",
-                    capsize=3, label=model)  # fmt: skip
-    ax.plot(paper["simlidar"]["noise"], paper["simlidar"]["snn_accuracy"], "k--", marker="x",
-            label="paper: SNN")  # fmt: skip
+        ax.errorbar(
+            levels,
+            [s[0] for s in stats],
+            yerr=[s[1] for s in stats],
+            marker="o",
+            capsize=3,
+            label=model,
+        )
+    ax.plot(
+        paper["simlidar"]["noise"],
+        paper["simlidar"]["snn_accuracy"],
+        "k--",
+        marker="x",
+        label="paper: SNN",
+    )
     chance = 100 / sim[0]["classes"]
     ax.axhline(chance, color="grey", lw=0.8, ls=":", label=f"chance ({chance:.1f} %)")
     ax.set_xlabel("noise level a (U(0, a) added to every delay)")
@@ -273,8 +323,7 @@ def plot_confusions(cells: list[dict], path: Path) -> bool:
         return False
     first = sorted({c["dataset"] for c in cells})[0]
     group = _groups([c for c in cells if c["dataset"] == first], "model")
-    fig, axes = plt.subplots(1, len(group), figsize=(3 * len(group), 3.2), dpi=100,
-                             squeeze=False)  # fmt: skip
+    fig, axes = plt.subplots(1, len(group), figsize=(3 * len(group), 3.2), dpi=100, squeeze=False)
     for ax, ((model,), runs) in zip(axes[0], sorted(group.items())):
         matrix = np.sum([np.array(c["confusion"]) for c in runs], axis=0).astype(float)
         matrix /= np.maximum(matrix.sum(axis=1, keepdims=True), 1)
@@ -308,27 +357,38 @@ def write_report(results: dict, out: Path) -> Path:
             "record their own)"
         )
     lines = [
-        f"# Benchmark report: suite {results['suite']['name']}", "",
-        results["suite"]["description"], "",
+        f"# Benchmark report: suite {results['suite']['name']}",
+        "",
+        results["suite"]["description"],
+        "",
         f"simlidar {results['simlidar_version']}; {len(cells)} cells; "
-        f"{results['seconds'] / 60:.1f} min of training and measuring on {where}.", "",
+        f"{results['seconds'] / 60:.1f} min of training and measuring on {where}.",
+        "",
         "All models were trained from scratch here: no pretrained weights exist for these "
         "inputs. Training budgets are in each cell of `results.json`. The paper's numbers come "
-        f"from `baselines/{PAPER_FILE}` ({paper['citation']}).", "",
-    ]  # fmt: skip
+        f"from `baselines/{PAPER_FILE}` ({paper['citation']}).",
+        "",
+    ]
     lines += accuracy_by_noise(cells, paper)
     pictures = [
-        ("accuracy_vs_noise.png", plot_accuracy(cells, paper, out / "accuracy_vs_noise.png"),
-         "accuracy vs noise"),
-        ("decisions.png", plot_decisions(out, out / "decisions.png"),
-         "decision times and input spikes consumed"),
+        (
+            "accuracy_vs_noise.png",
+            plot_accuracy(cells, paper, out / "accuracy_vs_noise.png"),
+            "accuracy vs noise",
+        ),
+        (
+            "decisions.png",
+            plot_decisions(out, out / "decisions.png"),
+            "decision times and input spikes consumed",
+        ),
         ("confusion.png", plot_confusions(cells, out / "confusion.png"), "confusion matrices"),
-    ]  # fmt: skip
+    ]
     lines += [f"![{alt}]({name})\n" for name, made, alt in pictures if made]
     lines += training_table(cells)
     lines += by_model(cells, paper)
     lines += [
-        "## How the figures are measured", "",
+        "## How the figures are measured",
+        "",
         "* accuracy: test split, scored once with the weights of the epoch that did best on "
         "a validation part held out of the train split (stratified, 10 % by default); a "
         "spiking network whose outputs never fire counts as wrong.",
@@ -340,15 +400,19 @@ def write_report(results: dict, out: Path) -> Path:
         f"conventional networks, multiply-accumulates x {MAC_PJ:g} pJ (32-bit float at 45 nm, "
         "Horowitz 2014). The paper's own estimate for conventional networks, board power x "
         "latency, needs the suite's `board_power_w`"
-        + (" (set)." if any(c.get("energy_pj_board") for c in cells) else
-           ": not set, as this machine's power draw is not known (column left out)."),
+        + (
+            " (set)."
+            if any(c.get("energy_pj_board") for c in cells)
+            else ": not set, as this machine's power draw is not known (column left out)."
+        ),
         "* latency: batch 1, median of up to 30 runs after 3 warm-up runs on this CPU; "
         "samples/s: one batch of up to 512. Indicative only: both depend on what else the "
         "machine was doing (a benchmark script, not a training suite, measures speed).",
         "* params, footprint (bytes of parameters and buffers), connection and activation "
         "sparsity, synaptic operations: NeuroBench 2.3.0's definitions, checked against the "
-        "library in the tests (docs/benchmark.md, NeuroBench metrics), in `results.json`.", "",
-    ]  # fmt: skip
+        "library in the tests (docs/benchmark.md, NeuroBench metrics), in `results.json`.",
+        "",
+    ]
     path = out / "report.md"
     path.write_text("\n".join(lines))
     return path

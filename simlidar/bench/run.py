@@ -51,8 +51,9 @@ def _write_json(path: Path, data, indent: int | None = 1) -> None:
     """Write atomically; with ``indent``, lists of numbers stay on one line each."""
     text = json.dumps(data, indent=indent)
     if indent is not None:
-        text = _NUMBERS.sub(lambda m: "[" + ", ".join(m[0][1:-1].replace(",", " ").split())
-                            + "]", text)  # fmt: skip
+        text = _NUMBERS.sub(
+            lambda m: "[" + ", ".join(m[0][1:-1].replace(",", " ").split()) + "]", text
+        )
     tmp = path.with_name(f".{path.name}.partial")
     tmp.write_text(text + "\n")
     tmp.replace(path)
@@ -68,9 +69,14 @@ def machine() -> dict:
                 break
     except OSError:
         pass
-    return {"cpu": cpu, "cores": os.cpu_count(), "torch": torch.__version__,
-            "torch_threads": torch.get_num_threads(), "python": platform.python_version(),
-            "platform": platform.platform()}  # fmt: skip
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "torch": torch.__version__,
+        "torch_threads": torch.get_num_threads(),
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+    }
 
 
 def claim(out: Path, suite: Suite) -> None:
@@ -104,8 +110,10 @@ def claim(out: Path, suite: Suite) -> None:
     if out.exists() and any(
         p.name not in litter or (p.is_dir() and any(p.iterdir())) for p in out.iterdir()
     ):
-        raise DatasetError(f"--out {out}: not empty and not a benchmark output directory; "
-                           "expected a new or empty directory")  # fmt: skip
+        raise DatasetError(
+            f"--out {out}: not empty and not a benchmark output directory; "
+            "expected a new or empty directory"
+        )
     created = not out.exists()
     try:
         (out / "cells").mkdir(parents=True, exist_ok=True)
@@ -117,8 +125,12 @@ def claim(out: Path, suite: Suite) -> None:
 
 
 def _ownership(suite: Suite) -> dict:
-    return {"name": suite.name, "sha256": suite.sha256, "data_sha256": suite.data_sha256,
-            "path": _shown(suite)}  # fmt: skip
+    return {
+        "name": suite.name,
+        "sha256": suite.sha256,
+        "data_sha256": suite.data_sha256,
+        "path": _shown(suite),
+    }
 
 
 def _shown(suite: Suite) -> str:
@@ -142,8 +154,11 @@ def resolve_datasets(suite: Suite, out: Path, dataset: Path | None, progress: bo
         from simlidar.scene.recipe import load_catalog
 
         root = out / "datasets"
-        missing = [n for n in suite.noise
-                   if not (root / dataset_name(suite.generate.with_noise(n))).is_dir()]  # fmt: skip
+        missing = [
+            n
+            for n in suite.noise
+            if not (root / dataset_name(suite.generate.with_noise(n))).is_dir()
+        ]
         if missing:
             generate(suite.generate, missing, load_catalog(), root, progress=progress)
         paths = [root / dataset_name(suite.generate.with_noise(n)) for n in suite.noise]
@@ -213,8 +228,9 @@ def _rules(rules) -> str:
     return ", ".join(f"{k} {v}" for k, v in rules.items())
 
 
-def run_cell(dataset: Path, model: str, seed: int, suite: Suite,
-             checkpoint: Path | None = None) -> dict:  # fmt: skip
+def run_cell(
+    dataset: Path, model: str, seed: int, suite: Suite, checkpoint: Path | None = None
+) -> dict:
     """Train one model on one dataset with one seed and measure it (docs/benchmark.md); with
     ``checkpoint``, save the kept weights there (a figure can be re-measured later)."""
     recipe = load_recipe(model)
@@ -252,8 +268,14 @@ def run_cell(dataset: Path, model: str, seed: int, suite: Suite,
 METRICS = "neurobench-2.3.0-definitions/v1"  # what measure() computes; a cell records it
 
 
-def measure(model: torch.nn.Module, recipe: dict, dataset: Path, suite: Suite,
-            predicted: np.ndarray, timing: dict) -> dict:  # fmt: skip
+def measure(
+    model: torch.nn.Module,
+    recipe: dict,
+    dataset: Path,
+    suite: Suite,
+    predicted: np.ndarray,
+    timing: dict,
+) -> dict:
     """Everything a cell measures on its trained model besides training: accuracy, confusion,
     footprint, latency, NeuroBench's workload metrics, early decisions; ``timing`` gets the
     seconds of each part, and is recorded."""
@@ -299,26 +321,33 @@ def remeasure(out: Path, suite: Suite, progress: bool = True) -> dict:
     from simlidar.bench.train import load_checkpoint
 
     if not (out / "suite.json").is_file():
-        raise DatasetError(f"--out {out}: no benchmark run to re-measure; expected a directory "
-                           "written by simlidar bench")  # fmt: skip
+        raise DatasetError(
+            f"--out {out}: no benchmark run to re-measure; expected a directory "
+            "written by simlidar bench"
+        )
     claim(out, suite)  # the suite must own the directory
     cells = sorted((out / "cells").glob("*.json"))
     missing = [c.stem for c in cells if not (out / "checkpoints" / f"{c.stem}.pt").is_file()]
     if missing:
-        raise DatasetError(f"--out {out}: cell {missing[0]} has no checkpoint "
-                           f"(checkpoints/{missing[0]}.pt; {len(missing)} cells lack one); "
-                           "expected every cell's weights, as bench saves them")  # fmt: skip
+        raise DatasetError(
+            f"--out {out}: cell {missing[0]} has no checkpoint "
+            f"(checkpoints/{missing[0]}.pt; {len(missing)} cells lack one); "
+            "expected every cell's weights, as bench saves them"
+        )
     for path in tqdm(cells, desc="re-measure", unit="cell", disable=not progress):
         record = json.loads(path.read_text())
         dataset = _dataset_of(out, suite, record["dataset"])
-        model, data = load_checkpoint(out / "checkpoints" / f"{path.stem}.pt",
-                                      tuple(record["input_shape"]), record["classes"])  # fmt: skip
+        model, data = load_checkpoint(
+            out / "checkpoints" / f"{path.stem}.pt", tuple(record["input_shape"]), record["classes"]
+        )
         x, y = load_split(dataset, "test")
         predicted = predictions(model, torch.from_numpy(x)[:, None]).numpy()
         if abs(float(np.sum(predicted == y)) - record["accuracy"] * len(y)) > 1.5:
-            raise DatasetError(f"--out {out}: checkpoint of cell {path.stem} scores "
-                               f"{np.mean(predicted == y):.4f}, the cell {record['accuracy']:.4f}; "
-                               "expected the cell's own model")  # fmt: skip
+            raise DatasetError(
+                f"--out {out}: checkpoint of cell {path.stem} scores "
+                f"{np.mean(predicted == y):.4f}, the cell {record['accuracy']:.4f}; "
+                "expected the cell's own model"
+            )
         timing = {k: v for k, v in record.get("timing_seconds", {}).items() if k == "train"}
         record.update(measure(model, data["recipe"], dataset, suite, predicted, timing))
         _write_json(path, record, indent=None)
@@ -333,8 +362,10 @@ def _dataset_of(out: Path, suite: Suite, name: str) -> Path:
     for path in [out / "datasets" / name, *suite.datasets]:
         if path.name == name and path.is_dir():
             return path
-    raise DatasetError(f"--out {out}: dataset {name} of a cell is not there; expected it under "
-                       f"{out / 'datasets'} or among the suite's datasets")  # fmt: skip
+    raise DatasetError(
+        f"--out {out}: dataset {name} of a cell is not there; expected it under "
+        f"{out / 'datasets'} or among the suite's datasets"
+    )
 
 
 def check_validation(suite: Suite, models: list[str], dataset: Path | None) -> None:
@@ -355,9 +386,11 @@ def check_validation(suite: Suite, models: list[str], dataset: Path | None) -> N
             labelled.append((labels, [str(n) for n in info.attrs["class_names"]]))
     for model in models:
         fraction = training_rules(model, suite.budget_for(model))["validation"]
-        where = (f"suite {suite.path}: key 'budget.validation'"
-                 if "validation" in suite.budget_for(model)
-                 else f"recipe {model}: key 'training.validation'")  # fmt: skip
+        where = (
+            f"suite {suite.path}: key 'budget.validation'"
+            if "validation" in suite.budget_for(model)
+            else f"recipe {model}: key 'training.validation'"
+        )
         for labels, names in labelled:
             try:
                 validation_split(labels, fraction, 0, names)
@@ -365,8 +398,13 @@ def check_validation(suite: Suite, models: list[str], dataset: Path | None) -> N
                 raise ConfigError(f"{where}: {exc}") from None
 
 
-def run_suite(suite: Suite, out: Path, models: list[str] | None = None,
-              dataset: Path | None = None, progress: bool = True) -> dict:  # fmt: skip
+def run_suite(
+    suite: Suite,
+    out: Path,
+    models: list[str] | None = None,
+    dataset: Path | None = None,
+    progress: bool = True,
+) -> dict:
     """Run every unfinished cell of the suite into ``out``; write results.json and the report.
 
     returns : the results (what results.json holds)
@@ -385,15 +423,19 @@ def run_suite(suite: Suite, out: Path, models: list[str] | None = None,
     datasets = resolve_datasets(suite, out, dataset, progress)
     cells = [(d, m, s) for d in datasets for m in models for s in suite.seeds]
     todo = [c for c in cells if not finished(out, *c, suite.budget_for(c[1]))]
-    bar = tqdm(todo, desc=f"bench {suite.name}", unit="cell", disable=not progress,
-               dynamic_ncols=True)  # fmt: skip
+    bar = tqdm(
+        todo, desc=f"bench {suite.name}", unit="cell", disable=not progress, dynamic_ncols=True
+    )
     for d, m, s in bar:
         bar.set_postfix_str(cell_id(d, m, s))
         start = time.perf_counter()
         record = run_cell(d, m, s, suite, out / "checkpoints" / f"{cell_id(d, m, s)}.pt")
         record["seconds"] = round(time.perf_counter() - start, 2)
-        record.update(inputs=cell_inputs(d, m, suite.budget_for(m)), machine=machine(),
-                      simlidar_version=__version__)  # fmt: skip
+        record.update(
+            inputs=cell_inputs(d, m, suite.budget_for(m)),
+            machine=machine(),
+            simlidar_version=__version__,
+        )
         _write_json(out / "cells" / f"{cell_id(d, m, s)}.json", record, indent=None)
     results = collect(out, suite)
     write_report(results, out)

@@ -38,8 +38,7 @@ from simlidar.models.registry import check_selection, load_recipe
 from simlidar.profiles import DEFAULT_PROFILE, load_profile
 
 SUITE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,99}$")
-KEYS = {"name", "description", "models", "seeds", "board_power_w", "generate", "datasets",
-        "budget"}  # fmt: skip
+KEYS = {"name", "description", "models", "seeds", "board_power_w", "generate", "datasets", "budget"}
 BUDGET_KEYS = {"epochs", "max_seconds", "patience", "validation"}
 
 
@@ -100,8 +99,9 @@ def load_suite(name_or_path: str | Path) -> Suite:
     if not path.suffix:
         path = content_dir("benchmark") / f"{name_or_path}.toml"
     if not path.is_file():
-        raise ConfigError(f"suite {str(name_or_path)!r}: expected one of {suite_names()} or a "
-                          ".toml file")  # fmt: skip
+        raise ConfigError(
+            f"suite {str(name_or_path)!r}: expected one of {suite_names()} or a .toml file"
+        )
     raw = path.read_bytes()
     try:
         data = tomllib.loads(raw.decode())
@@ -109,8 +109,7 @@ def load_suite(name_or_path: str | Path) -> Suite:
         raise ConfigError(f"suite {path}: not valid TOML ({exc})") from None
     for key in data:
         if key not in KEYS:
-            raise ConfigError(f"suite {path}: unknown key '{key}': expected one of "
-                              f"{sorted(KEYS)}")  # fmt: skip
+            raise ConfigError(f"suite {path}: unknown key '{key}': expected one of {sorted(KEYS)}")
     name = data.get("name", path.stem)
     if not (isinstance(name, str) and SUITE_NAME.match(name)):
         raise _fail(
@@ -135,15 +134,16 @@ def load_suite(name_or_path: str | Path) -> Suite:
         if key in data and not isinstance(data[key], dict):
             raise _fail(path, key, "a table ([" + key + "])", data[key])
     if ("generate" in data) == ("datasets" in data):
-        raise ConfigError(f"suite {path}: expected exactly one of 'generate' (datasets made on "
-                          "the fly) or 'datasets' (dataset directories)")  # fmt: skip
+        raise ConfigError(
+            f"suite {path}: expected exactly one of 'generate' (datasets made on "
+            "the fly) or 'datasets' (dataset directories)"
+        )
     config, noise, datasets = None, (), ()
     if "generate" in data:
         table = dict(data["generate"])
         levels = table.pop("noise", None)
         if not isinstance(levels, list) or not levels or len(set(levels)) != len(levels):
-            raise _fail(path, "generate.noise", "a non-empty list of distinct noise levels",
-                        levels)  # fmt: skip
+            raise _fail(path, "generate.noise", "a non-empty list of distinct noise levels", levels)
         unknown = set(table) - set(GeneratorConfig.__dataclass_fields__) - {"noise"}
         if unknown or "sensor" in table:
             bad = sorted(unknown | ({"sensor"} & set(table)))[0]
@@ -176,10 +176,18 @@ def load_suite(name_or_path: str | Path) -> Suite:
     if power is not None and not _number(power, 0):
         raise _fail(path, "board_power_w", "watts >= 0", power)
     return Suite(
-        name=name, path=path, sha256=hashlib.sha256(raw).hexdigest(),
-        data_sha256=hashlib.sha256(json.dumps(data.get("generate", data.get("datasets")),
-                                              sort_keys=True).encode()).hexdigest(),
+        name=name,
+        path=path,
+        sha256=hashlib.sha256(raw).hexdigest(),
+        data_sha256=hashlib.sha256(
+            json.dumps(data.get("generate", data.get("datasets")), sort_keys=True).encode()
+        ).hexdigest(),
         description=str(data.get("description", "")),
-        models=tuple(models), seeds=tuple(seeds), generate=config, noise=noise,
-        datasets=datasets, budget=budget, board_power_w=power,
-    )  # fmt: skip
+        models=tuple(models),
+        seeds=tuple(seeds),
+        generate=config,
+        noise=noise,
+        datasets=datasets,
+        budget=budget,
+        board_power_w=power,
+    )

@@ -79,8 +79,9 @@ def is_spiking(model: torch.nn.Module) -> bool:
     return getattr(model, "spiking", False)
 
 
-def logits(model: torch.nn.Module, out: torch.Tensor, kind: str = "z",
-           scale: float = 1.0) -> torch.Tensor:  # fmt: skip
+def logits(
+    model: torch.nn.Module, out: torch.Tensor, kind: str = "z", scale: float = 1.0
+) -> torch.Tensor:
     """Logits for the cross-entropy loss: a spiking model's -z (``kind`` "z", the paper's) or
     -ln z = -t (``kind`` "time"; output times are not scaled by exp), times ``scale`` (an
     inverse softmax temperature), or ``out`` itself."""
@@ -98,8 +99,9 @@ def _loss(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training: di
         total = loss + training.get("weight_sum_penalty", 0.0) * model.penalty()
         if training.get("fire_penalty", 0.0):
             last = model.layers[-1].weight
-            fire = ttfs.target_fire_penalty(spikes[-2].flatten(1), last, y,
-                                            training.get("fire_margin", 0.1))  # fmt: skip
+            fire = ttfs.target_fire_penalty(
+                spikes[-2].flatten(1), last, y, training.get("fire_margin", 0.1)
+            )
             total = total + training["fire_penalty"] * fire
         if training.get("early_penalty", 0.0):
             total = total + training["early_penalty"] * ttfs.target_time(spikes[-1], y)
@@ -109,8 +111,9 @@ def _loss(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training: di
     return loss, total
 
 
-def validation_split(labels: np.ndarray, fraction: float, seed: int,
-                     class_names) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def validation_split(
+    labels: np.ndarray, fraction: float, seed: int, class_names
+) -> tuple[np.ndarray, np.ndarray]:
     """(training rows, validation rows) of a train split, stratified by class.
 
     From each class with n training samples, ``max(1, round(fraction * n))`` rows are drawn
@@ -173,8 +176,9 @@ def predictions(model: torch.nn.Module, x: torch.Tensor, batch: int = 500) -> to
     return torch.cat([o.argmax(1) for o in outs])
 
 
-def evaluate(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training: dict,
-             batch: int = 500) -> tuple[float, float | None]:  # fmt: skip
+def evaluate(
+    model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training: dict, batch: int = 500
+) -> tuple[float, float | None]:
     """(accuracy, mean cross-entropy with the recipe's logits) on ``x``, in eval mode; the loss
     is None where it is not finite (a spiking network whose correct output never fired)."""
     kind, scale = training.get("logits", "z"), training.get("logit_scale", 1.0)
@@ -185,8 +189,9 @@ def evaluate(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training:
             out = model(x[i : i + batch])
             predicted = ttfs.predict(out) if is_spiking(model) else out.argmax(1)
             correct += int((predicted == y[i : i + batch]).sum())
-            loss += F.cross_entropy(logits(model, out, kind, scale), y[i : i + batch],
-                                    reduction="sum").item()  # fmt: skip
+            loss += F.cross_entropy(
+                logits(model, out, kind, scale), y[i : i + batch], reduction="sum"
+            ).item()
     loss /= len(x)
     return correct / len(x), (loss if np.isfinite(loss) else None)
 
@@ -198,8 +203,14 @@ def _better(score: tuple[float, float | None], best: tuple[float, float | None] 
     return score[1] is not None and (best[1] is None or score[1] < best[1])
 
 
-def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None = None,
-          max_seconds: float | None = None, progress: bool = True) -> TrainResult:  # fmt: skip
+def train(
+    recipe: dict,
+    dataset: str | Path,
+    seed: int = 0,
+    epochs: int | None = None,
+    max_seconds: float | None = None,
+    progress: bool = True,
+) -> TrainResult:
     """Train the recipe's model on ``dataset``'s train split (less the validation rows), keep
     the epoch with the best validation score, and score it once on the test split.
 
@@ -214,11 +225,16 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
     attrs = read_split_info(split_path(dataset, "train")).attrs
     classes = len(attrs["class_names"])
     try:
-        rows, held = validation_split(y_all.numpy(), training.get("validation", VALIDATION), seed,
-                                      [str(n) for n in attrs["class_names"]])  # fmt: skip
+        rows, held = validation_split(
+            y_all.numpy(),
+            training.get("validation", VALIDATION),
+            seed,
+            [str(n) for n in attrs["class_names"]],
+        )
     except ConfigError as exc:
-        raise ConfigError(f"recipe {recipe.get('name', '?')}: key 'training.validation': "
-                          f"{exc}") from None  # fmt: skip
+        raise ConfigError(
+            f"recipe {recipe.get('name', '?')}: key 'training.validation': {exc}"
+        ) from None
     x_all = x_all[:, None]  # (N, 1, H, W)
     x_train, y_train = x_all[rows], y_all[rows]
     x_val, y_val = x_all[held], y_all[held]
@@ -288,8 +304,18 @@ def train(recipe: dict, dataset: str | Path, seed: int = 0, epochs: int | None =
     x_test, y_test = (torch.from_numpy(a) for a in load_split(dataset, "test"))
     predicted = predictions(model, x_test[:, None])  # the test split, read once, at the end
     accuracy = (predicted == y_test).float().mean().item()
-    return TrainResult(model, recipe, accuracy, history[-1]["seconds"], len(history), history,
-                       best_epoch, stopped, len(held), predicted.numpy())  # fmt: skip
+    return TrainResult(
+        model,
+        recipe,
+        accuracy,
+        history[-1]["seconds"],
+        len(history),
+        history,
+        best_epoch,
+        stopped,
+        len(held),
+        predicted.numpy(),
+    )
 
 
 def check_writable(folder: str | Path) -> None:

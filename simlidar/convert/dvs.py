@@ -199,8 +199,14 @@ def split_recordings(labels: np.ndarray, config: DvsConfig) -> dict[str, np.ndar
     return {"train": np.nonzero(~test)[0], "test": np.nonzero(test)[0]}
 
 
-def write_split(path: Path, recordings: list[Recording], rows: np.ndarray, delays: np.ndarray,
-                labels: np.ndarray, attrs: dict) -> None:  # fmt: skip
+def write_split(
+    path: Path,
+    recordings: list[Recording],
+    rows: np.ndarray,
+    delays: np.ndarray,
+    labels: np.ndarray,
+    attrs: dict,
+) -> None:
     """One split file: the samples' records (N rows) and their events, concatenated (E rows).
 
     rows : (N,) the recordings' indices in ROI; delays : (N, 32, 32); labels : (N,)
@@ -211,10 +217,21 @@ def write_split(path: Path, recordings: list[Recording], rows: np.ndarray, delay
     count = np.array([len(r.t_us) for r in recordings], dtype=np.int64)
     writer = RowWriter(path, len(rows), per_sample, attrs, frozenset({"delays"}))
     try:
-        writer.append({"delays": delays, "labels": labels, "recording": rows.astype(np.int64),
-                       "event_start": np.cumsum(count) - count, "event_count": count})  # fmt: skip
-        for name, field in (("event_x", "x"), ("event_y", "y"), ("event_p", "p"),
-                            ("event_t_us", "t_us")):  # fmt: skip
+        writer.append(
+            {
+                "delays": delays,
+                "labels": labels,
+                "recording": rows.astype(np.int64),
+                "event_start": np.cumsum(count) - count,
+                "event_count": count,
+            }
+        )
+        for name, field in (
+            ("event_x", "x"),
+            ("event_y", "y"),
+            ("event_p", "p"),
+            ("event_t_us", "t_us"),
+        ):
             values = np.concatenate([getattr(r, field) for r in recordings])
             writer.add_rows(name, values, schema[name][0])
         writer.close()
@@ -283,7 +300,13 @@ def convert_dvs_barrel(
                 SOURCE, split, config, CLASSES, "character", sensor, sha256_file(mat_file)
             )
             attrs["time_window_us"] = float(window)
-            write_split(temp / f"{split}.h5", [recordings[i] for i in rows], rows, delays[rows],
-                        y[rows], attrs)  # fmt: skip
+            write_split(
+                temp / f"{split}.h5",
+                [recordings[i] for i in rows],
+                rows,
+                delays[rows],
+                y[rows],
+                attrs,
+            )
         write_release_files(temp, name, preview)
     return Path(out) / name

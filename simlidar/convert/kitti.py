@@ -232,8 +232,14 @@ def convert_kitti(
     return Path(out) / name
 
 
-def write_splits(folder: Path, base: Path, frames: list[Frame], splits: dict[str, list[Frame]],
-                 config: KittiConfig, progress: bool = True) -> None:  # fmt: skip
+def write_splits(
+    folder: Path,
+    base: Path,
+    frames: list[Frame],
+    splits: dict[str, list[Frame]],
+    config: KittiConfig,
+    progress: bool = True,
+) -> None:
     """Read every scan once, in split order, and write train.h5 and test.h5 into ``folder``.
 
     base : the training folder (paths in the input's hash are relative to it)
@@ -246,8 +252,9 @@ def write_splits(folder: Path, base: Path, frames: list[Frame], splits: dict[str
         hashes = _small_file_hashes(base, frames)
         for split in SPLITS:
             size = sum(len(f.labels) for f in splits[split])
-            writers[split] = RowWriter(folder / f"{split}.h5", size, shapes, {},
-                                       frozenset({"delays", "box_corners_m"}))  # fmt: skip
+            writers[split] = RowWriter(
+                folder / f"{split}.h5", size, shapes, {}, frozenset({"delays", "box_corners_m"})
+            )
         bar = tqdm(total=len(frames), unit="frame", disable=not progress, desc="kitti")
         for split in SPLITS:
             for frame in splits[split]:
@@ -261,11 +268,22 @@ def write_splits(folder: Path, base: Path, frames: list[Frame], splits: dict[str
         bar.close()
         # the text `sha256sum calib/* label_2/* velodyne/*` prints in the training folder
         manifest = "".join(f"{h}  {p.as_posix()}\n" for p, h in sorted(hashes.items()))
-        sensor = {"name": "Velodyne HDL-64E (KITTI, 10 Hz)", "res_h_deg": config.res_h_deg,
-                  "res_v_deg": config.res_v_deg, "max_range_m": config.max_range_m}  # fmt: skip
+        sensor = {
+            "name": "Velodyne HDL-64E (KITTI, 10 Hz)",
+            "res_h_deg": config.res_h_deg,
+            "res_v_deg": config.res_v_deg,
+            "max_range_m": config.max_range_m,
+        }
         for split, writer in writers.items():
-            attrs = split_attrs(SOURCE, split, config, CLASSES, "object", sensor,
-                                hashlib.sha256(manifest.encode()).hexdigest())  # fmt: skip
+            attrs = split_attrs(
+                SOURCE,
+                split,
+                config,
+                CLASSES,
+                "object",
+                sensor,
+                hashlib.sha256(manifest.encode()).hexdigest(),
+            )
             attrs["tof_max_ns"] = tof_ns(config.max_range_m)
             attrs["frames_without_objects"] = np.array(
                 [f.number for f in frames if not f.labels], dtype=np.int64

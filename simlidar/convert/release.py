@@ -81,7 +81,7 @@ def front_matter(path: Path) -> dict:
     features = [
         hf_feature(
             name, dtype, _shape(shape, info.height, info.width)[1:], info.attrs["class_names"]
-        )  # fmt: skip
+        )
         for name, (dtype, shape) in CONVERTED_SCHEMAS[info.source].items()
         if shape[0] == "N"  # per-event datasets are not features of a sample
     ]
@@ -193,7 +193,7 @@ def croissant(path: str | Path, name: str | None = None) -> dict:
                     schema[n][0],
                     _shape(schema[n][1], info.height, info.width),
                     _DOCS[n],
-                )  # fmt: skip
+                )
                 for n in fields
             ],
         }

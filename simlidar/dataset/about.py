@@ -9,8 +9,15 @@ HOMEPAGE = "https://pypi.org/project/simlidar/"
 LICENSE = "cc-by-4.0"  # Hugging Face license id of the generated data
 LICENSE_URL = "https://creativecommons.org/licenses/by/4.0/"
 CREATOR = "simlidar developers"
-TAGS = ["lidar", "spiking-neural-networks", "temporal-coding", "neuromorphic", "synthetic",
-        "autonomous-driving", "velodyne-vlp-16"]  # fmt: skip
+TAGS = [
+    "lidar",
+    "spiking-neural-networks",
+    "temporal-coding",
+    "neuromorphic",
+    "synthetic",
+    "autonomous-driving",
+    "velodyne-vlp-16",
+]
 
 DESCRIPTION = (
     "Synthetic LiDAR temporal pulses: each sample is a 16 x W array of the round-trip delays of "

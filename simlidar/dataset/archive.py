@@ -100,9 +100,17 @@ def _download(url: str, target: Path, timeout: float, progress: bool) -> None:
             expected = response.headers.get("Content-Length")
             expected = int(expected) if expected is not None else None
             received = 0
-            with open(target, "wb") as f, tqdm(total=expected, unit="B", unit_scale=True,
-                                                desc="download", disable=not progress,
-                                                leave=False) as bar:  # fmt: skip
+            with (
+                open(target, "wb") as f,
+                tqdm(
+                    total=expected,
+                    unit="B",
+                    unit_scale=True,
+                    desc="download",
+                    disable=not progress,
+                    leave=False,
+                ) as bar,
+            ):
                 while block := response.read(_CHUNK):
                     f.write(block)
                     received += len(block)
@@ -129,8 +137,10 @@ def _sidecar_sha256(url: str, timeout: float) -> str:
         with urllib.request.urlopen(url + ".sha256", timeout=timeout) as response:  # noqa: S310
             text = response.read(4096).decode("ascii", "replace")
     except (urllib.error.URLError, OSError) as exc:
-        raise FetchError("checksum", f"no --sha256 given and {url}.sha256 is not available "
-                         f"({getattr(exc, 'reason', exc)})") from None  # fmt: skip
+        raise FetchError(
+            "checksum",
+            f"no --sha256 given and {url}.sha256 is not available ({getattr(exc, 'reason', exc)})",
+        ) from None
     digest = text.split()[0] if text.split() else ""
     if len(digest) != 64:
         raise FetchError("checksum", f"{url}.sha256 does not hold a sha256 ({text[:40]!r})")
@@ -166,8 +176,7 @@ def safe_extract(archive: Path, target: Path, max_bytes: int) -> Path:
         if len(tops) != 1:
             raise FetchError("extract", f"expected one top-level folder, got {sorted(tops)}")
         if total > max_bytes:
-            raise FetchError("extract", f"{total} bytes unpacked, more than the limit "
-                             f"{max_bytes}")  # fmt: skip
+            raise FetchError("extract", f"{total} bytes unpacked, more than the limit {max_bytes}")
         try:
             tar.extractall(target, filter="data")
         except (OSError, tarfile.TarError) as exc:
@@ -190,9 +199,15 @@ def _work_name(url: str) -> str:
     return name if _PLAIN_NAME.fullmatch(name) else "download"
 
 
-def fetch(url: str, sha256: str | None = None, out: str | Path = ".", timeout: float = 30.0,
-          force: bool = False, max_bytes: int = DEFAULT_MAX_BYTES,
-          progress: bool = True) -> Path:  # fmt: skip
+def fetch(
+    url: str,
+    sha256: str | None = None,
+    out: str | Path = ".",
+    timeout: float = 30.0,
+    force: bool = False,
+    max_bytes: int = DEFAULT_MAX_BYTES,
+    progress: bool = True,
+) -> Path:
     """Download, check, extract and verify a dataset archive; return the installed folder.
 
     The work happens in a locked temporary folder ``out/.<archive name>.fetch-<random>``

@@ -45,8 +45,12 @@ _DOCS = {  # one line per dataset of a split file; the full table is docs/datase
 
 
 def _size_category(n: int) -> str:
-    for limit, name in ((1_000, "n<1K"), (10_000, "1K<n<10K"), (100_000, "10K<n<100K"),
-                        (1_000_000, "100K<n<1M")):  # fmt: skip
+    for limit, name in (
+        (1_000, "n<1K"),
+        (10_000, "1K<n<10K"),
+        (100_000, "10K<n<100K"),
+        (1_000_000, "100K<n<1M"),
+    ):
         if n < limit:
             return name
     return "n>1M"
@@ -64,8 +68,14 @@ def hf_feature(name: str, dtype: str, shape: tuple, class_names) -> dict:
     return {"name": name, "dtype": dtype}
 
 
-def hf_front_matter(splits: dict, features: list[dict], license: str, pretty_name: str,
-                    tags: list[str], config_name: str) -> dict:  # fmt: skip
+def hf_front_matter(
+    splits: dict,
+    features: list[dict],
+    license: str,
+    pretty_name: str,
+    tags: list[str],
+    config_name: str,
+) -> dict:
     """The Hugging Face card metadata of a dataset directory's splits (generated or converted)."""
     nbytes = {s: info.path.stat().st_size for s, info in splits.items()}
     return {
@@ -97,8 +107,10 @@ def front_matter(path: Path) -> dict:
     splits = dataset_splits(path)
     attrs = splits["train"].attrs
     width = splits["train"].width
-    features = [hf_feature(name, dtype, tail(width), attrs["class_names"])
-                for name, (dtype, tail, _) in SCHEMA.items()]  # fmt: skip
+    features = [
+        hf_feature(name, dtype, tail(width), attrs["class_names"])
+        for name, (dtype, tail, _) in SCHEMA.items()
+    ]
     config = GeneratorConfig.from_dict(attrs["config"])
     title = f"{NAME}, {attrs['classes']} classes, noise {attrs['noise']}"
     config_name = f"noise{float(attrs['noise'])!r}"
@@ -251,7 +263,7 @@ def render_card(path: str | Path) -> str:
                 ["seed", attrs["seed"]],
             ],
         )
-        + "\n",  # fmt: skip
+        + "\n",
         f"## Motivation\n\n{MOTIVATION}\n",
         "## Composition\n",
         f"What a value means: {DELAY_MEANING}{_missing_meaning(config)}\n",
@@ -259,7 +271,7 @@ def render_card(path: str | Path) -> str:
             ["class", "name", *splits],
             [[k, name, *(counts[s][name] for s in splits)] for k, name in enumerate(names)],
         )
-        + "\n",  # fmt: skip
+        + "\n",
         "Each split file holds these datasets (N samples):\n",
         _table(
             ["dataset", "dtype", "shape", "meaning"],
@@ -268,7 +280,7 @@ def render_card(path: str | Path) -> str:
                 for name, (dtype, tail, _) in SCHEMA.items()
             ],
         )
-        + "\n",  # fmt: skip
+        + "\n",
         "## Generation process\n",
         "A simulated Velodyne VLP-16 ray-casts (Embree) into procedurally built road scenes. "
         "Each pixel is the centre firing of its azimuth bin; see simlidar's "
@@ -280,7 +292,7 @@ def render_card(path: str | Path) -> str:
                 for k, v in sensor.items()
             ],
         )
-        + "\n",  # fmt: skip
+        + "\n",
         f"Horizontal field of view {config.fov_deg} deg over {config.width} columns; objects "
         f"must be hit by at least {config.min_object_hits} pulses. Scene catalog sha256 "
         f"`{attrs['catalog_sha256']}`"
@@ -301,7 +313,7 @@ def render_card(path: str | Path) -> str:
                 for n in attrs["object_names"][1:]
             ]
         )
-        + "\n",  # fmt: skip
+        + "\n",
         f"Noise: `delays = min(clean_delays + a * u, 1)` with `u ~ U(0, 1)` per pulse and "
         f"a = {attrs['noise']}{_noise_details(config)}. Seed {attrs['seed']}: every sample has "
         "its own random stream "
@@ -318,7 +330,7 @@ def render_card(path: str | Path) -> str:
             f"* {v} ({RELEASE_DATES.get(v, 'unreleased')}): {notes}"
             for v, notes in RELEASE_NOTES.items()
         )
-        + "\n",  # fmt: skip
+        + "\n",
         "## Loading\n",
         "```python\nfrom simlidar.data import load_split\n"
         "x, y = load_split('.', 'train')  # x: (N, 16, W) float32, y: (N,) int64\n```\n",

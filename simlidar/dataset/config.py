@@ -59,10 +59,15 @@ class GeneratorConfig:
             raise ConfigError(f"min_object_hits={self.min_object_hits!r}: expected >= 1")
         if not isinstance(self.max_attempts, int) or self.max_attempts < 1:
             raise ConfigError(f"max_attempts={self.max_attempts!r}: expected >= 1")
-        if not (isinstance(self.variation, float | int) and not isinstance(self.variation, bool)
-                and 0.0 < self.variation <= 1.0):  # fmt: skip
-            raise ConfigError(f"variation={self.variation!r}: expected a factor in (0, 1] "
-                              "(1: the scene catalog's ranges as written)")  # fmt: skip
+        if not (
+            isinstance(self.variation, float | int)
+            and not isinstance(self.variation, bool)
+            and 0.0 < self.variation <= 1.0
+        ):
+            raise ConfigError(
+                f"variation={self.variation!r}: expected a factor in (0, 1] "
+                "(1: the scene catalog's ranges as written)"
+            )
         if self.profile is not None and not isinstance(self.profile, Profile):
             raise ConfigError(f"profile={self.profile!r}: expected a Profile or None")
         if not 0.0 <= self.shift_max < 1.0:

@@ -48,8 +48,13 @@ CONTEXT = {
     "subField": "cr:subField",
     "transform": "cr:transform",
 }
-DATA_TYPES = {"float32": "sc:Float", "int64": "sc:Integer", "int32": "sc:Integer",
-              "uint8": "sc:Integer", "int8": "sc:Integer"}  # fmt: skip
+DATA_TYPES = {
+    "float32": "sc:Float",
+    "int64": "sc:Integer",
+    "int32": "sc:Integer",
+    "uint8": "sc:Integer",
+    "int8": "sc:Integer",
+}
 RECORD_FIELDS = ("delays", "labels", "clean_delays", "tof_ns", "surface", "layout", "object")
 
 
@@ -76,7 +81,7 @@ def croissant(path: str | Path, name: str | None = None) -> dict:
                     name,
                     SCHEMA[name][0],
                     ("N", *SCHEMA[name][1](splits[split].width)),
-                )  # fmt: skip
+                )
                 for name in RECORD_FIELDS
             ],
         }
@@ -118,8 +123,9 @@ def file_objects(splits: dict, kind: str) -> list[dict]:
     ]
 
 
-def field(record_set: str, split: str, name: str, dtype: str, shape: tuple,
-          doc: str | None = None) -> dict:  # fmt: skip
+def field(
+    record_set: str, split: str, name: str, dtype: str, shape: tuple, doc: str | None = None
+) -> dict:
     """A Croissant Field: column ``name`` of ``split``.h5, of ``dtype`` and ``shape``."""
     shape_text = str(tuple(shape)).replace("'", "")
     return {

@@ -92,9 +92,16 @@ def split_attrs(config: GeneratorConfig, catalog: Catalog, split: str) -> dict:
     return attrs
 
 
-def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalog,
-             out: str | Path, batch_size: int = 1024, force: bool = False,
-             progress: bool = True, preview: bool = True) -> list[Written]:  # fmt: skip
+def generate(
+    config: GeneratorConfig,
+    noise_levels: list[float],
+    catalog: Catalog,
+    out: str | Path,
+    batch_size: int = 1024,
+    force: bool = False,
+    progress: bool = True,
+    preview: bool = True,
+) -> list[Written]:
     """Generate one dataset directory per noise level under ``out``; return what was written."""
     from tqdm import tqdm
 
@@ -118,8 +125,9 @@ def generate(config: GeneratorConfig, noise_levels: list[float], catalog: Catalo
             claims.append(Temporary(out, final.name))
         temps = [c.path for c in claims]
         total = sum(config.split_sizes.values())
-        bar = tqdm(total=total, unit="sample", disable=not progress, desc="generate",
-                   dynamic_ncols=True)  # fmt: skip
+        bar = tqdm(
+            total=total, unit="sample", disable=not progress, desc="generate", dynamic_ncols=True
+        )
         for split in SPLITS:
             size = config.split_sizes[split]
             writers = []

@@ -42,8 +42,17 @@ SCHEMA: dict[str, tuple[str, object, str | None]] = {
 # The shuffle filter helps gzip on the noisy delays (random mantissas) and hurts it on the
 # quantised clean delays and times of flight (measured: smaller and faster without it).
 SHUFFLED = {"delays", "phase", "shift", "object_pose"}
-REQUIRED_ATTRS = ("dataset_version", "simlidar_version", "config", "seed", "noise", "split",
-                  "class_names", "class_mode", "sensor")  # fmt: skip
+REQUIRED_ATTRS = (
+    "dataset_version",
+    "simlidar_version",
+    "config",
+    "seed",
+    "noise",
+    "split",
+    "class_names",
+    "class_mode",
+    "sensor",
+)
 
 # Converted real data (simlidar.convert), by the split's `source` attribute:
 # name -> (dtype, shape), a shape's letters being N samples, E events, H rows, W columns.
@@ -108,8 +117,14 @@ class RowWriter:
     :meth:`abort` closes the file without raising.
     """
 
-    def __init__(self, path: Path, size: int, shapes: dict[str, tuple[str, tuple]],
-                 attrs: dict, shuffled: frozenset[str] = frozenset()):  # fmt: skip
+    def __init__(
+        self,
+        path: Path,
+        size: int,
+        shapes: dict[str, tuple[str, tuple]],
+        attrs: dict,
+        shuffled: frozenset[str] = frozenset(),
+    ):
         self.size = size
         self.chunk = min(CHUNK_SAMPLES, size)
         self.written = 0
@@ -122,10 +137,15 @@ class RowWriter:
         for name, (dtype, tail) in shapes.items():
             shape = (size, *tail)
             self.datasets[name] = self.file.create_dataset(
-                name, shape=shape, dtype=dtype, chunks=(self.chunk, *shape[1:]),
-                compression="gzip", compression_opts=1, shuffle=name in shuffled,
+                name,
+                shape=shape,
+                dtype=dtype,
+                chunks=(self.chunk, *shape[1:]),
+                compression="gzip",
+                compression_opts=1,
+                shuffle=name in shuffled,
                 track_times=False,
-            )  # fmt: skip
+            )
         for key, value in attrs.items():
             self.file.attrs[key] = value
 
@@ -152,9 +172,14 @@ class RowWriter:
             self.file.create_dataset(name, data=values, track_times=False)
             return
         self.file.create_dataset(
-            name, data=values, chunks=(min(chunk, len(values)),), compression="gzip",
-            compression_opts=1, shuffle=True, track_times=False,
-        )  # fmt: skip
+            name,
+            data=values,
+            chunks=(min(chunk, len(values)),),
+            compression="gzip",
+            compression_opts=1,
+            shuffle=True,
+            track_times=False,
+        )
 
     @contextmanager
     def _failing(self):
@@ -252,8 +277,9 @@ def read_split_info(path: Path) -> SplitInfo:
             if missing:
                 raise DatasetError(f"{path}: not a simlidar split (missing {', '.join(missing)})")
             if f["delays"].ndim != 3:
-                raise DatasetError(f"{path}: 'delays' has shape {f['delays'].shape}, expected "
-                                   "(N, H, W)")  # fmt: skip
+                raise DatasetError(
+                    f"{path}: 'delays' has shape {f['delays'].shape}, expected (N, H, W)"
+                )
             attrs = {k: _decode(v) for k, v in f.attrs.items()}
             size, height, width = f["delays"].shape
             info = SplitInfo(path, size, width, attrs, height)

@@ -19,8 +19,9 @@ def first_of_each_class(labels: np.ndarray, classes: int) -> np.ndarray:
     return rows
 
 
-def write_preview(dataset: str | Path, out: str | Path, split: str = "test",
-                  title: str | None = None) -> Path:  # fmt: skip
+def write_preview(
+    dataset: str | Path, out: str | Path, split: str = "test", title: str | None = None
+) -> Path:
     """Draw the first ``split`` sample of every class into the PNG file ``out``."""
     from matplotlib.figure import Figure
 

@@ -31,11 +31,11 @@ def _check_split(path: Path, expected_size: int | None) -> list[str]:
         missing = [k for k in REQUIRED_ATTRS if k not in f.attrs]
         problems += [f"{path}: attribute '{k}' missing" for k in missing]
         size = f["labels"].shape[0] if "labels" in f else None
-        height, width = f["delays"].shape[1:] if "delays" in f and f["delays"].ndim == 3 else (
-            None, None)  # fmt: skip
+        height, width = (
+            f["delays"].shape[1:] if "delays" in f and f["delays"].ndim == 3 else (None, None)
+        )
         if "delays" in f and width is None:
-            problems.append(f"{path}: 'delays' has shape {f['delays'].shape}, expected "
-                            "(N, H, W)")  # fmt: skip
+            problems.append(f"{path}: 'delays' has shape {f['delays'].shape}, expected (N, H, W)")
         source = split_source(f.attrs)
         version = f.attrs.get("dataset_version")
         if version is not None:

@@ -42,8 +42,9 @@ def init_weights(model: nn.Module, generator: torch.Generator | None) -> nn.Modu
     """Kaiming-normal convolutions, uniform linear layers (torchvision's scheme), seeded."""
     for m in model.modules():
         if isinstance(m, nn.Conv2d):
-            nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu",
-                                    generator=generator)  # fmt: skip
+            nn.init.kaiming_normal_(
+                m.weight, mode="fan_out", nonlinearity="relu", generator=generator
+            )
         elif isinstance(m, nn.Linear):
             bound = 1.0 / math.sqrt(m.in_features)
             nn.init.uniform_(m.weight, -bound, bound, generator=generator)
@@ -157,9 +158,10 @@ class ResNet(Conventional):
         super().__init__()
         kind = {"basic": BasicBlock, "bottleneck": Bottleneck}[block]
         layers: list[nn.Module] = [
-            nn.Conv2d(input_shape[0], width, 3, 1, 1, bias=False), nn.BatchNorm2d(width),
+            nn.Conv2d(input_shape[0], width, 3, 1, 1, bias=False),
+            nn.BatchNorm2d(width),
             nn.ReLU(),
-        ]  # fmt: skip
+        ]
         c = width
         for stage, blocks in enumerate(stages):
             for b in range(blocks):

@@ -107,7 +107,6 @@ def decide(weights: list[np.ndarray], z_in: np.ndarray) -> Decision:
         fired[best_layer][best_neuron] = True
         pending[best_layer][best_neuron] = np.inf
         if best_layer == n_layers - 1:
-            return Decision(best_neuron, float(best_z), next_input, len(order), hidden,
-                            accumulates)  # fmt: skip
+            return Decision(best_neuron, float(best_z), next_input, len(order), hidden, accumulates)
         hidden += 1
         deliver(best_layer + 1, best_neuron, best_z)

@@ -15,8 +15,14 @@ class DenseTTFS(nn.Module):
     that a neuron's total weight is about 1 + excess: every neuron can fire from the start.
     """
 
-    def __init__(self, n_in: int, n_out: int, excess: float = 2.0, spread: float = 1.0,
-                 generator: torch.Generator | None = None):  # fmt: skip
+    def __init__(
+        self,
+        n_in: int,
+        n_out: int,
+        excess: float = 2.0,
+        spread: float = 1.0,
+        generator: torch.Generator | None = None,
+    ):
         super().__init__()
         mean, std = (1.0 + excess) / n_in, spread / math.sqrt(n_in)
         w = torch.randn(n_in, n_out, generator=generator) * std + mean
@@ -29,9 +35,17 @@ class DenseTTFS(nn.Module):
 class ConvTTFS(nn.Module):
     """2D convolutional time-to-first-spike layer: see :func:`simlidar.models.ttfs.conv2d`."""
 
-    def __init__(self, c_in: int, c_out: int, kernel: int, stride: int = 1, padding: int = 0,
-                 excess: float = 2.0, spread: float = 1.0,
-                 generator: torch.Generator | None = None):  # fmt: skip
+    def __init__(
+        self,
+        c_in: int,
+        c_out: int,
+        kernel: int,
+        stride: int = 1,
+        padding: int = 0,
+        excess: float = 2.0,
+        spread: float = 1.0,
+        generator: torch.Generator | None = None,
+    ):
         super().__init__()
         fan_in = c_in * kernel * kernel
         mean, std = (1.0 + excess) / fan_in, spread / math.sqrt(fan_in)

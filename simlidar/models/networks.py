@@ -25,8 +25,10 @@ class SpikingNet(nn.Module):
 
     def __init__(self, layers: list[nn.Module], scale: float):
         if not 0.0 < scale <= MAX_SCALE:
-            raise ConfigError(f"scale={scale!r}: expected a value in (0, {MAX_SCALE}] so that "
-                              "exp(scale * delay) stays finite in float32")  # fmt: skip
+            raise ConfigError(
+                f"scale={scale!r}: expected a value in (0, {MAX_SCALE}] so that "
+                "exp(scale * delay) stays finite in float32"
+            )
         super().__init__()
         self.layers = nn.ModuleList(layers)
         self.scale = scale
@@ -48,8 +50,9 @@ class SpikingNet(nn.Module):
 
 
 @register_model("snn")
-def dense_snn(input_shape, classes, generator=None, hidden=(400,), scale=3.0, excess=2.0,
-              spread=1.0) -> SpikingNet:  # fmt: skip
+def dense_snn(
+    input_shape, classes, generator=None, hidden=(400,), scale=3.0, excess=2.0, spread=1.0
+) -> SpikingNet:
     """Dense TTFS network: inputs (all pixels) - hidden... - classes (256-400-32 on Sim LiDAR)."""
     sizes = [int(torch.tensor(input_shape).prod())] + list(hidden) + [classes]
     layers = [DenseTTFS(a, b, excess, spread, generator) for a, b in zip(sizes, sizes[1:])]
@@ -57,8 +60,16 @@ def dense_snn(input_shape, classes, generator=None, hidden=(400,), scale=3.0, ex
 
 
 @register_model("scnn")
-def spiking_cnn(input_shape, classes, generator=None, conv=((48, 5, 2), (24, 5, 2)),
-                dense=(256,), scale=3.0, excess=2.0, spread=1.0) -> SpikingNet:  # fmt: skip
+def spiking_cnn(
+    input_shape,
+    classes,
+    generator=None,
+    conv=((48, 5, 2), (24, 5, 2)),
+    dense=(256,),
+    scale=3.0,
+    excess=2.0,
+    spread=1.0,
+) -> SpikingNet:
     """Spiking CNN: TTFS convolutions (channels, kernel, stride; padded with "no spike"),
     then dense TTFS layers (the paper's KITTI network: 48 and 24 channels of 5x5 stride 2,
     dense 256, dense C)."""

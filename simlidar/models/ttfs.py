@@ -142,8 +142,9 @@ def weight_sum_penalty(w: torch.Tensor) -> torch.Tensor:
     return torch.relu(1.0 - per_neuron).mean()
 
 
-def target_fire_penalty(z_in: torch.Tensor, w: torch.Tensor, target: torch.Tensor,
-                        margin: float = 0.1) -> torch.Tensor:  # fmt: skip
+def target_fire_penalty(
+    z_in: torch.Tensor, w: torch.Tensor, target: torch.Tensor, margin: float = 0.1
+) -> torch.Tensor:
     """mean_b max(0, 1 + margin - sum_{i spiked} w_{i, target_b}): keeps each sample's correct
     output neuron able to fire.
 

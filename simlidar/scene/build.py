@@ -105,8 +105,13 @@ def _recipe_instances(recipe: Recipe, rows: np.ndarray, values, pose, is_object:
     return placed
 
 
-def place_instances(catalog: Catalog, layout_ids: np.ndarray, object_ids: np.ndarray,
-                    layout_uniforms: np.ndarray, object_uniforms: np.ndarray):  # fmt: skip
+def place_instances(
+    catalog: Catalog,
+    layout_ids: np.ndarray,
+    object_ids: np.ndarray,
+    layout_uniforms: np.ndarray,
+    object_uniforms: np.ndarray,
+):
     """Sample the parameters of B scenes and place their primitives.
 
     layout_ids, object_ids : (B,) int, indices into catalog.layouts / catalog.objects
@@ -156,8 +161,9 @@ def build_batch(
     object_uniforms: np.ndarray,
 ) -> SceneBatch:
     """Build the triangles of B scenes (arguments as :func:`place_instances`)."""
-    placed, pose = place_instances(catalog, layout_ids, object_ids, layout_uniforms,
-                                   object_uniforms)  # fmt: skip
+    placed, pose = place_instances(
+        catalog, layout_ids, object_ids, layout_uniforms, object_uniforms
+    )
     tris, surface, sample, closed, is_object = [], [], [], [], []
     for inst in placed:
         t = instance_triangles(inst)

@@ -10,11 +10,23 @@ from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 
 # One colour per surface label (RGBA), cycled if a catalog has more surfaces.
-_PALETTE = np.array([
-    [128, 128, 128, 255], [70, 70, 70, 255], [110, 160, 80, 255], [190, 170, 140, 255],
-    [150, 150, 170, 255], [170, 120, 90, 255], [120, 110, 100, 255], [200, 200, 210, 255],
-    [240, 200, 60, 255], [40, 90, 200, 255], [220, 60, 60, 255], [200, 80, 200, 255],
-], dtype=np.uint8)  # fmt: skip
+_PALETTE = np.array(
+    [
+        [128, 128, 128, 255],
+        [70, 70, 70, 255],
+        [110, 160, 80, 255],
+        [190, 170, 140, 255],
+        [150, 150, 170, 255],
+        [170, 120, 90, 255],
+        [120, 110, 100, 255],
+        [200, 200, 210, 255],
+        [240, 200, 60, 255],
+        [40, 90, 200, 255],
+        [220, 60, 60, 255],
+        [200, 80, 200, 255],
+    ],
+    dtype=np.uint8,
+)
 
 
 def export_scenes(catalog: Catalog, out: str | Path, seed: int = 0, fmt: str = "glb"):
@@ -27,10 +39,12 @@ def export_scenes(catalog: Catalog, out: str | Path, seed: int = 0, fmt: str = "
     layout = np.array([p[0] for p in pairs])
     obj = np.array([p[1] for p in pairs])
     batch = build_batch(
-        catalog, layout, obj,
+        catalog,
+        layout,
+        obj,
         rng.random((len(pairs), catalog.layout_columns)),
         rng.random((len(pairs), catalog.object_columns)),
-    )  # fmt: skip
+    )
     created = not out.exists()
     try:
         out.mkdir(parents=True, exist_ok=True)  # only once every scene has been built

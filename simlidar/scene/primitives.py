@@ -58,13 +58,15 @@ def cylinder(segments: int) -> Template:
     fan = np.arange(1, segments - 1)
     caps = [
         np.stack(
-            [np.broadcast_to(np.append(ring[0], z), (len(fan), 3)),
-             np.hstack([ring[fan], np.full((len(fan), 1), z)]),
-             np.hstack([ring[fan + 1], np.full((len(fan), 1), z)])],
+            [
+                np.broadcast_to(np.append(ring[0], z), (len(fan), 3)),
+                np.hstack([ring[fan], np.full((len(fan), 1), z)]),
+                np.hstack([ring[fan + 1], np.full((len(fan), 1), z)]),
+            ],
             axis=1,
         )
         for z in (0.0, 1.0)
-    ]  # fmt: skip
+    ]
     triangles = np.concatenate([_quads(sides), *caps])
     return Template(_orient_outward(triangles, np.array([0.0, 0.0, 0.5])), closed=True)
 
@@ -76,10 +78,12 @@ def arch(segments: int) -> Template:
     profile = np.stack([0.5 * np.cos(theta), np.sin(theta)], axis=1)  # (S+1, 2) in (y, z)
     a, b = profile[:-1], profile[1:]
     quads = np.stack(
-        [np.column_stack([np.full(segments, x), p[:, 0], p[:, 1]])
-         for x, p in ((-0.5, a), (-0.5, b), (0.5, b), (0.5, a))],
+        [
+            np.column_stack([np.full(segments, x), p[:, 0], p[:, 1]])
+            for x, p in ((-0.5, a), (-0.5, b), (0.5, b), (0.5, a))
+        ],
         axis=1,
-    )  # fmt: skip
+    )
     return Template(_quads(quads), closed=False)
 
 

@@ -133,8 +133,9 @@ class Catalog:
             return self
 
         def narrow(recipes):
-            return tuple(replace(r, params=tuple(p.narrowed(factor) for p in r.params))
-                         for r in recipes)  # fmt: skip
+            return tuple(
+                replace(r, params=tuple(p.narrowed(factor) for p in r.params)) for r in recipes
+            )
 
         return replace(self, layouts=narrow(self.layouts), objects=narrow(self.objects))
 
@@ -276,8 +277,13 @@ def _vector(where: str, key: str, value, known: set[str]) -> tuple:
     return tuple(_expression(where, f"{key}[{k}]", v, known) for k, v in enumerate(value))
 
 
-def _primitive(where: str, table: dict, params: dict[str, Param], surfaces: list[str],
-               default_surface: str | None) -> Primitive:  # fmt: skip
+def _primitive(
+    where: str,
+    table: dict,
+    params: dict[str, Param],
+    surfaces: list[str],
+    default_surface: str | None,
+) -> Primitive:
     allowed = {"kind", "surface", "at", "size", "yaw_deg", "repeat", "segments"}
     required = {"kind", "at", "size"} | ({"surface"} if default_surface is None else set())
     _check_keys(where, table, allowed, required)
@@ -329,8 +335,9 @@ def load_recipe(path: Path, surfaces: list[str], is_object: bool) -> Recipe:
     data = _read_toml(path)
     where = str(path)
     allowed = {"description", "params", "primitive"} | ({"placement"} if is_object else {"visible"})
-    _check_keys(where, data, allowed, {"description", "primitive"} | (
-        {"placement"} if is_object else set()))  # fmt: skip
+    _check_keys(
+        where, data, allowed, {"description", "primitive"} | ({"placement"} if is_object else set())
+    )
     if not isinstance(data["description"], str):
         raise _fail(where, "description", "a string", data["description"])
     params: dict[str, Param] = {}
@@ -362,8 +369,15 @@ def load_recipe(path: Path, surfaces: list[str], is_object: bool) -> Recipe:
             f"{where}: key 'primitive': expected at most {MAX_TRIANGLES} triangles "
             f"(every primitive at its largest repeat), got {triangles}"
         )
-    return Recipe(path.stem, data["description"], where, tuple(params.values()), primitives,
-                  data, _visible(where, data.get("visible", []), surfaces))  # fmt: skip
+    return Recipe(
+        path.stem,
+        data["description"],
+        where,
+        tuple(params.values()),
+        primitives,
+        data,
+        _visible(where, data.get("visible", []), surfaces),
+    )
 
 
 def _visible(where: str, visible, surfaces: list[str]) -> tuple[tuple[int, int, str], ...]:
@@ -372,13 +386,24 @@ def _visible(where: str, visible, surfaces: list[str]) -> tuple[tuple[int, int, 
     checked = []
     for k, rule in enumerate(rules):
         key = f"visible[{k}]" if isinstance(visible, list) else "visible"
-        if not (isinstance(rule, dict) and {"surface", "min_hits"} <= set(rule)
-                and set(rule) <= {"surface", "min_hits", "side"}):  # fmt: skip
-            raise _fail(where, key, "a table {surface = NAME, min_hits = N, side = ...} or a "
-                        "list of them", rule)  # fmt: skip
+        if not (
+            isinstance(rule, dict)
+            and {"surface", "min_hits"} <= set(rule)
+            and set(rule) <= {"surface", "min_hits", "side"}
+        ):
+            raise _fail(
+                where,
+                key,
+                "a table {surface = NAME, min_hits = N, side = ...} or a list of them",
+                rule,
+            )
         if rule["surface"] not in surfaces:
-            raise _fail(where, f"{key}.surface", f"a surface of catalog.toml {surfaces[1:]}",
-                        rule["surface"])  # fmt: skip
+            raise _fail(
+                where,
+                f"{key}.surface",
+                f"a surface of catalog.toml {surfaces[1:]}",
+                rule["surface"],
+            )
         hits = rule["min_hits"]
         if not (isinstance(hits, int) and _is_number(hits) and hits >= 1):
             raise _fail(where, f"{key}.min_hits", "a positive integer", hits)
@@ -406,22 +431,28 @@ def load_catalog(root: str | Path | None = None) -> Catalog:
     index = root / "catalog.toml"
     data = _read_toml(index)
     where = str(index)
-    _check_keys(where, data, {"surfaces", "layouts", "objects"}, {"surfaces", "layouts",
-                                                                   "objects"})  # fmt: skip
+    _check_keys(where, data, {"surfaces", "layouts", "objects"}, {"surfaces", "layouts", "objects"})
     for key in ("surfaces", "objects"):
         if NO_OBJECT in _name_list(where, data, key):
-            raise _fail(where, key, f"names other than '{NO_OBJECT}' (it is implicit)",
-                        data[key])  # fmt: skip
+            raise _fail(where, key, f"names other than '{NO_OBJECT}' (it is implicit)", data[key])
     surfaces = [NO_OBJECT] + _name_list(where, data, "surfaces")
-    layouts = tuple(load_recipe(root / "layouts" / f"{n}.toml", surfaces, False)
-                    for n in _name_list(where, data, "layouts"))  # fmt: skip
-    objects = tuple(load_recipe(root / "objects" / f"{n}.toml", surfaces, True)
-                    for n in _name_list(where, data, "objects"))  # fmt: skip
+    layouts = tuple(
+        load_recipe(root / "layouts" / f"{n}.toml", surfaces, False)
+        for n in _name_list(where, data, "layouts")
+    )
+    objects = tuple(
+        load_recipe(root / "objects" / f"{n}.toml", surfaces, True)
+        for n in _name_list(where, data, "objects")
+    )
     object_surfaces = {p.surface for r in objects for p in r.primitives}
     for recipe in layouts:
         for surface, _, _ in recipe.visible:
             if surface == 0 or surface in object_surfaces:
-                raise _fail(recipe.path, "visible.surface", "a surface of the layout itself "
-                            "(not 'none' nor an object's)", surfaces[surface])  # fmt: skip
+                raise _fail(
+                    recipe.path,
+                    "visible.surface",
+                    "a surface of the layout itself (not 'none' nor an object's)",
+                    surfaces[surface],
+                )
     empty = Recipe(NO_OBJECT, "No object on the road.", "", (), (), {})
     return Catalog(str(root), tuple(surfaces), layouts, (empty,) + objects)

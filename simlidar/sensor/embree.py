@@ -143,10 +143,12 @@ def attach_triangles(embree_scene, triangles: np.ndarray, shared: bool = True):
     lib.rtcGetDeviceError(handle)  # clear an earlier, unrelated error of this thread
     try:
         geometry = lib.rtcNewGeometry(handle, _GEOMETRY_TRIANGLE)
-        lib.rtcSetSharedGeometryBuffer(geometry, _BUFFER_VERTEX, 0, _FORMAT_FLOAT3,
-                                       vertices.ctypes.data, 0, 16, 3 * n)  # fmt: skip
-        lib.rtcSetSharedGeometryBuffer(geometry, _BUFFER_INDEX, 0, _FORMAT_UINT3,
-                                       indices.ctypes.data, 0, 12, n)  # fmt: skip
+        lib.rtcSetSharedGeometryBuffer(
+            geometry, _BUFFER_VERTEX, 0, _FORMAT_FLOAT3, vertices.ctypes.data, 0, 16, 3 * n
+        )
+        lib.rtcSetSharedGeometryBuffer(
+            geometry, _BUFFER_INDEX, 0, _FORMAT_UINT3, indices.ctypes.data, 0, 12, n
+        )
         lib.rtcCommitGeometry(geometry)
         lib.rtcAttachGeometry(scene, geometry)
         lib.rtcReleaseGeometry(geometry)

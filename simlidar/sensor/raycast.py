@@ -41,8 +41,9 @@ class Hits:
 
 def cell_offsets(slots: np.ndarray) -> np.ndarray:
     """World offset of each grid cell: (B,) int in [0, MAX_BATCH) -> (B, 3) float64."""
-    ijk = np.stack([slots % GRID_CELLS, slots // GRID_CELLS % GRID_CELLS,
-                    slots // GRID_CELLS**2], axis=-1)  # fmt: skip
+    ijk = np.stack(
+        [slots % GRID_CELLS, slots // GRID_CELLS % GRID_CELLS, slots // GRID_CELLS**2], axis=-1
+    )
     return (ijk - GRID_CELLS // 2) * CELL_SPACING_M
 
 
@@ -63,17 +64,29 @@ def visible_triangles(scene: SceneBatch, origins: np.ndarray):
     flat = origins.reshape(-1, 3)
     ends = flat[[np.argmin(flat[:, 2]), np.argmax(flat[:, 2])]]  # (2, 3)
     e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
-    normal = np.stack([e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1],
-                       e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2],
-                       e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]], axis=-1)  # fmt: skip
+    normal = np.stack(
+        [
+            e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1],
+            e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2],
+            e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0],
+        ],
+        axis=-1,
+    )
     plane = np.einsum("tk,tk->t", normal, tris[:, 0])
     facing = normal @ ends.T - plane[:, None]  # (T, 2)
     back = scene.closed & (facing <= 0).all(axis=1)
     return ~back & normal.any(axis=1), normal, plane
 
 
-def cast(scene: SceneBatch, origins: np.ndarray, directions: np.ndarray, slots: np.ndarray,
-         max_range_m: float, cull: bool = True, shared: bool = True) -> Hits:  # fmt: skip
+def cast(
+    scene: SceneBatch,
+    origins: np.ndarray,
+    directions: np.ndarray,
+    slots: np.ndarray,
+    max_range_m: float,
+    cull: bool = True,
+    shared: bool = True,
+) -> Hits:
     """First hit of every pulse.
 
     origins, directions : (B, 16, W, 3) float64 in each sample's local frame, unit directions

@@ -105,8 +105,17 @@ def test_a_suite_runs_reruns_and_reports(tiny_suite, tmp_path, datasets):
     first.write_text(json.dumps(changed))
     again = remeasure(out, suite, progress=False)
     redone = json.loads(first.read_text())
-    stable = ("activation_sparsity", "params", "accuracy", "confusion", "synaptic_operations",
-              "validation_curve", "best_epoch", "inputs", "metrics")  # fmt: skip
+    stable = (
+        "activation_sparsity",
+        "params",
+        "accuracy",
+        "confusion",
+        "synaptic_operations",
+        "validation_curve",
+        "best_epoch",
+        "inputs",
+        "metrics",
+    )
     for key in stable:
         assert redone[key] == measured[key], key
     assert len(again["cells"]) == 4
@@ -165,13 +174,18 @@ def test_one_cell_is_seeded(tiny_suite, tmp_path, datasets):
 
 def test_generated_datasets_are_made_once(tmp_path):
     path = tmp_path / "gen.toml"
-    text = ('models = ["cnn"]\n[generate]\nnoise = [0.2]\ntrain_size = 32\n'
-            "test_size = 32\n[budget]\nepochs = 1\n")  # fmt: skip
+    text = (
+        'models = ["cnn"]\n[generate]\nnoise = [0.2]\ntrain_size = 32\n'
+        "test_size = 32\n[budget]\nepochs = 1\n"
+    )
     path.write_text(text)
     out = tmp_path / "out"
     # one sample a class: nothing to hold out for validation; refused before anything is made
-    with pytest.raises(ConfigError, match=r"recipe cnn: key 'training.validation': validation "
-                       r"fraction 0.1 leaves class 'tunnel/none' \(1 training sample"):  # fmt: skip
+    with pytest.raises(
+        ConfigError,
+        match=r"recipe cnn: key 'training.validation': validation "
+        r"fraction 0.1 leaves class 'tunnel/none' \(1 training sample",
+    ):
         run_suite(load_suite(path), out, progress=False)
     assert not out.exists()
     path.write_text(text + "validation = 0\n")  # no validation: the last epoch is kept
@@ -227,8 +241,20 @@ def test_bad_suites_are_named(tmp_path, text, message):
 def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets):
     runner = CliRunner()
     out = tmp_path / "out"
-    ok = runner.invoke(main, ["bench", "--suite", str(tiny_suite), "--models", "cnn",
-                              "--dataset", str(datasets[0.1]), "--out", str(out)])  # fmt: skip
+    ok = runner.invoke(
+        main,
+        [
+            "bench",
+            "--suite",
+            str(tiny_suite),
+            "--models",
+            "cnn",
+            "--dataset",
+            str(datasets[0.1]),
+            "--out",
+            str(out),
+        ],
+    )
     assert ok.exit_code == 0, ok.output
     assert "1 cells in" in ok.output and "cnn" in ok.output
     results = (out / "results.json").read_bytes()
@@ -242,33 +268,67 @@ def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets):
 
     fails(["--suite", "nope"], 2, "expected one of ['paper', 'physical', 'quick'] or a .toml file")
     fails(["--suite", str(tiny_suite), "--models", "cnn,nope"], 2, "model recipe 'nope'")
-    fails(["--suite", str(tiny_suite), "--dataset", str(tmp_path / "missing"),
-           "--out", str(out)], 1, "expected a dataset directory")  # fmt: skip
+    fails(
+        ["--suite", str(tiny_suite), "--dataset", str(tmp_path / "missing"), "--out", str(out)],
+        1,
+        "expected a dataset directory",
+    )
     not_schema = tmp_path / "junk"
     not_schema.mkdir()
     (not_schema / "train.h5").write_text("not hdf5")
     (not_schema / "test.h5").write_text("not hdf5")
-    fails(["--suite", str(tiny_suite), "--dataset", str(not_schema), "--out", str(out)], 1,
-          "cannot read as HDF5")  # fmt: skip
+    fails(
+        ["--suite", str(tiny_suite), "--dataset", str(not_schema), "--out", str(out)],
+        1,
+        "cannot read as HDF5",
+    )
     fails(["--suite", "quick", "--out", str(out)], 1, "belongs to suite 'tiny'")
     fails(["--suite", str(tiny_suite), "--epochs", "0"], 2, "'--epochs': 0 is not in the range")
     fails(["--suite", str(tiny_suite), "--max-seconds", "-1"], 2, "'--max-seconds'")
     fails(["--suite", str(tiny_suite), "--max-seconds", "nan"], 2, "'--max-seconds'")
     other_rules = ["--models", "cnn", "--dataset", str(datasets[0.1]), "--out", str(out)]
-    fails(["--suite", str(tiny_suite), *other_rules, "--epochs", "2"], 1,
-          "was made with other training rules")  # fmt: skip
-    fails(["--suite", str(tiny_suite), "--out", str(out), "--remeasure", "--epochs", "2"], 2,
-          "--remeasure re-measures the finished cells of --out as they were trained; expected "
-          "no --epochs")  # fmt: skip
-    fails(["--suite", str(tiny_suite), "--out", str(tmp_path / "none"), "--remeasure"], 1,
-          "no benchmark run to re-measure")  # fmt: skip
-    fails(["--suite", str(tiny_suite), "--out", str(not_schema)], 1,
-          "not a benchmark output directory")  # fmt: skip
+    fails(
+        ["--suite", str(tiny_suite), *other_rules, "--epochs", "2"],
+        1,
+        "was made with other training rules",
+    )
+    fails(
+        ["--suite", str(tiny_suite), "--out", str(out), "--remeasure", "--epochs", "2"],
+        2,
+        "--remeasure re-measures the finished cells of --out as they were trained; expected "
+        "no --epochs",
+    )
+    fails(
+        ["--suite", str(tiny_suite), "--out", str(tmp_path / "none"), "--remeasure"],
+        1,
+        "no benchmark run to re-measure",
+    )
+    fails(
+        ["--suite", str(tiny_suite), "--out", str(not_schema)],
+        1,
+        "not a benchmark output directory",
+    )
     assert (out / "results.json").read_bytes() == results  # nothing touched
     assert (not_schema / "train.h5").read_text() == "not hdf5"
-    longer = runner.invoke(main, ["bench", "--suite", str(tiny_suite), "--models", "cnn",
-                                  "--dataset", str(datasets[0.1]), "--out", str(tmp_path / "e2"),
-                                  "--epochs", "2", "--max-seconds", "inf", "--json"])  # fmt: skip
+    longer = runner.invoke(
+        main,
+        [
+            "bench",
+            "--suite",
+            str(tiny_suite),
+            "--models",
+            "cnn",
+            "--dataset",
+            str(datasets[0.1]),
+            "--out",
+            str(tmp_path / "e2"),
+            "--epochs",
+            "2",
+            "--max-seconds",
+            "inf",
+            "--json",
+        ],
+    )
     assert longer.exit_code == 0, longer.output
     cell = json.loads(longer.stdout)["cells"][0]
     assert cell["budget"] == {"epochs": 2, "max_seconds": float("inf")}
@@ -283,13 +343,20 @@ def test_a_cell_from_other_inputs_is_refused_not_reused(tiny_suite, tmp_path, da
     suite = load_suite(tiny_suite)
     out = tmp_path / "out"
     recipe = tmp_path / "mycnn.toml"
-    recipe.write_text('model = "cnn"\n[architecture]\ndense = [8]\n[training]\n'
-                      'optimizer = "adam"\nlr = 1e-3\nbatch_size = 32\nepochs = 1\n')  # fmt: skip
+    recipe.write_text(
+        'model = "cnn"\n[architecture]\ndense = [8]\n[training]\n'
+        'optimizer = "adam"\nlr = 1e-3\nbatch_size = 32\nepochs = 1\n'
+    )
     run_suite(suite, out, [str(recipe)], datasets[0.1], progress=False)
     before = (out / "results.json").read_bytes()
     # the same directory name, other samples (another seed)
-    other = generate(GeneratorConfig(train_size=64, test_size=32, seed=7), [0.1], catalog,
-                     tmp_path / "other", progress=False)[0].path  # fmt: skip
+    other = generate(
+        GeneratorConfig(train_size=64, test_size=32, seed=7),
+        [0.1],
+        catalog,
+        tmp_path / "other",
+        progress=False,
+    )[0].path
     assert other.name == datasets[0.1].name
     with pytest.raises(DatasetError, match="was made from another dataset"):
         run_suite(suite, out, [str(recipe)], other, progress=False)
@@ -339,10 +406,20 @@ def test_seeds_that_disagree_are_marked_and_training_is_tabled():
     )
 
     def cell(seed, accuracy, stopped="plateau", best=4, seconds=90.0):
-        return {"source": "simlidar-generator", "noise": 0.1, "model": "cnn", "seed": seed,
-                "accuracy": accuracy, "stopped_by_time": stopped == "time", "stopped": stopped,
-                "epochs": min(best + 3, 40), "best_epoch": best, "budget": {"epochs": 40},
-                "validation_size": 288, "seconds": seconds}  # fmt: skip
+        return {
+            "source": "simlidar-generator",
+            "noise": 0.1,
+            "model": "cnn",
+            "seed": seed,
+            "accuracy": accuracy,
+            "stopped_by_time": stopped == "time",
+            "stopped": stopped,
+            "epochs": min(best + 3, 40),
+            "best_epoch": best,
+            "budget": {"epochs": 40},
+            "validation_size": 288,
+            "seconds": seconds,
+        }
 
     close = [cell(0, 0.95), cell(1, 0.96), cell(2, 0.97)]  # std 1 point
     apart = [cell(0, 0.90), cell(1, 0.96), cell(2, 0.97)]  # std 3.8 points

@@ -51,8 +51,9 @@ def _neurobench(model: torch.nn.Module, x: torch.Tensor) -> dict:
     labels = torch.zeros(len(x), dtype=torch.long)
     loader = DataLoader(TensorDataset(x, labels), batch_size=BATCH)
     static = [Footprint, ParameterCount, ConnectionSparsity]
-    bench = Benchmark(TorchModel(model), loader, [], [],
-                      [static, [ActivationSparsity, SynapticOperations]])  # fmt: skip
+    bench = Benchmark(
+        TorchModel(model), loader, [], [], [static, [ActivationSparsity, SynapticOperations]]
+    )
     return bench.run(quiet=True)
 
 
@@ -80,8 +81,11 @@ def test_figures_under_neurobench_names_are_neurobenchs(pulses, name, spikes):
     assert round(ours["connection_sparsity"], 4) == theirs["ConnectionSparsity"]  # NB rounds
     assert ours["activation_sparsity"] == pytest.approx(theirs["ActivationSparsity"], rel=1e-12)
     ops, nb_ops = ours["synaptic_operations"], theirs["SynapticOperations"]
-    assert ops == {"effective_macs": nb_ops["Effective_MACs"],
-                   "effective_acs": nb_ops["Effective_ACs"], "dense": nb_ops["Dense"]}  # fmt: skip
+    assert ops == {
+        "effective_macs": nb_ops["Effective_MACs"],
+        "effective_acs": nb_ops["Effective_ACs"],
+        "dense": nb_ops["Dense"],
+    }
     assert (ops["effective_acs"] > 0) == spikes
     assert 0 < ops["effective_macs"] + ops["effective_acs"] < ops["dense"]
 
@@ -91,9 +95,15 @@ def test_the_issue_figures_of_the_unpruned_cnn(pulses):
     model = _model("cnn")
     ours = {**metrics.footprint(model), **metrics.workload(model, pulses)}
     assert (ours["params"], ours["footprint"], ours["connection_sparsity"]) == (
-        136_856, 547_424, 0.0)  # fmt: skip
-    assert ours["synaptic_operations"]["dense"] == _neurobench(model, pulses)[
-        "SynapticOperations"]["Dense"] == 505_136  # fmt: skip
+        136_856,
+        547_424,
+        0.0,
+    )
+    assert (
+        ours["synaptic_operations"]["dense"]
+        == _neurobench(model, pulses)["SynapticOperations"]["Dense"]
+        == 505_136
+    )
 
 
 def test_neurobenchs_dense_count_leaves_out_the_padding():
@@ -160,8 +170,9 @@ def test_spiking_figures_of_a_deeper_network_from_the_event_driven_run(datasets)
     # at most every input spike to all 40, every hidden spike to its 20 or 32 successors
     assert early["hidden_spikes_mean"] > 0
     assert early["input_spikes_mean"] * 40 < ops["effective_acs"]
-    assert ops["effective_acs"] <= early["input_spikes_mean"] * 40 + early[
-        "hidden_spikes_mean"] * 32  # fmt: skip
+    assert (
+        ops["effective_acs"] <= early["input_spikes_mean"] * 40 + early["hidden_spikes_mean"] * 32
+    )
     fired = early["hidden_spikes_mean"] + 1 - early["no_decision"] / early["samples"]
     assert figures["activation_sparsity"] == pytest.approx(1 - fired / (40 + 20 + 32))
 

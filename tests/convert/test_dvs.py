@@ -223,10 +223,25 @@ def test_cli_converts_and_the_dense_snn_benches_on_it(tmp_path):
     assert done.exit_code == 0, done.output
     path = json.loads(done.output)["path"]
     snn = tmp_path / "snn_small.toml"
-    snn.write_text('model = "snn"\n[architecture]\nhidden = [20]\n[training]\n'
-                   'optimizer = "adam"\nlr = 1e-3\nbatch_size = 2\nepochs = 1\n')  # fmt: skip
-    bench = runner.invoke(main, ["bench", "--models", str(snn), "--dataset", path, "--out",
-                                 str(tmp_path / "b"), "--validation", "0", "--json"])  # fmt: skip
+    snn.write_text(
+        'model = "snn"\n[architecture]\nhidden = [20]\n[training]\n'
+        'optimizer = "adam"\nlr = 1e-3\nbatch_size = 2\nepochs = 1\n'
+    )
+    bench = runner.invoke(
+        main,
+        [
+            "bench",
+            "--models",
+            str(snn),
+            "--dataset",
+            path,
+            "--out",
+            str(tmp_path / "b"),
+            "--validation",
+            "0",
+            "--json",
+        ],
+    )
     assert bench.exit_code == 0, bench.output
     (cell,) = json.loads(bench.output)["cells"]
     assert cell["source"] == "dvs-barrel" and cell["input_shape"] == [1, 32, 32]

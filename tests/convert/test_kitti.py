@@ -314,18 +314,22 @@ def test_cli_converts_the_sample_and_benches_it_end_to_end(kitti_sample, tmp_pat
     from simlidar.cli import main
 
     runner = CliRunner()
-    done = runner.invoke(main, ["convert", "kitti", str(kitti_sample), "--out",
-                                str(tmp_path / "data"), "--json"])  # fmt: skip
+    done = runner.invoke(
+        main, ["convert", "kitti", str(kitti_sample), "--out", str(tmp_path / "data"), "--json"]
+    )
     assert done.exit_code == 0, done.output
     record = json.loads(done.output)
     assert record["splits"] == {"train": 4, "test": 2}
     scnn = tmp_path / "scnn_small.toml"
-    scnn.write_text('model = "scnn"\n[architecture]\nconv = [[4, 5, 2], [4, 5, 2]]\n'
-                    'dense = [16]\n[training]\noptimizer = "adam"\nlr = 1e-3\nbatch_size = 2\n'
-                    "epochs = 1\n")  # fmt: skip
+    scnn.write_text(
+        'model = "scnn"\n[architecture]\nconv = [[4, 5, 2], [4, 5, 2]]\n'
+        'dense = [16]\n[training]\noptimizer = "adam"\nlr = 1e-3\nbatch_size = 2\n'
+        "epochs = 1\n"
+    )
     suite = tmp_path / "kitti.toml"
-    suite.write_text(f'models = ["cnn", "{scnn}"]\ndatasets = ["{record["path"]}"]\n'
-                     "[budget]\nepochs = 1\n")  # fmt: skip
+    suite.write_text(
+        f'models = ["cnn", "{scnn}"]\ndatasets = ["{record["path"]}"]\n[budget]\nepochs = 1\n'
+    )
     args = ["bench", "--suite", str(suite), "--out", str(tmp_path / "b"), "--json"]
     few = runner.invoke(main, args)  # 4 crops: nothing to hold out for model selection
     assert few.exit_code == 2 and not (tmp_path / "b").exists()

@@ -188,8 +188,13 @@ def test_path_traversal_is_refused(server, tmp_path, member, link, words):
 def test_an_archive_over_the_size_limit_is_refused(server, packed, tmp_path):
     url, _ = server
     with pytest.raises(FetchError, match="fetch failed at extract: .* more than the limit 1000"):
-        fetch(f"{url}/{packed[0].name}", sha256=packed[1], out=tmp_path / "d", progress=False,
-              max_bytes=1000)  # fmt: skip
+        fetch(
+            f"{url}/{packed[0].name}",
+            sha256=packed[1],
+            out=tmp_path / "d",
+            progress=False,
+            max_bytes=1000,
+        )
 
 
 def test_a_404_is_named(server, tmp_path):
@@ -208,14 +213,20 @@ def test_a_missing_sidecar_checksum_is_named(server, packed, tmp_path):
 def test_a_hanging_server_is_bounded_by_the_timeout(server, tmp_path):
     url, _ = server
     with pytest.raises(FetchError, match="fetch failed at download: .*no answer within 0.5 s"):
-        fetch(f"{url}/hang/x.tar.gz", sha256="0" * 64, out=tmp_path / "d", timeout=0.5,
-              progress=False)  # fmt: skip
+        fetch(
+            f"{url}/hang/x.tar.gz", sha256="0" * 64, out=tmp_path / "d", timeout=0.5, progress=False
+        )
 
 
 def test_an_unreachable_host_is_named(tmp_path):
     with pytest.raises(FetchError, match="fetch failed at download: http://127.0.0.1:9/"):
-        fetch("http://127.0.0.1:9/x.tar.gz", sha256="0" * 64, out=tmp_path / "d", timeout=2,
-              progress=False)  # fmt: skip
+        fetch(
+            "http://127.0.0.1:9/x.tar.gz",
+            sha256="0" * 64,
+            out=tmp_path / "d",
+            timeout=2,
+            progress=False,
+        )
 
 
 def test_a_dataset_that_fails_verify_is_not_installed(server, datasets, tmp_path):

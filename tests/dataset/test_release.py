@@ -36,9 +36,19 @@ def test_the_card_parses_as_a_hugging_face_dataset_card(datasets):
     features = {f["name"]: f for f in meta["dataset_info"]["features"]}
     assert features["delays"]["array2_d"] == {"shape": [16, 16], "dtype": "float32"}
     assert features["labels"]["dtype"]["class_label"]["names"]["5"] == "open_road/car"
-    for section in ("## Motivation", "## Composition", "## Generation process",
-                    "## Preprocessing", "## Uses", "### Out-of-scope uses", "## Distribution",
-                    "## Maintenance", "## Regenerate", "## Versions", "## Citation"):  # fmt: skip
+    for section in (
+        "## Motivation",
+        "## Composition",
+        "## Generation process",
+        "## Preprocessing",
+        "## Uses",
+        "### Out-of-scope uses",
+        "## Distribution",
+        "## Maintenance",
+        "## Regenerate",
+        "## Versions",
+        "## Citation",
+    ):
         assert section in card.text, section
     assert "![one example per class (test split)](preview.png)" in card.text
     assert "@article{wang2020temporal" in card.text

@@ -52,7 +52,9 @@ def test_the_mlp_reference_has_the_dense_snns_shape():
 
 def test_unknown_plans_are_named(tmp_path):
     bad = tmp_path / "bad.toml"
-    bad.write_text('model = "vgg"\n[architecture]\nplan = "vgg99"\n'
-                   "[training]\nlr = 0.01\nbatch_size = 4\nepochs = 1\n")  # fmt: skip
+    bad.write_text(
+        'model = "vgg"\n[architecture]\nplan = "vgg99"\n'
+        "[training]\nlr = 0.01\nbatch_size = 4\nepochs = 1\n"
+    )
     with pytest.raises(ConfigError, match=r"plan='vgg99': expected one of \['vgg11', 'vgg16'\]"):
         build_model(load_recipe(bad), (1, 16, 16), 4)

@@ -77,7 +77,9 @@ def test_accumulates_of_a_deeper_network_follow_the_closed_form(datasets):
         d = decide(weights, z[i].numpy())
         before = [(s[i].numpy() <= d.z) & np.isfinite(s[i].numpy()) for s in spikes[:-1]]
         assert d.accumulates == sum(int(f[b].sum()) for f, b in zip(fan_out, before)), i
-        assert (d.input_spikes, d.hidden_spikes) == (before[0].sum(), before[1].sum() +
-                                                     before[2].sum()), i  # fmt: skip
+        assert (d.input_spikes, d.hidden_spikes) == (
+            before[0].sum(),
+            before[1].sum() + before[2].sum(),
+        ), i
         deep += int(before[2].sum() > 0)
     assert deep > len(x) // 2  # the second hidden layer took part

@@ -25,8 +25,10 @@ def test_the_papers_layer_sizes():
     assert [tuple(m.weight.shape) for m in dvs.layers] == [(1024, 2000), (2000, 36)]
     scnn = build_model(load_recipe("scnn_kitti"), (1, 50, 118), 8)
     shapes = [tuple(m.weight.shape) for m in scnn.layers]
-    assert shapes[:2] == [(48, 1, 5, 5), (24, 48, 5, 5)] and shapes[2:] == [(24 * 13 * 30, 256),
-                                                                          (256, 8)]  # fmt: skip
+    assert shapes[:2] == [(48, 1, 5, 5), (24, 48, 5, 5)] and shapes[2:] == [
+        (24 * 13 * 30, 256),
+        (256, 8),
+    ]
     assert set(RECIPES) <= {"snn_simlidar", "scnn_kitti", "snn_dvs"} and "snn" in MODELS
 
 
@@ -44,8 +46,11 @@ def test_bad_recipes_are_named(tmp_path):
     bad.write_text('model = "snn"\n[architecture]\nscale = 100.0\n' + training)
     with pytest.raises(ConfigError, match=r"scale=100.0: expected a value in \(0, 80.0\]"):
         build_model(load_recipe(bad), (1, 4, 4), 2)
-    for broken, key in (("lr = 0.01", "training.lr"), ("batch_size = 4", "training.batch_size"),
-                        ("epochs = 1", "training.epochs")):  # fmt: skip
+    for broken, key in (
+        ("lr = 0.01", "training.lr"),
+        ("batch_size = 4", "training.batch_size"),
+        ("epochs = 1", "training.epochs"),
+    ):
         bad.write_text('model = "snn"\n[architecture]\n' + training.replace(broken, ""))
         with pytest.raises(ConfigError, match=key):
             load_recipe(bad)

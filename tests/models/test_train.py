@@ -24,8 +24,9 @@ def _small_recipe():
 def test_training_learns_and_is_seeded(datasets, tmp_path):
     a = train(_small_recipe(), datasets[0.1], seed=0, epochs=8, progress=False)
     b = train(_small_recipe(), datasets[0.1], seed=0, epochs=8, progress=False)
-    assert a.history == [dict(h, seconds=a.history[i]["seconds"]) for i, h in
-                         enumerate(b.history)]  # same losses and accuracies  # fmt: skip
+    assert a.history == [
+        dict(h, seconds=a.history[i]["seconds"]) for i, h in enumerate(b.history)
+    ]  # same losses and accuracies
     assert a.history[-1]["loss"] < a.history[0]["loss"]
     assert a.test_accuracy > 2.0 / 32  # above chance on 32 classes
 
@@ -45,16 +46,39 @@ def test_training_learns_and_is_seeded(datasets, tmp_path):
 
 
 def test_the_train_command(datasets, tmp_path):
-    result = CliRunner().invoke(main, ["train", "--model", "snn_simlidar", "--dataset",
-                                       str(datasets[0.1]), "--out", str(tmp_path), "--epochs",
-                                       "1", "--json"])  # fmt: skip
+    result = CliRunner().invoke(
+        main,
+        [
+            "train",
+            "--model",
+            "snn_simlidar",
+            "--dataset",
+            str(datasets[0.1]),
+            "--out",
+            str(tmp_path),
+            "--epochs",
+            "1",
+            "--json",
+        ],
+    )
     assert result.exit_code == 0, result.output
     record = json.loads(result.stdout)
     assert record["epochs"] == 1 and 0.0 <= record["test_accuracy"] <= 1.0
     assert record["early"]["samples"] == 64
-    text = CliRunner().invoke(main, ["train", "--model", "snn_simlidar", "--dataset",
-                                     str(datasets[0.1]), "--out", str(tmp_path), "--epochs",
-                                     "1"])  # fmt: skip
+    text = CliRunner().invoke(
+        main,
+        [
+            "train",
+            "--model",
+            "snn_simlidar",
+            "--dataset",
+            str(datasets[0.1]),
+            "--out",
+            str(tmp_path),
+            "--epochs",
+            "1",
+        ],
+    )
     assert text.exit_code == 0 and "snn_simlidar: test accuracy" in text.stdout
     assert "event-driven: accuracy" in text.stdout and "pJ at 45 pJ/spike" in text.stdout
     assert "epoch 1 of 1 kept (best validation accuracy of 32 held-out samples)" in text.stdout
@@ -94,9 +118,15 @@ def test_logit_scale_fire_penalty_and_cosine_schedule_train(datasets):
     z = torch.tensor([[1.0, torch.e, torch.inf]])
     assert torch.allclose(logits(model, z, "time", 10.0)[0, :2], torch.tensor([0.0, -10.0]))
     recipe = _small_recipe()
-    recipe["training"].update(logits="time", logit_scale=10.0, fire_penalty=10.0,
-                              fire_margin=0.1, lr_schedule="cosine", lr=1e-3,
-                              early_penalty=1.0)  # fmt: skip
+    recipe["training"].update(
+        logits="time",
+        logit_scale=10.0,
+        fire_penalty=10.0,
+        fire_margin=0.1,
+        lr_schedule="cosine",
+        lr=1e-3,
+        early_penalty=1.0,
+    )
     result = train(recipe, datasets[0.1], seed=0, epochs=6, progress=False)
     assert result.history[-1]["loss"] < result.history[0]["loss"]
     assert result.test_accuracy > 2.0 / 32
@@ -160,8 +190,9 @@ def test_train_errors_are_one_line(tmp_path):
     runner = CliRunner()
     bad = runner.invoke(main, ["train", "--model", "nope", "--dataset", str(tmp_path)])
     assert bad.exit_code == 2 and "model recipe 'nope'" in bad.stderr
-    missing = runner.invoke(main, ["train", "--model", "snn_simlidar", "--dataset",
-                                   str(tmp_path / "x")])  # fmt: skip
+    missing = runner.invoke(
+        main, ["train", "--model", "snn_simlidar", "--dataset", str(tmp_path / "x")]
+    )
     assert missing.exit_code == 1 and "expected a dataset directory" in missing.stderr
 
 

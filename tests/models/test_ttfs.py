@@ -139,8 +139,9 @@ def test_target_fire_penalty_pushes_a_silent_correct_output_to_fire():
 
 
 def test_target_time_averages_the_correct_outputs_that_fire():
-    z = torch.tensor([[torch.e, 1.0], [torch.inf, 2.0], [torch.e**3, torch.inf]],
-                     requires_grad=True)  # fmt: skip
+    z = torch.tensor(
+        [[torch.e, 1.0], [torch.inf, 2.0], [torch.e**3, torch.inf]], requires_grad=True
+    )
     t = ttfs.target_time(z, torch.tensor([0, 0, 0]))
     assert t.item() == pytest.approx((1.0 + 3.0) / 2)  # the silent second sample is left out
     t.backward()

@@ -23,8 +23,13 @@ def test_a_batch_of_every_class(catalog):
     n = 64
     rng = np.random.default_rng(0)
     layout, obj = np.arange(n) % 8, np.arange(n) // 8 % 4
-    batch = build_batch(catalog, layout, obj, rng.random((n, catalog.layout_columns)),
-                        rng.random((n, catalog.object_columns)))  # fmt: skip
+    batch = build_batch(
+        catalog,
+        layout,
+        obj,
+        rng.random((n, catalog.layout_columns)),
+        rng.random((n, catalog.object_columns)),
+    )
     assert batch.triangles.shape[1:] == (3, 3)
     assert set(np.unique(batch.sample)) == set(range(n))
     assert np.abs(batch.triangles).max() <= CELL_HALF_EXTENT_M
@@ -41,9 +46,13 @@ def test_a_batch_of_every_class(catalog):
 def test_objects_stand_where_their_pose_says(catalog):
     rng = np.random.default_rng(1)
     n = 12
-    batch = build_batch(catalog, np.zeros(n, int), np.full(n, 1),
-                        rng.random((n, catalog.layout_columns)),
-                        rng.random((n, catalog.object_columns)))  # fmt: skip
+    batch = build_batch(
+        catalog,
+        np.zeros(n, int),
+        np.full(n, 1),
+        rng.random((n, catalog.layout_columns)),
+        rng.random((n, catalog.object_columns)),
+    )
     for k in range(n):
         car = batch.triangles[(batch.sample == k) & batch.is_object].reshape(-1, 3)
         x, y, _ = batch.object_pose[k]

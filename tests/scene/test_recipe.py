@@ -7,8 +7,16 @@ from simlidar.errors import RecipeError
 from simlidar.scene import expr
 from simlidar.scene.recipe import Param, load_catalog
 
-PAPER_LAYOUTS = ["tunnel", "open_road", "lower_bridge", "upper_bridge", "two_side_walls",
-                 "one_side_wall", "lamps_both_sides", "lamps_one_side"]  # fmt: skip
+PAPER_LAYOUTS = [
+    "tunnel",
+    "open_road",
+    "lower_bridge",
+    "upper_bridge",
+    "two_side_walls",
+    "one_side_wall",
+    "lamps_both_sides",
+    "lamps_one_side",
+]
 
 
 def test_the_shipped_catalog_has_the_papers_classes(catalog):
@@ -139,12 +147,19 @@ def test_sampled_geometry_is_checked_at_build_time(catalog_copy, old, new, words
     catalog = load_catalog(catalog_copy)
     u = np.full((1, 16), 0.5)
     with pytest.raises(RecipeError, match=r"truck.toml: " + words), np.errstate(all="ignore"):
-        build_batch(catalog, np.array([1]), np.array([3]), u[:, : catalog.layout_columns],
-                    u[:, : catalog.object_columns])  # fmt: skip
+        build_batch(
+            catalog,
+            np.array([1]),
+            np.array([3]),
+            u[:, : catalog.layout_columns],
+            u[:, : catalog.object_columns],
+        )
 
 
-@pytest.mark.parametrize("text", ["__import__('os')", "a.b", "x[0]", "lambda: 1", "'s'",
-                                  "x if y else z", "exp(1)", "max(a=1)"])  # fmt: skip
+@pytest.mark.parametrize(
+    "text",
+    ["__import__('os')", "a.b", "x[0]", "lambda: 1", "'s'", "x if y else z", "exp(1)", "max(a=1)"],
+)
 def test_expressions_accept_arithmetic_only(text):
     with pytest.raises(expr.ExpressionError):
         expr.parse(text)
@@ -153,8 +168,11 @@ def test_expressions_accept_arithmetic_only(text):
 def test_expressions_evaluate_on_arrays():
     tree = expr.parse("first_m + i * spacing_m - abs(-2) + cos(0) * 2 ** 2")
     assert expr.names(tree) == {"first_m", "i", "spacing_m"}
-    env = {"first_m": np.array([[1.0], [2.0]]), "i": np.arange(3.0)[None],
-           "spacing_m": np.array([[10.0], [20.0]])}  # fmt: skip
+    env = {
+        "first_m": np.array([[1.0], [2.0]]),
+        "i": np.arange(3.0)[None],
+        "spacing_m": np.array([[10.0], [20.0]]),
+    }
     value = expr.evaluate(expr.compile_tree(tree), env)
     np.testing.assert_allclose(value, [[3, 13, 23], [4, 24, 44]])
 

@@ -13,8 +13,13 @@ from simlidar.sensor.raycast import cast
 def _batch(catalog, n, seed):
     rng = np.random.default_rng(seed)
     layout, obj = rng.integers(0, 8, n), rng.integers(0, 4, n)
-    scene = build_batch(catalog, layout, obj, rng.random((n, catalog.layout_columns)),
-                        rng.random((n, catalog.object_columns)))  # fmt: skip
+    scene = build_batch(
+        catalog,
+        layout,
+        obj,
+        rng.random((n, catalog.layout_columns)),
+        rng.random((n, catalog.object_columns)),
+    )
     origins, directions = window_rays(VLP16(), 16, 36.0, rng.random(n))
     return scene, origins, directions
 

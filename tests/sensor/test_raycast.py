@@ -25,8 +25,14 @@ def boxes(*specs) -> SceneBatch:
         sample += [k] * 12
     n = max(s[0] for s in specs) + 1
     t = np.concatenate(tris)
-    return SceneBatch(t, np.array(surface, np.uint8), np.array(sample), np.ones(len(t), bool),
-                      np.zeros(len(t), bool), np.full((n, 3), np.nan))  # fmt: skip
+    return SceneBatch(
+        t,
+        np.array(surface, np.uint8),
+        np.array(sample),
+        np.ones(len(t), bool),
+        np.zeros(len(t), bool),
+        np.full((n, 3), np.nan),
+    )
 
 
 def test_a_wall_ten_metres_ahead_returns_after_66_71_ns():
@@ -78,8 +84,13 @@ def test_nothing_beyond_the_range_limits():
 def _real_batch(catalog, n=48, seed=3):
     rng = np.random.default_rng(seed)
     layout, obj = np.arange(n) % 8, np.arange(n) % 4
-    scene = build_batch(catalog, layout, obj, rng.random((n, catalog.layout_columns)),
-                        rng.random((n, catalog.object_columns)))  # fmt: skip
+    scene = build_batch(
+        catalog,
+        layout,
+        obj,
+        rng.random((n, catalog.layout_columns)),
+        rng.random((n, catalog.object_columns)),
+    )
     origins, directions = window_rays(VLP16(), 16, 48.0, rng.random(n))
     return scene, origins, directions
 
@@ -102,8 +113,9 @@ def test_agrees_with_trimesh_pure_numpy_ray_code(catalog):
     agree = total = 0
     for k in range(16):
         tris = scene.triangles[scene.sample == k]
-        mesh = trimesh.Trimesh(tris.reshape(-1, 3), np.arange(3 * len(tris)).reshape(-1, 3),
-                               process=False)  # fmt: skip
+        mesh = trimesh.Trimesh(
+            tris.reshape(-1, 3), np.arange(3 * len(tris)).reshape(-1, 3), process=False
+        )
         o, d = origins[k].reshape(-1, 3), directions[k].reshape(-1, 3)
         index_tri, index_ray, where = RayMeshIntersector(mesh).intersects_id(
             o, d, multiple_hits=False, return_locations=True
