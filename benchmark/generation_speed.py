@@ -38,13 +38,15 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from simlidar import __version__  # noqa: E402
-from simlidar.dataset.config import GeneratorConfig  # noqa: E402
-from simlidar.dataset.generate import generate, split_attrs  # noqa: E402
-from simlidar.dataset.h5 import SplitWriter  # noqa: E402
+from simlidar.dataset.schema import SHUFFLED, generated_shapes  # noqa: E402
+from simlidar.dataset.writer import SplitWriter  # noqa: E402
+from simlidar.generator.config import GeneratorConfig  # noqa: E402
+from simlidar.generator.generate import generate, generated_split_attrs  # noqa: E402
+from simlidar.generator.pulses import split_rows  # noqa: E402
+from simlidar.generator.simulate import simulate  # noqa: E402
 from simlidar.scene.build import build_batch, place_instances  # noqa: E402
 from simlidar.scene.recipe import load_catalog  # noqa: E402
 from simlidar.sensor.raycast import Hits  # noqa: E402
-from simlidar.simulate import simulate  # noqa: E402
 
 
 def _trimesh_hits(mesh, face_surface, face_object, origins, directions, max_range_m):
@@ -151,15 +153,14 @@ def run_one_at_a_time(config, catalog, count, out: Path, backend):
     writer = SplitWriter(
         out / "train.h5",
         count,
-        config.width,
-        config.noise,
-        split_attrs(config, catalog, "train"),
-        config.pulse_rule,
+        generated_shapes(config.width),
+        generated_split_attrs(config, catalog, "train"),
+        SHUFFLED,
     )
     blocks = []
     for i in range(count):
         samples = simulate(config, catalog, "train", i, i + 1, backend=backend)
-        writer.append(samples)
+        writer.append(split_rows(samples, config.noise, config.pulse_rule))
         blocks.append(samples.clean_delays)
     writer.close()
     return np.concatenate(blocks)
@@ -170,8 +171,8 @@ def peak_memory_mb(samples: int, out: Path) -> float:
     code = (
         "import os, resource, sys;"
         "os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]});"
-        "from simlidar.dataset.config import GeneratorConfig;"
-        "from simlidar.dataset.generate import generate;"
+        "from simlidar.generator.config import GeneratorConfig;"
+        "from simlidar.generator.generate import generate;"
         "from simlidar.scene.recipe import load_catalog;"
         "generate(GeneratorConfig(train_size=int(sys.argv[1]), test_size=32), [0.2],"
         " load_catalog(), sys.argv[2], progress=False, preview=False);"

@@ -24,11 +24,12 @@ from collections import defaultdict  # noqa: E402
 
 import embreex.rtcore_scene as rtcs  # noqa: E402
 
+import simlidar.generator.simulate as simulate  # noqa: E402
 import simlidar.sensor.raycast as raycast  # noqa: E402
-import simlidar.simulate as simulate  # noqa: E402
-from simlidar.dataset.config import GeneratorConfig  # noqa: E402
-from simlidar.dataset.generate import generate  # noqa: E402
-from simlidar.dataset.h5 import SplitWriter  # noqa: E402
+from simlidar.dataset.writer import SplitWriter  # noqa: E402
+from simlidar.generator import generate as generate_module  # noqa: E402
+from simlidar.generator.config import GeneratorConfig  # noqa: E402
+from simlidar.generator.generate import generate  # noqa: E402
 from simlidar.scene.recipe import load_catalog  # noqa: E402
 from simlidar.sensor import embree  # noqa: E402
 
@@ -73,6 +74,7 @@ def main() -> None:
         raycast.visible_triangles = timed("back-face culling", raycast.visible_triangles)
         raycast.attach_triangles = timed("Embree geometry", raycast.attach_triangles)
         rtcs.EmbreeScene = TimedScene
+        generate_module.split_rows = timed("profile and noise", generate_module.split_rows)
         SplitWriter.append = timed("HDF5 writing", SplitWriter.append)
         start = time.perf_counter()
         generate(config, [0.2], catalog, f"{tmp}/timed", progress=False, preview=False)

@@ -107,13 +107,13 @@ def run_cells(todo: list[tuple], jobs: int) -> None:
 
 def datasets(root: Path) -> dict[float, Path]:
     """The four datasets of the table (default profile), generated when missing."""
-    from simlidar.dataset.config import GeneratorConfig
-    from simlidar.dataset.generate import dataset_name, generate
-    from simlidar.profiles import DEFAULT_PROFILE, load_profile
+    from simlidar.generator.config import GeneratorConfig
+    from simlidar.generator.generate import generate, generated_name
+    from simlidar.generator.profiles import DEFAULT_PROFILE, load_profile
     from simlidar.scene.recipe import load_catalog
 
     config = GeneratorConfig.from_profile(load_profile(DEFAULT_PROFILE))
-    paths = {level: root / dataset_name(config.with_noise(level)) for level in LEVELS}
+    paths = {level: root / generated_name(config.with_noise(level)) for level in LEVELS}
     if not all(p.is_dir() for p in paths.values()):
         missing = [level for level, p in paths.items() if not p.is_dir()]
         generate(config, missing, load_catalog(), root)

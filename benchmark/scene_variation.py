@@ -19,8 +19,8 @@ from pathlib import Path
 
 from simlidar.bench.run import run_suite
 from simlidar.bench.suite import load_suite
-from simlidar.dataset.config import GeneratorConfig
-from simlidar.dataset.generate import generate
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.generate import generate
 from simlidar.scene.recipe import load_catalog
 
 

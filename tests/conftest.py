@@ -5,8 +5,8 @@ import shutil
 import pytest
 
 from simlidar.content import content_dir
-from simlidar.dataset.config import GeneratorConfig
-from simlidar.dataset.generate import generate
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.generate import generate
 from simlidar.scene.recipe import load_catalog
 
 SMALL = dict(train_size=96, test_size=64)

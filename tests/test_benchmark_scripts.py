@@ -26,6 +26,7 @@ def test_generation_stages_times_every_stage():
         "Embree BVH build + ray queries",
         "other",
         "HDF5 writing",
+        "profile and noise",
         "scene building (numpy)",
         "back-face culling",
         "random streams (SeedSequence)",

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from simlidar.data import EVENT_DTYPE, load_split, to_events
+from simlidar.dataset.loaders import EVENT_DTYPE, load_split, to_events
 from simlidar.errors import DatasetError
 
 
@@ -19,7 +19,7 @@ def test_load_split_matches_the_file(datasets):
 def test_pulse_dataset_is_a_torch_dataset(datasets):
     import torch
 
-    from simlidar.data import PulseDataset
+    from simlidar.dataset.loaders import PulseDataset
 
     ds = PulseDataset(datasets[0.1], "test")
     assert isinstance(ds, torch.utils.data.Dataset)

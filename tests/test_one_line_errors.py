@@ -18,9 +18,9 @@ from click.testing import CliRunner
 
 from simlidar.cli import main
 from simlidar.convert import convert_kitti
-from simlidar.dataset.archive import fetch
-from simlidar.dataset.checksums import SUMS, write_sums
 from simlidar.errors import ConfigError
+from simlidar.release.archive import fetch
+from simlidar.release.checksums import SUMS, write_sums
 
 SMALL = ["--train-size", "32", "--test-size", "32"]
 # Fixtures reused from the archive and converter tests (pytest puts tests/ on sys.path).

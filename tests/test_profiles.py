@@ -11,13 +11,14 @@ import pytest
 from click.testing import CliRunner
 
 from simlidar.cli import main
-from simlidar.data import spike_threshold
-from simlidar.dataset.config import GeneratorConfig
-from simlidar.dataset.generate import dataset_name, generate
-from simlidar.dataset.h5 import SCHEMA, read_split_info
+from simlidar.dataset.loaders import spike_threshold
+from simlidar.dataset.reader import read_split_info
+from simlidar.dataset.schema import SCHEMA
 from simlidar.errors import ConfigError
-from simlidar.profiles import DEFAULT_PROFILE, load_profile, profile_names
-from simlidar.pulses import noisy_delays, profile_pulses
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.generate import generate, generated_name
+from simlidar.generator.profiles import DEFAULT_PROFILE, load_profile, profile_names
+from simlidar.generator.pulses import noisy_delays, profile_pulses
 
 PAPER = dict(variation=0.05, shift=0.05, missing_delay=0.0, noise_on="all", spikes="all")
 PHYSICAL = dict(variation=1.0, shift=0.0, missing_delay=1.0, noise_on="returns", spikes="returns")
@@ -226,7 +227,7 @@ def test_options_override_the_profile_and_the_name_says_so(tmp_path):
     )
     assert "overrides" not in same.stderr  # the profile's own value: nothing to say
     assert json.loads(same.stdout)["datasets"][0]["path"].endswith("noise0.2-paper-v2.0.0")
-    assert dataset_name(
+    assert generated_name(
         GeneratorConfig.from_profile(load_profile("physical"), shift_max=0.1, noise=0.5)
     ) == ("simlidar-32c-noise0.5-physical-shift0.1-v1.0.0")
 

@@ -3,7 +3,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from simlidar.pulses import NO_RETURN, add_noise, delays_from_range, quantise_range, shift_delays
+from simlidar.generator.pulses import (
+    NO_RETURN,
+    add_noise,
+    delays_from_range,
+    quantise_range,
+    shift_delays,
+)
 from simlidar.sensor import VLP16
 
 ranges = arrays(np.float64, (4, 16, 16), elements=st.one_of(st.floats(0.0, 150.0), st.just(np.nan)))

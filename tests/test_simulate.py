@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from simlidar.dataset.config import GeneratorConfig
 from simlidar.errors import ConfigError, SimlidarError
-from simlidar.simulate import class_plan, simulate
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.simulate import class_plan, simulate
 
 
 @pytest.fixture(scope="module")
@@ -86,7 +86,7 @@ def test_a_sample_does_not_depend_on_the_batch_it_is_made_in(catalog, start, siz
 
 
 def test_the_embree_cell_follows_the_sample_index(catalog):
-    from simlidar.simulate import batched_backend
+    from simlidar.generator.simulate import batched_backend
 
     seen = []
 

@@ -5,14 +5,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from simlidar.data import load_split, spike_threshold, split_path
-from simlidar.dataset.h5 import read_split_info
+from simlidar.dataset.loaders import load_split, spike_threshold, split_path
+from simlidar.dataset.reader import read_split_info
 from simlidar.models import ttfs
-from simlidar.models.events import ALPHAS_PJ, decide
+from simlidar.models.decisions import ALPHAS_PJ, decide
 
 
 def decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test"):
-    """Run :func:`simlidar.models.events.decide` on every sample of a split.
+    """Run :func:`simlidar.models.decisions.decide` on every sample of a split.
 
     The model must be a dense spiking network (``SpikingNet`` of dense layers).
     returns : list of Decision, labels (N,), time of flight at delay 1 in ns (None if the

@@ -11,7 +11,7 @@ is not imported here: it brings numba, librosa, scikit-learn and a torchaudio th
 load beside the installed torch, too much for a runtime dependency, so it is the tests' oracle
 (docs/benchmark.md, "NeuroBench metrics"). For the spiking networks, which NeuroBench cannot run
 (they are not snnTorch models and decide event by event), the same definitions are applied to the
-event-driven run (:mod:`simlidar.models.events`).
+event-driven run (:mod:`simlidar.models.decisions`).
 """
 
 import statistics

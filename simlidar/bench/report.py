@@ -10,7 +10,7 @@ import numpy as np
 from simlidar.bench.metrics import MAC_PJ
 from simlidar.content import content_dir
 from simlidar.dataset.version import GENERATOR
-from simlidar.models.events import ALPHAS_PJ
+from simlidar.models.decisions import ALPHAS_PJ
 
 PAPER_FILE = "reported/wang2020.toml"
 

@@ -27,8 +27,6 @@ from simlidar.bench import metrics
 from simlidar.bench.early import early_decisions
 from simlidar.bench.suite import Suite
 from simlidar.bench.train import (
-    PATIENCE,
-    VALIDATION,
     is_spiking,
     predictions,
     save_checkpoint,
@@ -37,12 +35,14 @@ from simlidar.bench.train import (
     validation_split,
 )
 from simlidar.content import content_dir
-from simlidar.data import load_split
-from simlidar.dataset.h5 import dataset_splits, load_arrays
-from simlidar.dataset.verify import check_trainable
+from simlidar.dataset.loaders import load_split
+from simlidar.dataset.reader import dataset_splits, load_arrays
 from simlidar.dataset.version import GENERATOR
 from simlidar.errors import ConfigError, DatasetError
 from simlidar.models.registry import load_recipe
+from simlidar.models.training import TrainingConfig
+from simlidar.release.checksums import SUMS, read_sums
+from simlidar.release.verify import check_trainable
 
 _NUMBERS = re.compile(r"\[[-0-9.eE+,\s]*\]")  # a list of numbers spread over lines
 
@@ -150,18 +150,18 @@ def resolve_datasets(suite: Suite, out: Path, dataset: Path | None, progress: bo
     elif suite.generate is None:
         paths = list(suite.datasets)
     else:
-        from simlidar.dataset.generate import dataset_name, generate
+        from simlidar.generator.generate import generate, generated_name
         from simlidar.scene.recipe import load_catalog
 
         root = out / "datasets"
         missing = [
             n
             for n in suite.noise
-            if not (root / dataset_name(suite.generate.with_noise(n))).is_dir()
+            if not (root / generated_name(suite.generate.with_noise(n))).is_dir()
         ]
         if missing:
             generate(suite.generate, missing, load_catalog(), root, progress=progress)
-        paths = [root / dataset_name(suite.generate.with_noise(n)) for n in suite.noise]
+        paths = [root / generated_name(suite.generate.with_noise(n)) for n in suite.noise]
     return paths  # given ones were checked by run_suite; each cell reads its dataset's splits
 
 
@@ -173,23 +173,33 @@ def training_rules(model: str, budget: dict) -> dict:
     """The rules a cell trains by: the recipe's [training] with the suite's budget over it
     (epochs, time cap, validation fraction, patience), defaults filled in, and the selection
     rule's name."""
-    training = {**load_recipe(model)["training"], **budget}
+    training = TrainingConfig.from_table({**load_recipe(model)["training"], **budget}, model)
     return {
-        "epochs": training["epochs"],
-        "max_seconds": training.get("max_seconds", float("inf")),
-        "validation": training.get("validation", VALIDATION),
-        "patience": training.get("patience", PATIENCE),
+        "epochs": training.epochs,
+        "max_seconds": training.max_seconds,
+        "validation": training.validation,
+        "patience": training.patience,
         "selection": selection_rule(training),
     }
 
 
+def splits_sha256(dataset: Path) -> str | None:
+    """sha256 of the split files' lines of the dataset's SHA256SUMS (``train.h5``, ``test.h5``):
+    the data a cell trains and is tested on, not the card, whose text follows the simlidar
+    version. None without SHA256SUMS."""
+    if not (dataset / SUMS).is_file():
+        return None
+    sums = read_sums(dataset)
+    lines = "".join(f"{sums[name]}  {name}\n" for name in sorted(sums) if name.endswith(".h5"))
+    return hashlib.sha256(lines.encode()).hexdigest()
+
+
 def cell_inputs(dataset: Path, model: str, budget: dict) -> dict:
-    """Fingerprints of what a cell was made from: the dataset (sha256 of its SHA256SUMS, which
-    lists every file's sha256), the recipe (sha256 of its content) and the training rules."""
-    sums = dataset / "SHA256SUMS"
+    """Fingerprints of what a cell was made from: the data (:func:`splits_sha256`), the recipe
+    (sha256 of its content) and the training rules."""
     recipe = load_recipe(model)
     return {
-        "dataset_sha256": hashlib.sha256(sums.read_bytes()).hexdigest() if sums.is_file() else None,
+        "splits_sha256": splits_sha256(dataset),
         "recipe_sha256": hashlib.sha256(json.dumps(recipe, sort_keys=True).encode()).hexdigest(),
         "rules": training_rules(model, budget),
     }
@@ -214,10 +224,11 @@ def finished(out: Path, dataset: Path, model: str, seed: int, budget: dict) -> b
                 f"({_rules(recorded.get(key))}; now {_rules(value)}); expected the same "
                 "rules: use a new --out"
             )
+        what = "dataset" if key == "splits_sha256" else "recipe"
         raise DatasetError(
-            f"--out {out}: cell {path.stem} was made from another "
-            f"{key.split('_')[0]} ({key} {str(recorded.get(key))[:12]}, now "
-            f"{str(value)[:12]}); expected the same inputs: use a new --out"
+            f"--out {out}: cell {path.stem} was made from another {what} ({key} "
+            f"{str(recorded.get(key))[:12]}, now {str(value)[:12]}); expected the same inputs: "
+            "use a new --out"
         )
     return True
 
@@ -288,12 +299,12 @@ def measure(
         "input_shape": list(x.shape[1:]),
         **metrics.footprint(model),
         "metrics": METRICS,
-        "lr_schedule": recipe["training"].get("lr_schedule", "constant"),
+        "lr_schedule": TrainingConfig.from_table(recipe["training"]).lr_schedule,
     }
     start = time.perf_counter()
     if is_spiking(model):
         early = None
-        if recipe["model"] == "snn":  # the event-driven evaluator runs dense networks
+        if model.event_driven:
             early = early_decisions(model, dataset, per_sample=True)
             record["per_sample"] = early.pop("per_sample")
             record["early"] = early
@@ -373,8 +384,8 @@ def check_validation(suite: Suite, models: list[str], dataset: Path | None) -> N
     training and a validation sample; a ConfigError naming the suite or recipe key otherwise
     (before anything is written: generated datasets label sample i as i mod classes)."""
     if dataset is None and suite.generate is not None:
+        from simlidar.generator.simulate import class_plan
         from simlidar.scene.recipe import load_catalog
-        from simlidar.simulate import class_plan
 
         plan = class_plan(load_catalog(), suite.generate.classes)
         labelled = [(np.arange(suite.generate.train_size) % plan.classes, plan.names)]

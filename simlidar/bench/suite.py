@@ -32,10 +32,11 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from simlidar.content import content_dir
-from simlidar.dataset.config import GeneratorConfig
 from simlidar.errors import ConfigError
-from simlidar.models.registry import check_selection, load_recipe
-from simlidar.profiles import DEFAULT_PROFILE, load_profile
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.profiles import DEFAULT_PROFILE, load_profile
+from simlidar.models.registry import load_recipe
+from simlidar.models.training import TrainingConfig
 
 SUITE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,99}$")
 KEYS = {"name", "description", "models", "seeds", "board_power_w", "generate", "datasets", "budget"}
@@ -82,14 +83,11 @@ def _number(value, low: float, integer: bool = False) -> bool:
 
 
 def _budget(path: Path, table: dict, key: str) -> dict:
+    """A [budget] table: some of TrainingConfig's keys (BUDGET_KEYS), checked by its rules."""
     for name, value in table.items():
         if name not in BUDGET_KEYS:
             raise _fail(path, f"{key}.{name}", f"one of {sorted(BUDGET_KEYS)}", value)
-        if name in ("patience", "validation"):
-            check_selection({name: value}, f"suite {path}", f"{key}.")
-        elif not _number(value, 1 if name == "epochs" else 0, integer=name == "epochs"):
-            kind = "an integer >= 1" if name == "epochs" else "a number of seconds >= 0"
-            raise _fail(path, f"{key}.{name}", kind, value)
+    TrainingConfig.check_table(table, f"suite {path}", f"{key}.")
     return dict(table)
 
 

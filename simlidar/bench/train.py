@@ -21,24 +21,23 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from simlidar.data import load_split, spike_threshold, split_path
-from simlidar.dataset.h5 import read_split_info
+from simlidar.dataset.loaders import load_split, spike_threshold, split_path
+from simlidar.dataset.reader import read_split_info
 from simlidar.errors import ConfigError, DatasetError
+from simlidar.generator.pulses import noisy_delays
 from simlidar.models import ttfs
-from simlidar.models.registry import build_model, check_training
-from simlidar.pulses import noisy_delays
+from simlidar.models.registry import build_model
+from simlidar.models.training import TrainingConfig
 
-VALIDATION = 0.1  # default fraction of each class's training samples held out for selection
-PATIENCE = 10  # default epochs without a better validation score before training stops
 STOPS = ("plateau", "epochs", "time")  # why training stopped (TrainResult.stopped)
 SELECTION = "best-validation-accuracy-then-loss/v1"  # the rule's name, recorded by every cell
 ANNEALED = "last-epoch-of-annealed-schedule/v1"  # the rule of a schedule that anneals to 0
 
 
-def selection_rule(training: dict) -> str:
+def selection_rule(training: TrainingConfig) -> str:
     """The name of the rule that picks a run's kept epoch: the best validation epoch, or the
     last one where the learning rate schedule anneals to 0 (``cosine``)."""
-    return ANNEALED if training.get("lr_schedule", "constant") == "cosine" else SELECTION
+    return ANNEALED if training.lr_schedule == "cosine" else SELECTION
 
 
 @dataclass
@@ -65,13 +64,10 @@ class TrainResult:
         }
 
 
-def _optimizer(params, training: dict):
-    kind = training.get("optimizer", "sgd")
-    if kind == "sgd":
-        return torch.optim.SGD(params, lr=training["lr"], momentum=training.get("momentum", 0))
-    if kind == "adam":
-        return torch.optim.Adam(params, lr=training["lr"])
-    raise ConfigError(f"[training] optimizer={kind!r}: expected 'sgd' or 'adam'")
+def _optimizer(params, training: TrainingConfig):
+    if training.optimizer == "adam":
+        return torch.optim.Adam(params, lr=training.lr)
+    return torch.optim.SGD(params, lr=training.lr, momentum=training.momentum)
 
 
 def is_spiking(model: torch.nn.Module) -> bool:
@@ -90,24 +86,22 @@ def logits(
     return scale * ttfs.output_logits(out if kind == "z" else torch.log(out))
 
 
-def _loss(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training: dict):
+def _loss(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training: TrainingConfig):
     """(cross-entropy, cross-entropy plus the recipe's penalties) on one batch."""
-    kind, scale = training.get("logits", "z"), training.get("logit_scale", 1.0)
+    kind, scale = training.logits, training.logit_scale
     if is_spiking(model):
         spikes = model.spikes(x)
         loss = F.cross_entropy(logits(model, spikes[-1], kind, scale), y)
-        total = loss + training.get("weight_sum_penalty", 0.0) * model.penalty()
-        if training.get("fire_penalty", 0.0):
+        total = loss + training.weight_sum_penalty * model.penalty()
+        if training.fire_penalty:
             last = model.layers[-1].weight
-            fire = ttfs.target_fire_penalty(
-                spikes[-2].flatten(1), last, y, training.get("fire_margin", 0.1)
-            )
-            total = total + training["fire_penalty"] * fire
-        if training.get("early_penalty", 0.0):
-            total = total + training["early_penalty"] * ttfs.target_time(spikes[-1], y)
+            fire = ttfs.target_fire_penalty(spikes[-2].flatten(1), last, y, training.fire_margin)
+            total = total + training.fire_penalty * fire
+        if training.early_penalty:
+            total = total + training.early_penalty * ttfs.target_time(spikes[-1], y)
     else:
         loss = total = F.cross_entropy(model(x), y)
-    total = total + training.get("l2", 0.0) * sum((p**2).sum() for p in model.parameters())
+    total = total + training.l2 * sum((p**2).sum() for p in model.parameters())
     return loss, total
 
 
@@ -177,11 +171,15 @@ def predictions(model: torch.nn.Module, x: torch.Tensor, batch: int = 500) -> to
 
 
 def evaluate(
-    model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training: dict, batch: int = 500
+    model: torch.nn.Module,
+    x: torch.Tensor,
+    y: torch.Tensor,
+    training: TrainingConfig,
+    batch: int = 500,
 ) -> tuple[float, float | None]:
     """(accuracy, mean cross-entropy with the recipe's logits) on ``x``, in eval mode; the loss
     is None where it is not finite (a spiking network whose correct output never fired)."""
-    kind, scale = training.get("logits", "z"), training.get("logit_scale", 1.0)
+    kind, scale = training.logits, training.logit_scale
     model.eval()
     correct, loss = 0, 0.0
     with torch.no_grad():
@@ -220,39 +218,38 @@ def train(
     """
     from tqdm import tqdm
 
-    training = check_training(recipe)
+    where = f"recipe {recipe.get('name', '?')}"
+    training = TrainingConfig.from_table(recipe["training"], where).over(
+        epochs=epochs, max_seconds=max_seconds
+    )
     x_all, y_all = (torch.from_numpy(a) for a in load_split(dataset, "train"))
     attrs = read_split_info(split_path(dataset, "train")).attrs
     classes = len(attrs["class_names"])
     try:
         rows, held = validation_split(
             y_all.numpy(),
-            training.get("validation", VALIDATION),
+            training.validation,
             seed,
             [str(n) for n in attrs["class_names"]],
         )
     except ConfigError as exc:
-        raise ConfigError(
-            f"recipe {recipe.get('name', '?')}: key 'training.validation': {exc}"
-        ) from None
+        raise ConfigError(f"{where}: key 'training.validation': {exc}") from None
     x_all = x_all[:, None]  # (N, 1, H, W)
     x_train, y_train = x_all[rows], y_all[rows]
     x_val, y_val = x_all[held], y_all[held]
-    patience = training.get("patience", PATIENCE)
+    patience = training.patience
     annealed = selection_rule(training) == ANNEALED
     generator = torch.Generator().manual_seed(seed)
     model = build_model(recipe, tuple(x_train.shape[1:]), classes, generator)
     if is_spiking(model):
         model.silent_from = spike_threshold(attrs)  # the encoding follows the data's profile
     fresh_noise = None
-    if training.get("noise_augment"):
+    if training.noise_augment:
         fresh_noise = _fresh_noise(dataset, attrs, seed, rows)
     optimizer = _optimizer(model.parameters(), training)
-    epochs = epochs if epochs is not None else training.get("epochs", 100)
-    budget = max_seconds if max_seconds is not None else training.get("max_seconds", np.inf)
-    batch = training["batch_size"]
+    epochs, budget, batch = training.epochs, training.max_seconds, training.batch_size
     schedule = None
-    if training.get("lr_schedule", "constant") == "cosine":
+    if training.lr_schedule == "cosine":
         schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, max(epochs, 1))
     start = time.perf_counter()
     history = []
@@ -269,8 +266,8 @@ def train(
             loss, total = _loss(model, x_train[rows], y_train[rows], training)
             optimizer.zero_grad()
             total.backward()
-            if training.get("clip_grad_norm"):
-                torch.nn.utils.clip_grad_norm_(model.parameters(), training["clip_grad_norm"])
+            if training.clip_grad_norm:
+                torch.nn.utils.clip_grad_norm_(model.parameters(), training.clip_grad_norm)
             optimizer.step()
             losses.append(loss.item())
         lr = optimizer.param_groups[0]["lr"]  # the rate this epoch trained with

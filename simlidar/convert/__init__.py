@@ -2,10 +2,20 @@
 
 The converted datasets sit beside the generated ones (same directory layout, ``delays`` and
 ``labels`` in every split), so loading, ``verify`` and the benchmark take them as they are.
-``docs/converters.md`` describes both converters.
+``docs/converters.md`` describes both converters. The converters load on first use, so that
+their options (:mod:`simlidar.convert.options`) import without them.
 """
 
-from simlidar.convert.dvs import convert_dvs_barrel
-from simlidar.convert.kitti import convert_kitti
-
 __all__ = ["convert_dvs_barrel", "convert_kitti"]
+
+
+def __getattr__(name: str):
+    if name == "convert_kitti":
+        from simlidar.convert.kitti import convert_kitti
+
+        return convert_kitti
+    if name == "convert_dvs_barrel":
+        from simlidar.convert.dvs import convert_dvs_barrel
+
+        return convert_dvs_barrel
+    raise AttributeError(f"module 'simlidar.convert' has no attribute {name!r}")

@@ -1,5 +1,5 @@
 """What a converted dataset says about itself: the constants its card and Croissant metadata are
-made of, one :class:`About` per source (the generator's are in :mod:`simlidar.dataset.about`)."""
+made of, one :class:`About` per source (the generator's are in :mod:`simlidar.generator.about`)."""
 
 from dataclasses import dataclass
 

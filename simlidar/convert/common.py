@@ -2,7 +2,7 @@
 
 A converted split holds the same kind of values as a generated one: ``delays`` in [0, 1], the
 arrival time of the first pulse (or spike) of a cell as a fraction of a listening window, and
-1.0 where nothing arrived inside the window (``simlidar.pulses.NO_RETURN``).
+1.0 where nothing arrived inside the window (``simlidar.generator.pulses.NO_RETURN``).
 """
 
 import json
@@ -12,8 +12,7 @@ import numpy as np
 
 from simlidar import __version__
 from simlidar.dataset.version import SOURCES
-from simlidar.errors import ConfigError
-from simlidar.pulses import NO_RETURN
+from simlidar.generator.pulses import NO_RETURN
 
 # The largest float32 below 1.0: a pulse inside the window never rounds up to "no return".
 _LAST_BEFORE_END = np.nextafter(np.float32(NO_RETURN), np.float32(0.0))
@@ -50,15 +49,7 @@ def stream(seed: int, *key: int) -> np.random.Generator:
     return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=key)))
 
 
-def check_common(test_fraction: float, seed: int) -> None:
-    """Validate the options every converter takes (ConfigError naming the value)."""
-    if not (isinstance(test_fraction, float | int) and 0.0 < test_fraction < 1.0):
-        raise ConfigError(f"test_fraction={test_fraction!r}: expected a fraction in (0, 1)")
-    if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < 2**63:
-        raise ConfigError(f"seed={seed!r}: expected an integer in [0, 2**63)")
-
-
-def split_attrs(
+def converted_split_attrs(
     source: str,
     split: str,
     config,

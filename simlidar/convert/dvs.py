@@ -8,23 +8,28 @@ timestamps in microseconds. A sample's ``delays[y, x]`` is the time of the pixel
 ``docs/converters.md`` has the details; :func:`convert_dvs_barrel` is the entry point.
 """
 
-import json
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from simlidar.convert.common import check_common, choose_test, delays_from_times, split_attrs
+from simlidar.atomic import building
+from simlidar.convert.card import write_release_files
+from simlidar.convert.common import (
+    choose_test,
+    converted_split_attrs,
+    delays_from_times,
+)
 from simlidar.convert.common import stream as random_stream
-from simlidar.convert.release import write_release_files
-from simlidar.dataset.checksums import sha256_file
-from simlidar.dataset.generate import building
-from simlidar.dataset.h5 import CONVERTED_SCHEMAS, SPLITS, RowWriter, expected_shapes
+from simlidar.convert.options import DVS_CLASSES as CLASSES
+from simlidar.convert.options import DvsConfig
+from simlidar.dataset.schema import CONVERTED_SCHEMAS, SPLITS, expected_shapes
 from simlidar.dataset.version import SOURCES
+from simlidar.dataset.writer import SplitWriter
 from simlidar.errors import ConfigError, DatasetError
+from simlidar.release.checksums import sha256_file
 
 SOURCE = "dvs-barrel"
-CLASSES = tuple("0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZ")  # the 36 characters, ASCII order
 PIXELS = 32  # rows and columns of a recording
 # field -> accepted names (any case); a struct with exactly these four fields under other names
 # is read by position, x, y, polarity, timestamp, as public loaders of the published file do
@@ -34,35 +39,6 @@ _FIELDS = {
     "p": ("p", "pol", "polarity"),
     "ts": ("ts", "t", "timestamp", "timestamps"),
 }
-
-
-@dataclass(frozen=True)
-class DvsConfig:
-    """Everything that decides a converted DVS barrel dataset's bytes (with the input)."""
-
-    window_us: float | None = None  # time window of a delay of 1; None: longest recording + 1
-    address_base: int = 1  # value of the first pixel's address in the file (MATLAB: 1)
-    labels: tuple[str, ...] | None = None  # one character per recording; None: ROI's 'label'
-    test_fraction: float = 0.5  # of each class's recordings (at least one stays in train)
-    seed: int = 0  # root of the split's random streams, one per class
-
-    def __post_init__(self) -> None:
-        if self.window_us is not None and not (
-            isinstance(self.window_us, float | int) and 0 < self.window_us < 1e15
-        ):
-            raise ConfigError(f"window_us={self.window_us!r}: expected positive microseconds")
-        if self.address_base not in (0, 1) or isinstance(self.address_base, bool):
-            raise ConfigError(f"address_base={self.address_base!r}: expected 0 or 1")
-        if self.labels is not None:
-            labels = tuple(str(c).upper() for c in self.labels)
-            unknown = [c for c in labels if c not in CLASSES]
-            if unknown:
-                raise ConfigError(f"labels: {unknown[0]!r}, expected characters 0-9 or A-Z")
-            object.__setattr__(self, "labels", labels)
-        check_common(self.test_fraction, self.seed)
-
-    def to_json(self) -> str:
-        return json.dumps(asdict(self), sort_keys=True)
 
 
 @dataclass(frozen=True)
@@ -215,7 +191,7 @@ def write_split(
     full = expected_shapes(SOURCE, len(rows), PIXELS, PIXELS)
     per_sample = {n: (d, shape[1:]) for n, (d, shape) in full.items() if schema[n][1][0] == "N"}
     count = np.array([len(r.t_us) for r in recordings], dtype=np.int64)
-    writer = RowWriter(path, len(rows), per_sample, attrs, frozenset({"delays"}))
+    writer = SplitWriter(path, len(rows), per_sample, attrs, frozenset({"delays"}))
     try:
         writer.append(
             {
@@ -239,7 +215,7 @@ def write_split(
         writer.abort()  # a no-op after close()
 
 
-def dataset_name() -> str:
+def dvs_name() -> str:
     """``dvs-barrel-32x32-v<version>``."""
     return f"dvs-barrel-{PIXELS}x{PIXELS}-v{SOURCES[SOURCE][0]}"
 
@@ -248,14 +224,10 @@ def convert_dvs_barrel(
     mat_file: str | Path,
     out: str | Path,
     *,
-    labels: tuple[str, ...] | None = None,
-    window_us: float | None = None,
-    address_base: int = 1,
-    test_fraction: float = 0.5,
-    seed: int = 0,
     force: bool = False,
     progress: bool = True,
     preview: bool = True,
+    **options,
 ) -> Path:
     """Convert a DVS barrel MATLAB file (a struct array ROI of recordings: x, y, polarity,
     timestamps in us; 36 characters, 32 x 32 pixels) into first-spike times, written to
@@ -265,11 +237,14 @@ def convert_dvs_barrel(
     window_us (default: the longest recording + 1 us), 1.0 = no spike. Classes come from labels
     (one character per recording) or the struct's 'label' field. Per class, test_fraction of the
     recordings go to test (seeded; at least one stays in train). Returns the dataset directory.
+
+    options : the fields of :class:`~simlidar.convert.options.DvsConfig` (labels, window_us,
+        address_base, test_fraction, seed), each with its default there
     """
     from tqdm import tqdm
 
-    config = DvsConfig(window_us, address_base, labels, test_fraction, seed)
-    recordings = read_recordings(mat_file, address_base)
+    config = DvsConfig(**options)
+    recordings = read_recordings(mat_file, config.address_base)
     classes = config.labels or tuple(r.label for r in recordings)
     if len(classes) != len(recordings) or None in classes:
         raise ConfigError(
@@ -292,11 +267,11 @@ def convert_dvs_barrel(
         "columns": PIXELS,
         "time_unit": "us",
     }
-    name = dataset_name()
+    name = dvs_name()
     with building(out, name, force) as temp:
         for split in SPLITS:
             rows = splits[split]
-            attrs = split_attrs(
+            attrs = converted_split_attrs(
                 SOURCE, split, config, CLASSES, "character", sensor, sha256_file(mat_file)
             )
             attrs["time_window_us"] = float(window)

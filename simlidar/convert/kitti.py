@@ -14,17 +14,16 @@ generator's VLP-16), and 1.0 where the cell is empty or the point is that far or
 """
 
 import hashlib
-import json
-from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
+from simlidar.atomic import building
+from simlidar.convert.card import write_release_files
 from simlidar.convert.common import (
-    check_common,
     choose_test,
+    converted_split_attrs,
     delays_from_times,
-    split_attrs,
     stream,
 )
 from simlidar.convert.kitti_files import (
@@ -36,71 +35,15 @@ from simlidar.convert.kitti_files import (
     read_velodyne,
     to_velo,
 )
-from simlidar.convert.release import write_release_files
-from simlidar.dataset.checksums import sha256_file
-from simlidar.dataset.generate import building
-from simlidar.dataset.h5 import CONVERTED_SCHEMAS, SPLITS, RowWriter, expected_shapes
+from simlidar.convert.options import KittiConfig
+from simlidar.dataset.schema import CONVERTED_SCHEMAS, SPLITS, expected_shapes
 from simlidar.dataset.version import SOURCES
-from simlidar.errors import ConfigError, DatasetError
+from simlidar.dataset.writer import SplitWriter
+from simlidar.errors import DatasetError
+from simlidar.release.checksums import sha256_file
 from simlidar.sensor.vlp16 import tof_ns
 
 SOURCE = "kitti"
-# Accepted option values (docs/converters.md): cells from 0.01 degree (far finer than any
-# HDL-64E step; 36,000 columns) to 10 degrees, and a delay-1 range from 1 m to 1 km (8 times the
-# HDL-64E's 120 m). Outside these the front view means nothing: 1e-300 degree cells overflow
-# the cell indices, a 1e-300 m range turns every return into "no return" (1.0).
-RES_DEG = (0.01, 10.0)
-MAX_RANGE_M = (1.0, 1000.0)
-
-
-@dataclass(frozen=True)
-class KittiConfig:
-    """Everything that decides a converted KITTI dataset's bytes (with the input and version)."""
-
-    crop: tuple[int, int] = (50, 118)  # rows H x columns W of a crop (the paper's 50 x 118)
-    res_h_deg: float = 0.18  # azimuth step of a column: the HDL-64E's at KITTI's 10 Hz
-    res_v_deg: float = 0.4  # elevation step of a row: the HDL-64E's ~0.4 deg laser spacing
-    max_range_m: float = 100.0  # delay normalisation range (the generator's VLP-16 maximum)
-    test_fraction: float = 0.2  # of the frames with objects (the paper: 8,000 of 40,456 crops)
-    seed: int = 0  # root of the frame split's random stream
-
-    def __post_init__(self) -> None:
-        crop = self.crop
-        if not (
-            isinstance(crop, tuple | list)
-            and len(crop) == 2
-            and all(isinstance(c, int) and 1 <= c <= 4096 for c in crop)
-        ):
-            raise ConfigError(f"crop={crop!r}: expected (rows, columns), integers in [1, 4096]")
-        object.__setattr__(self, "crop", tuple(crop))
-        low, high = RES_DEG
-        if not low <= self.res_v_deg <= high:
-            raise ConfigError(
-                f"res_v_deg={self.res_v_deg!r}: expected degrees in [{low:g}, {high:g}]"
-            )
-        columns = 360.0 / self.res_h_deg if low <= self.res_h_deg <= high else 0.5
-        if abs(columns - round(columns)) > 1e-9 * columns:
-            raise ConfigError(
-                f"res_h_deg={self.res_h_deg!r}: expected degrees in (0, {high:g}] dividing 360 "
-                f"into at most {round(360 / low)} columns (0.01, ..., 0.08, 0.09, 0.1, 0.12, "
-                "0.15, 0.16, 0.18, 0.2, ...), so that the front view closes"
-            )
-        if self.crop[1] > self.columns:
-            raise ConfigError(f"crop={self.crop}: wider than the {self.columns} columns of 360 deg")
-        low, high = MAX_RANGE_M
-        if not low <= self.max_range_m <= high:
-            raise ConfigError(
-                f"max_range_m={self.max_range_m!r}: expected metres in [{low:g}, {high:g}]"
-            )
-        check_common(self.test_fraction, self.seed)
-
-    @property
-    def columns(self) -> int:
-        """Columns of the full 360 degree front view."""
-        return round(360.0 / self.res_h_deg)
-
-    def to_json(self) -> str:
-        return json.dumps(asdict(self), sort_keys=True)
 
 
 def front_view(points: np.ndarray, res_h_deg: float, res_v_deg: float):
@@ -193,7 +136,7 @@ def split_frames(frames: list[Frame], config: KittiConfig) -> dict[str, list[Fra
     }
 
 
-def dataset_name(config: KittiConfig) -> str:
+def kitti_name(config: KittiConfig) -> str:
     """``kitti-front-<H>x<W>-v<version>``."""
     return f"kitti-front-{config.crop[0]}x{config.crop[1]}-v{SOURCES[SOURCE][0]}"
 
@@ -202,15 +145,10 @@ def convert_kitti(
     root: str | Path,
     out: str | Path,
     *,
-    crop: tuple[int, int] = (50, 118),
-    res_h_deg: float = 0.18,
-    res_v_deg: float = 0.4,
-    max_range_m: float = 100.0,
-    test_fraction: float = 0.2,
-    seed: int = 0,
     force: bool = False,
     progress: bool = True,
     preview: bool = True,
+    **options,
 ) -> Path:
     """Convert the KITTI 3D object benchmark's training frames (ROOT: the folder with label_2/,
     calib/ and velodyne/, or its parent) into front-view pulse crops, one per labelled object
@@ -221,11 +159,14 @@ def convert_kitti(
     return). Crops of crop = (rows, columns) cells are centred on each 3D box. Frames are split
     between train and test (test_fraction of them, seeded; at least one each, so at least two
     frames with objects are needed). Returns the dataset directory.
+
+    options : the fields of :class:`~simlidar.convert.options.KittiConfig` (crop, res_h_deg,
+        res_v_deg, max_range_m, test_fraction, seed), each with its default there
     """
-    config = KittiConfig(crop, res_h_deg, res_v_deg, max_range_m, test_fraction, seed)
+    config = KittiConfig(**options)
     base, frames = read_frames(root)
     splits = split_frames(frames, config)
-    name = dataset_name(config)
+    name = kitti_name(config)
     with building(out, name, force) as temp:
         write_splits(temp, base, frames, splits, config, progress)
         write_release_files(temp, name, preview)
@@ -247,12 +188,12 @@ def write_splits(
     from tqdm import tqdm
 
     shapes = {n: (d, s[1:]) for n, (d, s) in expected_shapes(SOURCE, 0, *config.crop).items()}
-    writers: dict[str, RowWriter] = {}
+    writers: dict[str, SplitWriter] = {}
     try:
         hashes = _small_file_hashes(base, frames)
         for split in SPLITS:
             size = sum(len(f.labels) for f in splits[split])
-            writers[split] = RowWriter(
+            writers[split] = SplitWriter(
                 folder / f"{split}.h5", size, shapes, {}, frozenset({"delays", "box_corners_m"})
             )
         bar = tqdm(total=len(frames), unit="frame", disable=not progress, desc="kitti")
@@ -275,7 +216,7 @@ def write_splits(
             "max_range_m": config.max_range_m,
         }
         for split, writer in writers.items():
-            attrs = split_attrs(
+            attrs = converted_split_attrs(
                 SOURCE,
                 split,
                 config,

@@ -36,6 +36,7 @@ class Conventional(nn.Module):
     """Marker base: outputs are logits (B, classes); the class is their argmax."""
 
     spiking = False
+    event_driven = False  # no spikes to run event by event
 
 
 def init_weights(model: nn.Module, generator: torch.Generator | None) -> nn.Module:

@@ -18,7 +18,7 @@ class SpikingNet(nn.Module):
     silent_from : delays at or above this are no input spike: 1.0 (the physical profile: a
         missing return is no spike) or inf (the paper profile: every pixel spikes). A property
         of the data, not of the recipe: ``train`` sets it from the dataset's ``input_spikes``
-        attribute (:func:`simlidar.data.spike_threshold`) and checkpoints keep it.
+        attribute (:func:`simlidar.dataset.loaders.spike_threshold`) and checkpoints keep it.
     """
 
     spiking = True  # outputs are first-spike times (z domain), not logits
@@ -33,6 +33,12 @@ class SpikingNet(nn.Module):
         self.layers = nn.ModuleList(layers)
         self.scale = scale
         self.silent_from = 1.0
+
+    @property
+    def event_driven(self) -> bool:
+        """Whether the event-driven evaluator (:mod:`simlidar.models.decisions`: how early the
+        network decides) runs this network: dense layers only, for now."""
+        return all(isinstance(m, DenseTTFS) for m in self.layers)
 
     def forward(self, delays: torch.Tensor) -> torch.Tensor:
         return self.spikes(delays)[-1]

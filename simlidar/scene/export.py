@@ -4,7 +4,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simlidar.dataset.claim import write_file
+from simlidar.atomic import write_file
 from simlidar.errors import DatasetError
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog

@@ -330,7 +330,7 @@ def _primitive(
     )
 
 
-def load_recipe(path: Path, surfaces: list[str], is_object: bool) -> Recipe:
+def load_scene_recipe(path: Path, surfaces: list[str], is_object: bool) -> Recipe:
     """Read and check one layout or object recipe."""
     data = _read_toml(path)
     where = str(path)
@@ -437,11 +437,11 @@ def load_catalog(root: str | Path | None = None) -> Catalog:
             raise _fail(where, key, f"names other than '{NO_OBJECT}' (it is implicit)", data[key])
     surfaces = [NO_OBJECT] + _name_list(where, data, "surfaces")
     layouts = tuple(
-        load_recipe(root / "layouts" / f"{n}.toml", surfaces, False)
+        load_scene_recipe(root / "layouts" / f"{n}.toml", surfaces, False)
         for n in _name_list(where, data, "layouts")
     )
     objects = tuple(
-        load_recipe(root / "objects" / f"{n}.toml", surfaces, True)
+        load_scene_recipe(root / "objects" / f"{n}.toml", surfaces, True)
         for n in _name_list(where, data, "objects")
     )
     object_surfaces = {p.surface for r in objects for p in r.primitives}

@@ -217,7 +217,7 @@ def test_generated_datasets_are_made_once(tmp_path):
         ),
         (
             'models = ["cnn"]\ndatasets = ["x"]\n[budget]\nvalidation = 1',
-            r"key 'budget.validation': expected a fraction >= 0 and < 1",
+            r"key 'budget.validation': expected a fraction of the train split in \[0, 1\)",
         ),
         ('models = ["cnn"', "not valid TOML"),
         ('models = ["cnn"]\ngenerate = 5', r"key 'generate': expected a table"),
@@ -336,9 +336,9 @@ def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets):
 
 
 def test_a_cell_from_other_inputs_is_refused_not_reused(tiny_suite, tmp_path, datasets, catalog):
-    from simlidar.dataset.config import GeneratorConfig
-    from simlidar.dataset.generate import generate
     from simlidar.errors import DatasetError
+    from simlidar.generator.config import GeneratorConfig
+    from simlidar.generator.generate import generate
 
     suite = load_suite(tiny_suite)
     out = tmp_path / "out"
@@ -364,6 +364,32 @@ def test_a_cell_from_other_inputs_is_refused_not_reused(tiny_suite, tmp_path, da
     with pytest.raises(DatasetError, match="was made from another recipe"):
         run_suite(suite, out, [str(recipe)], datasets[0.1], progress=False)
     assert (out / "results.json").read_bytes() == before
+
+
+def test_a_rewritten_card_keeps_the_cells(tiny_suite, tmp_path, datasets):
+    """A cell is made from the split files: the card's text (which names the simlidar version)
+    and so SHA256SUMS may change without the finished cells being refused or retrained."""
+    import shutil
+
+    from simlidar.release.checksums import write_sums
+
+    data = tmp_path / datasets[0.1].name
+    shutil.copytree(datasets[0.1], data)
+    suite, out = load_suite(tiny_suite), tmp_path / "out"
+    recipe = tmp_path / "mycnn.toml"
+    recipe.write_text(
+        'model = "cnn"\n[architecture]\ndense = [8]\n[training]\n'
+        'optimizer = "adam"\nlr = 1e-3\nbatch_size = 32\nepochs = 1\n'
+    )
+    run_suite(suite, out, [str(recipe)], data, progress=False)
+    (cell,) = (out / "cells").iterdir()
+    before, sums = cell.read_bytes(), (data / "SHA256SUMS").read_bytes()
+    card = data / "README.md"
+    card.write_text(card.read_text().replace("## Loading", "## Loading the data"))
+    write_sums(data, ["README.md"])
+    assert (data / "SHA256SUMS").read_bytes() != sums
+    run_suite(suite, out, [str(recipe)], data, progress=False)
+    assert cell.read_bytes() == before  # finished: not trained again
 
 
 def test_a_suite_with_a_missing_dataset_claims_nothing(tmp_path):

@@ -12,7 +12,7 @@ from torch.utils.data import DataLoader, TensorDataset
 
 from simlidar.bench import metrics
 from simlidar.bench.early import early_decisions
-from simlidar.data import load_split
+from simlidar.dataset.loaders import load_split
 from simlidar.models.registry import build_model, load_recipe
 
 RESNET = {"plan": "resnet18", "width": 4}  # as tests/bench/test_bench.py's small ResNet

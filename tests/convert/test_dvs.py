@@ -11,11 +11,11 @@ import pytest
 from scipy.io import savemat
 
 from simlidar.convert import convert_dvs_barrel
-from simlidar.data import load_split
-from simlidar.dataset.card import render_card
-from simlidar.dataset.checksums import read_sums, write_sums
-from simlidar.dataset.verify import verify
+from simlidar.dataset.loaders import load_split
 from simlidar.errors import ConfigError, DatasetError
+from simlidar.release.checksums import read_sums, write_sums
+from simlidar.release.verify import verify
+from simlidar.sources import render_card
 
 # (x, y, polarity, timestamp_us, label) per recording; addresses 1-based as MATLAB writes them
 RECORDINGS = [

@@ -11,11 +11,11 @@ import pytest
 
 from simlidar.convert import convert_kitti
 from simlidar.convert.kitti import crop_ranges, front_view
-from simlidar.data import load_split
-from simlidar.dataset.checksums import read_sums
-from simlidar.dataset.info import dataset_info, format_info
-from simlidar.dataset.verify import verify
+from simlidar.dataset.loaders import load_split
 from simlidar.errors import ConfigError, DatasetError
+from simlidar.release.checksums import read_sums
+from simlidar.release.info import dataset_info, format_info
+from simlidar.release.verify import verify
 
 C_M_PER_S = 299_792_458.0
 COLUMNS = 2000  # 360 deg / 0.18 deg
@@ -274,7 +274,7 @@ def test_the_card_and_croissant_are_made_from_the_files(kitti_dataset, caplog):
     import mlcroissant as mlc
     from huggingface_hub import DatasetCard
 
-    from simlidar.dataset.card import render_card
+    from simlidar.sources import render_card
 
     text = (kitti_dataset / "README.md").read_text()
     assert render_card(kitti_dataset) == text  # the shared entry point (simlidar card)

@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from simlidar.dataset.archive import FetchError, fetch, pack
-from simlidar.dataset.checksums import sha256_file
 from simlidar.errors import DatasetError
+from simlidar.release.archive import FetchError, fetch, pack
+from simlidar.release.checksums import sha256_file
 
 
 class _Handler(http.server.SimpleHTTPRequestHandler):

@@ -4,12 +4,13 @@ import h5py
 import numpy as np
 import pytest
 
-from simlidar.dataset.config import GeneratorConfig
-from simlidar.dataset.generate import dataset_name, generate
-from simlidar.dataset.h5 import SCHEMA, dataset_splits
-from simlidar.dataset.info import dataset_info
+from simlidar.dataset.reader import dataset_splits
+from simlidar.dataset.schema import SCHEMA
 from simlidar.dataset.version import DATASET_VERSION, PHYSICAL_VERSION
 from simlidar.errors import ConfigError, DatasetError
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.generate import generate, generated_name
+from simlidar.release.info import dataset_info
 
 
 def test_the_directory_and_its_files(datasets):
@@ -29,7 +30,7 @@ def test_the_directory_and_its_files(datasets):
 def test_every_split_holds_the_schema(datasets):
     for split, size in (("train", 96), ("test", 64)):
         with h5py.File(datasets[0.1] / f"{split}.h5") as f:
-            for name, (dtype, tail, _) in SCHEMA.items():
+            for name, (dtype, tail) in SCHEMA.items():
                 assert f[name].dtype == np.dtype(dtype), name
                 assert f[name].shape == (size, *tail(16)), name
                 assert f[name].compression == "gzip" and f[name].chunks is not None
@@ -53,7 +54,7 @@ def test_noise_levels_share_their_scenes(datasets):
 
 
 def test_noisy_delays_are_the_clean_ones_plus_scaled_uniform_variates(datasets, catalog):
-    from simlidar.simulate import simulate
+    from simlidar.generator.simulate import simulate
 
     samples = simulate(GeneratorConfig(train_size=96, test_size=64), catalog, "test", 0, 64)
     for noise, path in datasets.items():
@@ -91,7 +92,7 @@ def test_an_existing_dataset_is_kept_without_force(tmp_path, catalog):
 
 
 def test_a_failure_leaves_nothing_half_written(tmp_path, catalog, monkeypatch):
-    import simlidar.dataset.generate as gen
+    import simlidar.generator.generate as gen
 
     calls = []
 
@@ -121,16 +122,16 @@ def test_a_path_that_is_not_a_dataset(tmp_path):
 
 
 def test_names_encode_classes_noise_and_version():
-    from simlidar.profiles import load_profile
+    from simlidar.generator.profiles import load_profile
 
-    assert dataset_name(GeneratorConfig(classes=8, noise=0.33)) == (
+    assert generated_name(GeneratorConfig(classes=8, noise=0.33)) == (
         f"simlidar-8c-noise0.33-physical-v{PHYSICAL_VERSION}"
     )
-    assert dataset_name(GeneratorConfig(noise=0.1, variation=0.25)) == (
+    assert generated_name(GeneratorConfig(noise=0.1, variation=0.25)) == (
         f"simlidar-32c-noise0.1-physical-var0.25-v{PHYSICAL_VERSION}"
     )
     paper = GeneratorConfig.from_profile(load_profile("paper"), noise=0.5)
-    assert dataset_name(paper) == f"simlidar-32c-noise0.5-paper-v{DATASET_VERSION}"
+    assert generated_name(paper) == f"simlidar-32c-noise0.5-paper-v{DATASET_VERSION}"
     assert DATASET_VERSION == "2.0.0" and PHYSICAL_VERSION == "1.0.0"
 
 

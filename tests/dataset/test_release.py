@@ -7,11 +7,12 @@ import h5py
 import numpy as np
 import pytest
 
-from simlidar.dataset.card import read_front_matter, render_card
-from simlidar.dataset.checksums import SUMS, check_sums, read_sums
-from simlidar.dataset.h5 import read_split_info
-from simlidar.dataset.verify import verify
+from simlidar.dataset.reader import read_split_info
 from simlidar.errors import DatasetError
+from simlidar.release.card import read_front_matter
+from simlidar.release.checksums import SUMS, check_sums, read_sums
+from simlidar.release.verify import verify
+from simlidar.sources import render_card
 
 
 @pytest.fixture
@@ -143,7 +144,7 @@ def test_verify_checks_schema_ranges_and_card(copy):
 
 
 def test_verify_catches_wrongly_shaped_arrays_and_newer_versions(copy):
-    from simlidar.dataset.checksums import write_sums
+    from simlidar.release.checksums import write_sums
 
     with h5py.File(copy / "train.h5", "r+") as f:
         flat = f["delays"][:].reshape(len(f["delays"]), -1)
@@ -167,7 +168,7 @@ def test_verify_refuses_what_is_not_a_dataset(tmp_path):
 
 
 def test_versions_newer_major_refused_older_warned_once(copy):
-    from simlidar.dataset import h5 as h5module
+    from simlidar.dataset import reader as h5module
 
     with h5py.File(copy / "train.h5", "r+") as f:
         f.attrs["dataset_version"] = "2.0.0"

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 import torch
 
-from simlidar.data import load_split
+from simlidar.dataset.loaders import load_split
 from simlidar.models import ttfs
-from simlidar.models.events import ALPHAS_PJ, Decision, decide
+from simlidar.models.decisions import ALPHAS_PJ, Decision, decide
 
 
 def _random_net(seed, sizes=(256, 60, 32)):

@@ -7,9 +7,10 @@ import torch
 
 from simlidar.bench import train as training_module
 from simlidar.bench.train import evaluate, train, validation_split
-from simlidar.data import load_split
+from simlidar.dataset.loaders import load_split
 from simlidar.errors import ConfigError
 from simlidar.models.registry import load_recipe
+from simlidar.models.training import TrainingConfig
 
 NAMES = [f"class{i}" for i in range(4)]
 
@@ -19,6 +20,10 @@ def _recipe(**training):
     recipe["architecture"]["dense"] = [128]
     recipe["training"].update(batch_size=16, lr=3e-3, **training)
     return recipe
+
+
+def _config(recipe):
+    return TrainingConfig.from_table(recipe["training"])
 
 
 def test_the_validation_split_is_stratified_seeded_and_disjoint():
@@ -76,7 +81,7 @@ def test_the_best_validation_epoch_is_restored_and_the_test_split_read_once(data
     assert result.validation_size == 32  # round(0.34 * 3) = 1 of each class's 3
     x, y = (torch.from_numpy(a) for a in real(datasets[0.1], "train"))
     _, held = validation_split(y.numpy(), 0.34, 1, [str(i) for i in range(32)])
-    accuracy, _ = evaluate(result.model, x[held][:, None], y[held], recipe["training"])
+    accuracy, _ = evaluate(result.model, x[held][:, None], y[held], _config(recipe))
     assert accuracy == pytest.approx(best)  # the returned weights are the best epoch's
     assert result.selection()["validation_curve"] == curve
 
@@ -107,7 +112,7 @@ def test_an_annealed_schedule_keeps_its_last_epoch_and_runs_every_epoch(datasets
     assert any(curve[e] <= max(curve[:e]) for e in range(1, 7))  # best-epoch rules would stop
     x, y = (torch.from_numpy(a) for a in load_split(datasets[0.1], "train"))
     _, held = validation_split(y.numpy(), 0.34, 1, [str(i) for i in range(32)])
-    accuracy, _ = evaluate(result.model, x[held][:, None], y[held], recipe["training"])
+    accuracy, _ = evaluate(result.model, x[held][:, None], y[held], _config(recipe))
     assert accuracy == pytest.approx(curve[-1])  # the returned weights are the last epoch's
-    assert selection_rule(recipe["training"]) == ANNEALED
-    assert selection_rule(_recipe()["training"]) == SELECTION
+    assert selection_rule(_config(recipe)) == ANNEALED
+    assert selection_rule(_config(_recipe())) == SELECTION

@@ -2,6 +2,7 @@
 
 import json
 import math
+from dataclasses import replace
 
 import pytest
 import torch
@@ -9,8 +10,9 @@ from click.testing import CliRunner
 
 from simlidar.bench.train import load_checkpoint, predictions, save_checkpoint, train
 from simlidar.cli import main
-from simlidar.data import load_split
+from simlidar.dataset.loaders import load_split
 from simlidar.models.registry import load_recipe
+from simlidar.models.training import TrainingConfig
 
 
 def _small_recipe():
@@ -144,16 +146,16 @@ def test_the_penalties_enter_the_loss_as_the_recipe_weighs_them():
     model = build_model(recipe, (1, 16, 16), 32, torch.Generator().manual_seed(0))
     x = torch.rand(8, 1, 16, 16, generator=torch.Generator().manual_seed(1))
     y = torch.arange(8)
-    training = {"weight_sum_penalty": 0.0, "l2": 0.0}
+    training = TrainingConfig(lr=1e-3, batch_size=8, epochs=1)  # no penalty, no l2
     base, total = _loss(model, x, y, training)
     assert total == base
     spikes = model.spikes(x)
     fire = ttfs.target_fire_penalty(spikes[-2].flatten(1), model.layers[-1].weight, y, 5.0)
     early = ttfs.target_time(spikes[-1], y)
     assert fire > 0 and early > 0
-    _, total = _loss(model, x, y, dict(training, fire_penalty=2.0, fire_margin=5.0))
+    _, total = _loss(model, x, y, replace(training, fire_penalty=2.0, fire_margin=5.0))
     assert total.item() == pytest.approx((base + 2.0 * fire).item())
-    _, total = _loss(model, x, y, dict(training, early_penalty=3.0))
+    _, total = _loss(model, x, y, replace(training, early_penalty=3.0))
     assert total.item() == pytest.approx((base + 3.0 * early).item())
 
 
@@ -169,8 +171,17 @@ def test_the_penalties_enter_the_loss_as_the_recipe_weighs_them():
         ("logit_scale", float("nan"), r"training.logit_scale': expected a finite number > 0"),
         ("optimizer", "rmsprop", r"training.optimizer': expected one of \['sgd', 'adam'\]"),
         ("noise_augment", 1, r"training.noise_augment': expected true or false, got 1"),
-        ("validation", 1.0, r"training.validation': expected a fraction >= 0 and < 1 .*got 1.0"),
-        ("validation", -0.1, r"training.validation': expected a fraction >= 0 and < 1"),
+        (
+            "validation",
+            1.0,
+            r"training.validation': expected a fraction of the train split in \[0, 1\) "
+            r"\(0: no validation\), got 1.0",
+        ),
+        (
+            "validation",
+            -0.1,
+            r"training.validation': expected a fraction of the train split in \[0, 1\)",
+        ),
         ("validation", "10%", r"training.validation': expected a fraction .*got '10%'"),
         ("patience", 0, r"training.patience': expected an integer >= 1 .*got 0"),
         ("patience", 2.5, r"training.patience': expected an integer >= 1 .*got 2.5"),
@@ -201,7 +212,7 @@ def test_noise_augment_draws_the_noise_anew_each_epoch(datasets):
     import numpy as np
 
     from simlidar.bench.train import _fresh_noise
-    from simlidar.dataset.h5 import read_split_info
+    from simlidar.dataset.reader import read_split_info
 
     path = datasets[0.5]
     attrs = read_split_info(path / "train.h5").attrs

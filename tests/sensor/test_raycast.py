@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from simlidar.dataset.config import GeneratorConfig
 from simlidar.errors import ConfigError
-from simlidar.pulses import delays_from_range, quantise_range
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.pulses import delays_from_range, quantise_range
 from simlidar.scene.build import SceneBatch, build_batch
 from simlidar.scene.primitives import box
 from simlidar.sensor import VLP16, row_order, window_rays

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simlidar.dataset.h5 import dataset_splits, load_arrays
+from simlidar.dataset.reader import dataset_splits, load_arrays
 from simlidar.dataset.version import GENERATOR, SOURCES
 from simlidar.errors import DatasetError
 

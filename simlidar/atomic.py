@@ -22,6 +22,8 @@ import re
 import shutil
 import tempfile
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from simlidar.errors import DatasetError
@@ -190,3 +192,29 @@ def write_file(path: str | Path, write) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+@contextmanager
+def building(out: str | Path, name: str, force: bool = False) -> Iterator[Path]:
+    """A hidden locked folder ``out/.<name>.partial-<random>``
+    to build a dataset in; it becomes ``out/<name>`` when the block ends without error and is
+    removed on any error (with ``out`` too, if this call created it and it is left empty). An
+    existing ``out/<name>`` stops the build before anything is written, unless ``force``: then
+    it is replaced only at the end, in one step.
+
+    Used by the converters (``simlidar.convert``); ``simlidar.generator.generate`` builds
+    several at once with the same parts.
+    """
+    out = Path(out)
+    final = out / name
+    if final.exists() and not force:
+        raise DatasetError(f"{final} already exists: pass --force to overwrite it")
+    created = claim_folder(out)
+    claim = Temporary(out, name)
+    try:
+        yield claim.path
+        install(claim, final, force)
+    finally:
+        claim.release()
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()

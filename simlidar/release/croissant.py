@@ -3,10 +3,8 @@
 import json
 from pathlib import Path
 
-from simlidar.dataset.about import CITATION, CREATOR, DESCRIPTION, HOMEPAGE, LICENSE_URL, NAME
-from simlidar.dataset.checksums import sha256_file
-from simlidar.dataset.h5 import SCHEMA, SPLITS, dataset_splits
-from simlidar.dataset.version import RELEASE_DATES
+from simlidar.dataset.schema import SPLITS
+from simlidar.release.checksums import sha256_file
 
 CROISSANT = "croissant.json"
 # The JSON-LD @context of Croissant 1.0, as the specification gives it.
@@ -55,55 +53,6 @@ DATA_TYPES = {
     "uint8": "sc:Integer",
     "int8": "sc:Integer",
 }
-RECORD_FIELDS = ("delays", "labels", "clean_delays", "tof_ns", "surface", "layout", "object")
-
-
-def croissant(path: str | Path, name: str | None = None) -> dict:
-    """The Croissant description of a dataset directory (its split files must exist).
-
-    name : the dataset's name (default: the directory's name)
-    """
-    path = Path(path)
-    splits = dataset_splits(path)
-    attrs = splits["train"].attrs
-    version = attrs["dataset_version"]
-    distribution = file_objects(splits, "HDF5, one row per sample")
-    record_sets = [
-        {
-            "@type": "cr:RecordSet",
-            "@id": split,
-            "name": split,
-            "description": f"{splits[split].size} samples of the {split} split.",
-            "field": [
-                field(
-                    split,
-                    split,
-                    name,
-                    SCHEMA[name][0],
-                    ("N", *SCHEMA[name][1](splits[split].width)),
-                )
-                for name in RECORD_FIELDS
-            ],
-        }
-        for split in SPLITS
-    ]
-    return {
-        "@context": CONTEXT,
-        "@type": "sc:Dataset",
-        "conformsTo": "http://mlcommons.org/croissant/1.0",
-        "name": name or path.name,
-        "alternateName": NAME,
-        "description": DESCRIPTION,
-        "license": LICENSE_URL,
-        "url": HOMEPAGE,
-        "creator": {"@type": "sc:Organization", "name": CREATOR},
-        "datePublished": RELEASE_DATES.get(version, "1970-01-01"),
-        "version": version,
-        "citeAs": CITATION,
-        "keywords": ["LiDAR", "spiking neural networks", "temporal pulses", "synthetic data"],
-        "distribution": distribution,
-        "recordSet": record_sets,
-    }
 
 
 def file_objects(splits: dict, kind: str) -> list[dict]:
@@ -138,8 +87,8 @@ def field(
     }
 
 
-def write_croissant(path: str | Path, name: str | None = None) -> Path:
-    """Write ``croissant.json`` into a dataset directory."""
+def write_croissant(path: str | Path, document: dict) -> Path:
+    """(Re)write ``croissant.json`` of a dataset directory."""
     out = Path(path) / CROISSANT
-    out.write_text(json.dumps(croissant(path, name), indent=2) + "\n")
+    out.write_text(json.dumps(document, indent=2) + "\n")
     return out

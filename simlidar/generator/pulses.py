@@ -13,12 +13,14 @@ Conventions (``docs/sensor-model.md`` explains them):
   stays 1.0.
 * Optional delay-shift augmentation (the paper's): every return of a sample moves by the same
   ``s``; a return shifted out of (0, 1) becomes no return. Applied before noise.
-* A dataset profile (``simlidar.profiles``) may write a missing return as 0.0 instead and put
-  the noise on every pixel (:func:`profile_pulses`); the physical profile is the rule above.
+* A dataset profile (``simlidar.generator.profiles``) may write a missing return as 0.0
+  instead and put the noise on every pixel (:func:`profile_pulses`); the physical profile is
+  the rule above.
 """
 
 import numpy as np
 
+from simlidar.dataset.schema import SCHEMA
 from simlidar.sensor.vlp16 import VLP16, tof_ns
 
 NO_RETURN = 1.0
@@ -86,3 +88,16 @@ def noisy_delays(
     if noise_on == "returns" and missing_delay != NO_RETURN:  # (1.0 stays 1.0 by clipping)
         noisy = np.where(clean == np.float32(missing_delay), clean, noisy).astype(np.float32)
     return noisy
+
+
+def split_rows(samples, level: float, rule: dict) -> dict[str, np.ndarray]:
+    """The rows of a generated split (:data:`simlidar.dataset.schema.SCHEMA`) from a block of
+    simulated :class:`~simlidar.generator.simulate.Samples`: the profile's ``rule``
+    (``GeneratorConfig.pulse_rule``) and ``U(0, level)`` noise applied to the clean delays
+    (:func:`profile_pulses`; ``clean_delays`` are written under the rule too, before noise),
+    every other field as simulated."""
+    clean, noisy = profile_pulses(
+        samples.clean_delays, level, samples.noise_u, rule["missing_delay"], rule["noise_on"]
+    )
+    rows = {"delays": noisy, "clean_delays": clean}
+    return rows | {name: getattr(samples, name) for name in SCHEMA if name not in rows}

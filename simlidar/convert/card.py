@@ -1,24 +1,28 @@
 """The card (``README.md``), ``croissant.json``, preview and checksums of a converted dataset,
 made from its split files and the source's :class:`~simlidar.convert.about.About`.
 
-The generator's datasets get theirs from :mod:`simlidar.dataset.card` and
-:mod:`simlidar.dataset.croissant`; the table and Croissant helpers are shared with them.
+The generator's datasets get theirs from :mod:`simlidar.release.card` and
+:mod:`simlidar.release.croissant`; the table and Croissant helpers are shared with them.
 """
 
-import json
 from pathlib import Path
 
-import yaml
-
 from simlidar.convert.about import ABOUT
-from simlidar.dataset.about import CITATION
-from simlidar.dataset.card import _table, hf_feature, hf_front_matter, write_card
-from simlidar.dataset.checksums import write_sums
-from simlidar.dataset.croissant import CONTEXT, CROISSANT, field, file_objects
-from simlidar.dataset.h5 import CONVERTED_SCHEMAS, SPLITS, dataset_splits, load_arrays
-from simlidar.dataset.info import dataset_info
-from simlidar.dataset.preview import write_preview
+from simlidar.dataset.reader import dataset_splits, load_arrays
+from simlidar.dataset.schema import CONVERTED_SCHEMAS, SPLITS
 from simlidar.dataset.version import SOURCES
+from simlidar.generator.about import CITATION
+from simlidar.release.card import (
+    front_matter_block,
+    hf_feature,
+    hf_front_matter,
+    table,
+    write_card,
+)
+from simlidar.release.checksums import write_sums
+from simlidar.release.croissant import CONTEXT, field, file_objects, write_croissant
+from simlidar.release.info import dataset_info
+from simlidar.release.preview import write_preview
 
 # source -> (library function, its first argument), for the card's "Regenerate" section
 _CALLS = {
@@ -73,7 +77,7 @@ def _source_rows(splits: dict) -> list[list]:
     return rows
 
 
-def front_matter(path: Path) -> dict:
+def converted_front_matter(path: Path) -> dict:
     """The YAML front matter (Hugging Face dataset card metadata) of a converted dataset."""
     splits = dataset_splits(path)
     info = splits["train"]
@@ -96,7 +100,7 @@ def regenerate_call(source: str, config: dict) -> str:
     return f"from simlidar.convert import {function}\n{function}({first!r}, 'data', {args})"
 
 
-def render_card(path: str | Path) -> str:
+def converted_card(path: str | Path) -> str:
     """The whole card of a converted dataset directory, from its files alone."""
     path = Path(path)
     splits = dataset_splits(path)
@@ -106,16 +110,15 @@ def render_card(path: str | Path) -> str:
     counts = dataset_info(path)["counts"]
     version = attrs["dataset_version"]
     _, dates, notes = SOURCES[info.source]
-    meta = yaml.safe_dump(front_matter(path), sort_keys=False, allow_unicode=True, width=1000)
     sample = f"{info.height} x {info.width} float32 delays in [0, 1]"
     sections = [
-        f"---\n{meta}---\n",
+        front_matter_block(converted_front_matter(path)),
         f"# {about.name}: {len(names)} classes\n",
         "![one example per class (test split)](preview.png)\n"
         if (path / "preview.png").exists()
         else "",
         f"{about.description}\n",
-        _table(
+        table(
             ["", ""],
             [
                 ["source", f"`{info.source}` (input sha256 `{attrs['input_sha256']}`)"],
@@ -131,13 +134,13 @@ def render_card(path: str | Path) -> str:
         + "\n",
         "## Composition\n",
         f"What a value means: {about.delay_meaning}\n",
-        _table(
+        table(
             ["class", "name", *splits],
             [[k, name, *(counts[s][name] for s in splits)] for k, name in enumerate(names)],
         )
         + "\n",
         "Each split file holds these datasets (N samples, E events):\n",
-        _table(
+        table(
             ["dataset", "dtype", "shape", "meaning"],
             [
                 [f"`{name}`", dtype, _shape_text(shape, info), _DOCS[name]]
@@ -146,8 +149,8 @@ def render_card(path: str | Path) -> str:
         )
         + "\n",
         f"## Conversion\n\n{about.conversion}\n",
-        _table(["parameter", "value"], [[f"`{k}`", v] for k, v in attrs["config"].items()]) + "\n",
-        _table(["sensor", "value"], [[f"`{k}`", v] for k, v in attrs["sensor"].items()]) + "\n",
+        table(["parameter", "value"], [[f"`{k}`", v] for k, v in attrs["config"].items()]) + "\n",
+        table(["sensor", "value"], [[f"`{k}`", v] for k, v in attrs["sensor"].items()]) + "\n",
         f"## Uses\n\n{about.uses}\n\n### Out-of-scope uses\n\n{about.out_of_scope}\n",
         f"## License\n\nThe source data's: `{about.license}` ({about.license_url}); source: "
         f"{about.homepage}.\n",
@@ -158,7 +161,7 @@ def render_card(path: str | Path) -> str:
         "## Versions\n",
         "\n".join(f"* {v} ({dates.get(v, 'unreleased')}): {n}" for v, n in notes.items()) + "\n",
         "## Loading\n",
-        "```python\nfrom simlidar.data import load_split\n"
+        "```python\nfrom simlidar.dataset import load_split\n"
         f"x, y = load_split('.', 'train')  # x: (N, {info.height}, {info.width}) float32, "
         "y: (N,) int64\n```\n",
         "## Citation\n\nPlease cite the source data and the paper whose pipeline this follows:\n",
@@ -167,7 +170,7 @@ def render_card(path: str | Path) -> str:
     return "\n".join(s for s in sections if s)
 
 
-def croissant(path: str | Path, name: str | None = None) -> dict:
+def converted_croissant(path: str | Path, name: str | None = None) -> dict:
     """The Croissant 1.0 description of a converted dataset directory."""
     path = Path(path)
     splits = dataset_splits(path)
@@ -222,6 +225,6 @@ def write_release_files(path: Path, name: str, preview: bool = True) -> None:
     """Preview, ``croissant.json``, card and ``SHA256SUMS`` of a dataset whose splits exist."""
     if preview:
         write_preview(path, path / "preview.png", title=name)
-    (path / CROISSANT).write_text(json.dumps(croissant(path, name), indent=2) + "\n")
-    write_card(path)  # dispatches to render_card above by the splits' source
+    write_croissant(path, converted_croissant(path, name))
+    write_card(path, converted_card(path))
     write_sums(path)

@@ -8,7 +8,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from simlidar.dataset.h5 import load_arrays, read_split_info
+from simlidar.dataset.reader import load_arrays, read_split_info
 from simlidar.errors import DatasetError
 
 EVENT_DTYPE = np.dtype([("x", np.int64), ("y", np.int64), ("t", np.int64), ("p", np.int64)])

@@ -8,9 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from simlidar.dataset import claim
-from simlidar.dataset.claim import Temporary, clean_stale, install
-from simlidar.dataset.generate import building
+from simlidar import atomic as claim
+from simlidar.atomic import Temporary, building, clean_stale, install
 from simlidar.errors import DatasetError
 
 
@@ -181,7 +180,7 @@ def test_train_refuses_an_unwritable_out_before_training(tmp_path, datasets):
     assert result.exit_code == 1 and "cannot write there" in result.stderr
     assert "test accuracy" not in result.output  # no training happened
     nan = CliRunner().invoke(main, [*args, "--max-seconds", "nan"])
-    assert nan.exit_code == 2 and "'nan' is not a number in the range 0<=x" in nan.stderr
+    assert nan.exit_code == 2 and "'nan' is not a number in the range x>=0" in nan.stderr
     huge = CliRunner().invoke(main, [*args, "--epochs", "99999999999999999999"])
     assert huge.exit_code == 2 and "--epochs" in huge.stderr
 

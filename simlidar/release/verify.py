@@ -5,18 +5,11 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from simlidar.dataset.card import read_front_matter
-from simlidar.dataset.checksums import check_sums
-from simlidar.dataset.h5 import (
-    REQUIRED_ATTRS,
-    SPLITS,
-    _decode,
-    check_version,
-    expected_shapes,
-    split_source,
-    written_version,
-)
+from simlidar.dataset.reader import _decode, check_version, written_version
+from simlidar.dataset.schema import REQUIRED_ATTRS, SPLITS, expected_shapes, split_source
 from simlidar.errors import DatasetError
+from simlidar.release.card import read_front_matter
+from simlidar.release.checksums import check_sums
 
 _BLOCK = 65_536  # rows read at a time: memory stays flat whatever the split size
 

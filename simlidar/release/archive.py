@@ -18,10 +18,10 @@ import urllib.parse
 import urllib.request
 from pathlib import Path
 
-from simlidar.dataset.checksums import is_os_litter, is_sha256, sha256_file
-from simlidar.dataset.claim import Temporary, claim_folder
-from simlidar.dataset.verify import verify
+from simlidar.atomic import Temporary, claim_folder
 from simlidar.errors import ConfigError, DatasetError
+from simlidar.release.checksums import is_os_litter, is_sha256, sha256_file
+from simlidar.release.verify import verify
 
 DEFAULT_MAX_BYTES = 20 * 2**30  # refuse archives that unpack to more than this
 MAX_TIMEOUT_S = 86_400.0  # one day: the longest wait for the server that makes sense
@@ -211,7 +211,7 @@ def fetch(
     """Download, check, extract and verify a dataset archive; return the installed folder.
 
     The work happens in a locked temporary folder ``out/.<archive name>.fetch-<random>``
-    (:mod:`simlidar.dataset.claim`), removed at the end whatever happens; those of killed runs
+    (:mod:`simlidar.atomic`), removed at the end whatever happens; those of killed runs
     are removed by the next run in ``out`` (a warning each). ``out`` itself is removed again if
     this call created it and nothing was installed.
     """

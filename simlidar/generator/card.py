@@ -1,18 +1,22 @@
-"""The dataset card (``README.md``): Hugging Face front matter and a datasheet, made from the
-constants in :mod:`simlidar.dataset.about` and the split files' own attributes."""
+"""The generator's release files: its datasets' card (``README.md``: Hugging Face front matter
+and a datasheet) and Croissant description, made from :mod:`simlidar.generator.about` and the
+split files' own attributes."""
 
-import json
 from functools import cache
 from pathlib import Path
 
-import yaml
-
-from simlidar.dataset.about import (
+from simlidar.dataset.reader import dataset_splits
+from simlidar.dataset.schema import SCHEMA, SPLITS
+from simlidar.dataset.version import RELEASE_DATES, RELEASE_NOTES
+from simlidar.generator.about import (
     CITATION,
+    CREATOR,
     DELAY_MEANING,
     DESCRIPTION,
     DISTRIBUTION,
+    HOMEPAGE,
     LICENSE,
+    LICENSE_URL,
     MAINTENANCE,
     MOTIVATION,
     NAME,
@@ -21,13 +25,11 @@ from simlidar.dataset.about import (
     TAGS,
     USES,
 )
-from simlidar.dataset.config import GeneratorConfig
-from simlidar.dataset.h5 import SCHEMA, SPLITS, dataset_splits
-from simlidar.dataset.info import dataset_info
-from simlidar.dataset.version import GENERATOR, RELEASE_DATES, RELEASE_NOTES
-from simlidar.errors import DatasetError
+from simlidar.generator.config import GeneratorConfig
+from simlidar.release.card import front_matter_block, hf_feature, hf_front_matter, table
+from simlidar.release.croissant import CONTEXT, field, file_objects
+from simlidar.release.info import dataset_info
 
-CARD = "README.md"
 _DOCS = {  # one line per dataset of a split file; the full table is docs/dataset-format.md
     "delays": "normalised delays with noise: the network input (1.0 = no return)",
     "clean_delays": "the same pulses without noise",
@@ -44,72 +46,14 @@ _DOCS = {  # one line per dataset of a split file; the full table is docs/datase
 }
 
 
-def _size_category(n: int) -> str:
-    for limit, name in (
-        (1_000, "n<1K"),
-        (10_000, "1K<n<10K"),
-        (100_000, "10K<n<100K"),
-        (1_000_000, "100K<n<1M"),
-    ):
-        if n < limit:
-            return name
-    return "n>1M"
-
-
-def hf_feature(name: str, dtype: str, shape: tuple, class_names) -> dict:
-    """One Hugging Face ``features`` entry of a per-sample dataset; shape without N."""
-    if name == "labels":
-        names = {str(k): n for k, n in enumerate(class_names)}
-        return {"name": name, "dtype": {"class_label": {"names": names}}}
-    if len(shape) == 2:
-        return {"name": name, "array2_d": {"shape": list(shape), "dtype": dtype}}
-    if shape:
-        return {"name": name, "sequence": dtype, "length": shape[0]}
-    return {"name": name, "dtype": dtype}
-
-
-def hf_front_matter(
-    splits: dict,
-    features: list[dict],
-    license: str,
-    pretty_name: str,
-    tags: list[str],
-    config_name: str,
-) -> dict:
-    """The Hugging Face card metadata of a dataset directory's splits (generated or converted)."""
-    nbytes = {s: info.path.stat().st_size for s, info in splits.items()}
-    return {
-        "license": license,
-        "pretty_name": pretty_name,
-        "task_categories": ["image-classification"],
-        "size_categories": [_size_category(sum(i.size for i in splits.values()))],
-        "tags": list(tags),
-        "configs": [
-            {
-                "config_name": config_name,
-                "data_files": [{"split": s, "path": f"{s}.h5"} for s in SPLITS],
-            }
-        ],
-        "dataset_info": {
-            "config_name": config_name,
-            "features": features,
-            "splits": [
-                {"name": s, "num_bytes": nbytes[s], "num_examples": splits[s].size} for s in SPLITS
-            ],
-            "download_size": sum(nbytes.values()),  # the split files
-            "dataset_size": sum(nbytes.values()),
-        },
-    }
-
-
-def front_matter(path: Path) -> dict:
+def generated_front_matter(path: Path) -> dict:
     """The YAML front matter (Hugging Face dataset card metadata) of a dataset directory."""
     splits = dataset_splits(path)
     attrs = splits["train"].attrs
     width = splits["train"].width
     features = [
         hf_feature(name, dtype, tail(width), attrs["class_names"])
-        for name, (dtype, tail, _) in SCHEMA.items()
+        for name, (dtype, tail) in SCHEMA.items()
     ]
     config = GeneratorConfig.from_dict(attrs["config"])
     title = f"{NAME}, {attrs['classes']} classes, noise {attrs['noise']}"
@@ -140,7 +84,7 @@ def _shipped_catalog_sha256() -> str:
 
 def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
     """The command that writes this dataset again, bit for bit (or the Python equivalent)."""
-    from simlidar.profiles import load_profile, profile_names
+    from simlidar.generator.profiles import load_profile, profile_names
 
     default = GeneratorConfig()
     cli_fields = {
@@ -161,8 +105,8 @@ def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
     )
     if not shipped or any(config.to_dict()[k] != default.to_dict()[k] for k in other):
         return (
-            "from simlidar.dataset.config import GeneratorConfig\n"
-            "from simlidar.dataset.generate import generate\n"
+            "from simlidar.generator.config import GeneratorConfig\n"
+            "from simlidar.generator.generate import generate\n"
             "from simlidar.scene.recipe import load_catalog\n"
             f"config = GeneratorConfig.from_dict({config.to_dict()!r})\n"
             f"generate(config, [{config.noise!r}], load_catalog(CATALOG), 'data')"
@@ -220,20 +164,10 @@ def _missing_meaning(config: GeneratorConfig) -> str:
     )
 
 
-def _table(header: list[str], rows: list[list]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
-    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
-    return "\n".join(lines)
-
-
-def render_card(path: str | Path) -> str:
+def generated_card(path: str | Path) -> str:
     """The whole card of a dataset directory, from its files alone."""
     path = Path(path)
     splits = dataset_splits(path)
-    if splits["train"].source != GENERATOR:  # converted real data: its own card
-        from simlidar.convert.release import render_card as render_converted
-
-        return render_converted(path)
     attrs = splits["train"].attrs
     config = GeneratorConfig.from_dict(attrs["config"])
     names = attrs["class_names"]
@@ -241,16 +175,15 @@ def render_card(path: str | Path) -> str:
     catalog = attrs["catalog"]
     sensor = attrs["sensor"]
     version = attrs["dataset_version"]
-    meta = yaml.safe_dump(front_matter(path), sort_keys=False, allow_unicode=True, width=1000)
     width = splits["train"].width
     sections = [
-        f"---\n{meta}---\n",
+        front_matter_block(generated_front_matter(path)),
         f"# {NAME}: {len(names)} classes, noise {attrs['noise']}\n",
         "![one example per class (test split)](preview.png)\n"
         if (path / "preview.png").exists()
         else "",
         f"{DESCRIPTION}\n",
-        _table(
+        table(
             ["", ""],
             [
                 ["dataset version", version],
@@ -267,17 +200,17 @@ def render_card(path: str | Path) -> str:
         f"## Motivation\n\n{MOTIVATION}\n",
         "## Composition\n",
         f"What a value means: {DELAY_MEANING}{_missing_meaning(config)}\n",
-        _table(
+        table(
             ["class", "name", *splits],
             [[k, name, *(counts[s][name] for s in splits)] for k, name in enumerate(names)],
         )
         + "\n",
         "Each split file holds these datasets (N samples):\n",
-        _table(
+        table(
             ["dataset", "dtype", "shape", "meaning"],
             [
                 [f"`{name}`", dtype, str(("N", *tail(width))).replace("'", ""), _DOCS[name]]
-                for name, (dtype, tail, _) in SCHEMA.items()
+                for name, (dtype, tail) in SCHEMA.items()
             ],
         )
         + "\n",
@@ -285,7 +218,7 @@ def render_card(path: str | Path) -> str:
         "A simulated Velodyne VLP-16 ray-casts (Embree) into procedurally built road scenes. "
         "Each pixel is the centre firing of its azimuth bin; see simlidar's "
         "`docs/sensor-model.md`.\n",
-        _table(
+        table(
             ["sensor parameter", "value"],
             [
                 [f"`{k}`", v if not isinstance(v, list) else ", ".join(map(str, v))]
@@ -332,7 +265,7 @@ def render_card(path: str | Path) -> str:
         )
         + "\n",
         "## Loading\n",
-        "```python\nfrom simlidar.data import load_split\n"
+        "```python\nfrom simlidar.dataset import load_split\n"
         "x, y = load_split('.', 'train')  # x: (N, 16, W) float32, y: (N,) int64\n```\n",
         "## Citation\n\nPlease cite the paper whose dataset this rebuilds:\n",
         f"```bibtex\n{CITATION}\n```\n",
@@ -340,33 +273,52 @@ def render_card(path: str | Path) -> str:
     return "\n".join(s for s in sections if s)
 
 
-def write_card(path: str | Path) -> Path:
-    """(Re)write ``README.md`` of a dataset directory from its files."""
-    card = Path(path) / CARD
-    text = render_card(path)
-    tmp = card.with_name(f".{CARD}.tmp")
-    tmp.write_text(text)
-    tmp.replace(card)
-    return card
+RECORD_FIELDS = ("delays", "labels", "clean_delays", "tof_ns", "surface", "layout", "object")
 
 
-def read_front_matter(path: str | Path) -> dict:
-    """The YAML front matter of a dataset's card; DatasetError when missing or malformed."""
-    card = Path(path) / CARD
-    if not card.is_file():
-        raise DatasetError(f"{card}: missing (expected the dataset card)")
-    try:
-        text = card.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        message = f"{card}: not UTF-8 text ({exc.reason} at byte {exc.start})"
-        raise DatasetError(f"{message}; expected the dataset card in UTF-8") from None
-    if not text.startswith("---\n") or "\n---\n" not in text[3:]:
-        raise DatasetError(f"{card}: expected YAML front matter between '---' lines at the top")
-    try:
-        meta = yaml.safe_load(text[4 : text.index("\n---\n", 3)])
-    except yaml.YAMLError as exc:
-        message = f"{card}: malformed YAML front matter ({exc})".replace("\n", " ")
-        raise DatasetError(message) from None
-    if not isinstance(meta, dict) or "dataset_info" not in meta:
-        raise DatasetError(f"{card}: front matter without dataset_info")
-    return json.loads(json.dumps(meta))  # plain types only
+def generated_croissant(path: str | Path, name: str | None = None) -> dict:
+    """The Croissant description of a dataset directory (its split files must exist).
+
+    name : the dataset's name (default: the directory's name)
+    """
+    path = Path(path)
+    splits = dataset_splits(path)
+    attrs = splits["train"].attrs
+    version = attrs["dataset_version"]
+    distribution = file_objects(splits, "HDF5, one row per sample")
+    record_sets = [
+        {
+            "@type": "cr:RecordSet",
+            "@id": split,
+            "name": split,
+            "description": f"{splits[split].size} samples of the {split} split.",
+            "field": [
+                field(
+                    split,
+                    split,
+                    name,
+                    SCHEMA[name][0],
+                    ("N", *SCHEMA[name][1](splits[split].width)),
+                )
+                for name in RECORD_FIELDS
+            ],
+        }
+        for split in SPLITS
+    ]
+    return {
+        "@context": CONTEXT,
+        "@type": "sc:Dataset",
+        "conformsTo": "http://mlcommons.org/croissant/1.0",
+        "name": name or path.name,
+        "alternateName": NAME,
+        "description": DESCRIPTION,
+        "license": LICENSE_URL,
+        "url": HOMEPAGE,
+        "creator": {"@type": "sc:Organization", "name": CREATOR},
+        "datePublished": RELEASE_DATES.get(version, "1970-01-01"),
+        "version": version,
+        "citeAs": CITATION,
+        "keywords": ["LiDAR", "spiking neural networks", "temporal pulses", "synthetic data"],
+        "distribution": distribution,
+        "recordSet": record_sets,
+    }

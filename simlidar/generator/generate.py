@@ -8,8 +8,6 @@ on any failure the temporary folders are removed and nothing appears under a fin
 """
 
 import json
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,20 +15,23 @@ import h5py
 import numpy as np
 
 from simlidar import __version__
-from simlidar.dataset.card import write_card
-from simlidar.dataset.checksums import write_sums
-from simlidar.dataset.claim import Temporary, claim_folder, install
-from simlidar.dataset.config import GeneratorConfig
-from simlidar.dataset.croissant import write_croissant
-from simlidar.dataset.h5 import SPLITS, SplitWriter
-from simlidar.dataset.preview import write_preview
+from simlidar.atomic import Temporary, claim_folder, install
+from simlidar.dataset.schema import SHUFFLED, SPLITS, generated_shapes
 from simlidar.dataset.version import dataset_version
+from simlidar.dataset.writer import SplitWriter
 from simlidar.errors import DatasetError
+from simlidar.generator.card import generated_card, generated_croissant
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.pulses import split_rows
+from simlidar.generator.simulate import class_plan, simulate
+from simlidar.release.card import write_card
+from simlidar.release.checksums import write_sums
+from simlidar.release.croissant import write_croissant
+from simlidar.release.preview import write_preview
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.raycast import MAX_BATCH
 from simlidar.sensor.rays import column_centres_deg
 from simlidar.sensor.vlp16 import row_order
-from simlidar.simulate import class_plan, simulate
 
 
 @dataclass(frozen=True)
@@ -41,7 +42,7 @@ class Written:
     splits: dict[str, int]
 
 
-def dataset_name(config: GeneratorConfig) -> str:
+def generated_name(config: GeneratorConfig) -> str:
     """``simlidar-<classes>c-noise<level>-<profile>[-var<v>][-shift<s>]-v<version>``, numbers
     as Python's repr (0.2, 0.33); ``-var`` and ``-shift`` name values that differ from the
     profile's own."""
@@ -54,7 +55,7 @@ def dataset_name(config: GeneratorConfig) -> str:
     )
 
 
-def split_attrs(config: GeneratorConfig, catalog: Catalog, split: str) -> dict:
+def generated_split_attrs(config: GeneratorConfig, catalog: Catalog, split: str) -> dict:
     """The attributes of one split file (documented in docs/dataset-format.md)."""
     plan = class_plan(catalog, config.classes)
     sensor = config.sensor
@@ -110,7 +111,7 @@ def generate(
     configs = [config.with_noise(level) for level in noise_levels]
     class_plan(catalog, config.classes)  # fail before touching the disk
     out = Path(out)
-    finals = [out / dataset_name(c) for c in configs]
+    finals = [out / generated_name(c) for c in configs]
     if len(set(finals)) != len(finals):
         raise DatasetError(f"noise levels {noise_levels}: expected distinct levels")
     existing = [str(f) for f in finals if f.exists()]
@@ -132,17 +133,14 @@ def generate(
             size = config.split_sizes[split]
             writers = []
             for cfg, temp in zip(configs, temps):
-                attrs = split_attrs(cfg, catalog, split)
-                writers.append(
-                    SplitWriter(
-                        temp / f"{split}.h5", size, cfg.width, cfg.noise, attrs, cfg.pulse_rule
-                    )
-                )
+                attrs = generated_split_attrs(cfg, catalog, split)
+                shapes = generated_shapes(cfg.width)
+                writers.append(SplitWriter(temp / f"{split}.h5", size, shapes, attrs, SHUFFLED))
             for start in range(0, size, batch_size):
                 stop = min(start + batch_size, size)
                 samples = simulate(config, catalog, split, start, stop)
-                for writer in writers:
-                    writer.append(samples)
+                for cfg, writer in zip(configs, writers):
+                    writer.append(split_rows(samples, cfg.noise, cfg.pulse_rule))
                 bar.update(stop - start)
             for writer in writers:
                 writer.close()
@@ -150,8 +148,8 @@ def generate(
         for temp, final in zip(temps, finals):
             if preview:
                 write_preview(temp, temp / "preview.png", title=final.name)
-            write_croissant(temp, name=final.name)
-            write_card(temp)
+            write_croissant(temp, generated_croissant(temp, final.name))
+            write_card(temp, generated_card(temp))
             write_sums(temp)
         for claim, final in zip(claims, finals):
             install(claim, final, force)
@@ -167,28 +165,3 @@ def generate(
         if created and out.is_dir() and not any(out.iterdir()):
             out.rmdir()
     return [Written(f, c.noise, c.classes, dict(c.split_sizes)) for f, c in zip(finals, configs)]
-
-
-@contextmanager
-def building(out: str | Path, name: str, force: bool = False) -> Iterator[Path]:
-    """A hidden locked folder ``out/.<name>.partial-<random>`` (:mod:`simlidar.dataset.claim`)
-    to build a dataset in; it becomes ``out/<name>`` when the block ends without error and is
-    removed on any error (with ``out`` too, if this call created it and it is left empty). An
-    existing ``out/<name>`` stops the build before anything is written, unless ``force``: then
-    it is replaced only at the end, in one step.
-
-    Used by the converters (``simlidar.convert``); :func:`generate` builds several at once.
-    """
-    out = Path(out)
-    final = out / name
-    if final.exists() and not force:
-        raise DatasetError(f"{final} already exists: pass --force to overwrite it")
-    created = claim_folder(out)
-    claim = Temporary(out, name)
-    try:
-        yield claim.path
-        install(claim, final, force)
-    finally:
-        claim.release()
-        if created and out.is_dir() and not any(out.iterdir()):
-            out.rmdir()

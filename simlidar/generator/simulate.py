@@ -10,9 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simlidar.dataset.config import GeneratorConfig
 from simlidar.errors import ConfigError, SimlidarError
-from simlidar.pulses import delays_from_range, quantise_range, shift_delays
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.pulses import delays_from_range, quantise_range, shift_delays
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.raycast import MAX_BATCH, cast

@@ -4,8 +4,8 @@ from pathlib import Path
 
 import numpy as np
 
-from simlidar.dataset.claim import write_file
-from simlidar.dataset.h5 import dataset_splits, load_arrays
+from simlidar.atomic import write_file
+from simlidar.dataset.reader import dataset_splits, load_arrays
 from simlidar.dataset.version import GENERATOR
 
 

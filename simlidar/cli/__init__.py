@@ -1,0 +1,36 @@
+"""The ``simlidar`` command line, one module per stage (``docs/architecture.md``). The only
+package that imports click.
+
+User mistakes end in one line on stderr: exit code 2 for a bad option value (usage, including a
+bad model recipe given to --model), 1 for anything else (a bad scene recipe, a path that is not
+a dataset, an existing dataset, ...). ``--debug`` shows the traceback instead.
+"""
+
+import warnings
+
+import click
+
+from simlidar import __version__
+from simlidar.cli.convert import convert
+from simlidar.cli.generate import generate, profiles, scenes
+from simlidar.cli.options import Group
+from simlidar.cli.release import card, fetch, info, pack, preview, verify
+from simlidar.cli.training import bench, train
+
+
+@click.group(cls=Group)
+@click.version_option(__version__, prog_name="simlidar")
+@click.option("--debug", is_flag=True, help="Show tracebacks instead of one-line errors.")
+@click.pass_context
+def main(ctx: click.Context, debug: bool) -> None:
+    """simlidar: synthetic VLP-16 temporal-pulse datasets (Sim LiDAR) and benchmarks."""
+    ctx.meta["debug"] = debug
+    if not debug:  # warnings as one line each, without the source line
+        warnings.showwarning = lambda message, *args, **kwargs: click.echo(
+            f"Warning: {message}", err=True
+        )
+
+
+for command in (generate, profiles, scenes, info, preview, card, verify, pack, fetch, train, bench,
+                convert):  # fmt: skip
+    main.add_command(command)

@@ -1,0 +1,199 @@
+"""``simlidar generate``, ``profiles`` and ``scenes``: making datasets."""
+
+import json
+import time
+from pathlib import Path
+
+import click
+
+from simlidar.cli.options import (
+    NoiseLevels,
+    OutFolder,
+    load_scene_catalog,
+    scenes_option,
+    setting_option,
+)
+from simlidar.errors import ConfigError
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.profiles import DEFAULT_PROFILE
+from simlidar.sensor.raycast import MAX_BATCH
+from simlidar.settings import help_of
+
+
+@click.command()
+@setting_option(GeneratorConfig, "classes")
+@setting_option(
+    GeneratorConfig,
+    "noise",
+    type=NoiseLevels(),
+    default=str(GeneratorConfig.noise),
+    help=help_of(GeneratorConfig, "noise")[:-1] + "; a comma-separated list writes one dataset "
+    "per level, with the same scenes.",
+)
+@setting_option(GeneratorConfig, "train_size")
+@setting_option(GeneratorConfig, "test_size")
+@setting_option(GeneratorConfig, "seed")
+@click.option(
+    "--profile",
+    default=None,
+    help="Dataset profile: a name in profiles/ (paper, physical) or a .toml file; see "
+    f"`simlidar profiles`. [default: {DEFAULT_PROFILE}]",
+)
+@setting_option(
+    GeneratorConfig,
+    "shift_max",
+    "--shift",
+    "shift",
+    default=None,
+    help=help_of(GeneratorConfig, "shift_max")
+    + " Overrides the profile's value (named in the dataset's name).",
+)
+@setting_option(
+    GeneratorConfig,
+    "variation",
+    default=None,
+    help=help_of(GeneratorConfig, "variation")
+    + " Overrides the profile's value (named in the dataset's name).",
+)
+@click.option(
+    "--out",
+    type=OutFolder(),
+    default=Path("data"),
+    show_default=True,
+    help="Folder that receives the dataset directories.",
+)
+@setting_option(GeneratorConfig, "width")
+@scenes_option
+@click.option(
+    "--batch-size",
+    type=click.IntRange(1, MAX_BATCH),
+    default=1024,
+    show_default=True,
+    help="Samples ray-cast together (does not change the data).",
+)
+@click.option("--force", is_flag=True, help="Overwrite existing datasets.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+def generate(
+    classes,
+    noise,
+    train_size,
+    test_size,
+    seed,
+    profile,
+    shift,
+    variation,
+    out,
+    width,
+    scenes,
+    batch_size,
+    force,
+    as_json,
+):
+    """Generate Sim LiDAR datasets: per noise level, train/test splits (HDF5), a preview
+    picture, the dataset card, Croissant metadata and checksums.
+
+    The profile (default: paper) decides the scene variation, the delay shift, what a missing
+    return is written as and which pixels get the noise. --variation and --shift override its
+    values; the dataset's name then says so (docs/profiles.md)."""
+    from simlidar.generator.generate import generate as run
+    from simlidar.generator.profiles import load_profile
+    from simlidar.generator.simulate import class_plan
+
+    try:
+        chosen = load_profile(profile if profile is not None else DEFAULT_PROFILE)
+    except ConfigError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--profile'") from None
+    for option, value, own in (
+        ("--variation", variation, chosen.variation),
+        ("--shift", shift, chosen.shift),
+    ):
+        if value is not None and value != own:
+            click.echo(
+                f"Note: {option} {value!r} overrides profile {chosen.name}'s {own!r}", err=True
+            )
+    catalog = load_scene_catalog(scenes)
+    try:
+        class_plan(catalog, classes)
+    except ConfigError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--classes'") from None
+    config = GeneratorConfig.from_profile(
+        chosen,
+        variation=variation,
+        shift_max=shift,
+        classes=classes,
+        noise=noise[0],
+        train_size=train_size,
+        test_size=test_size,
+        seed=seed,
+        width=width,
+    )
+    start = time.perf_counter()
+    written = run(config, noise, catalog, out, batch_size=batch_size, force=force)
+    seconds = time.perf_counter() - start
+    if as_json:
+        record = {
+            "datasets": [
+                {"path": str(w.path), "noise": w.noise, "classes": w.classes, "splits": w.splits}
+                for w in written
+            ],
+            "seconds": round(seconds, 3),
+        }
+        click.echo(json.dumps(record))
+    else:
+        for w in written:
+            click.echo(
+                f"wrote {w.path} (train {w.splits['train']}, test {w.splits['test']}, "
+                f"noise {w.noise:g}) and its preview.png"
+            )
+        click.echo(f"done in {seconds:.1f} s")
+
+
+@click.command()
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+def profiles(as_json):
+    """List the shipped dataset profiles and their values (docs/profiles.md)."""
+    from simlidar.generator.profiles import DEFAULT_PROFILE, load_profile, profile_names
+
+    shipped = [load_profile(name).to_dict() for name in profile_names()]
+    if as_json:
+        click.echo(json.dumps({"default": DEFAULT_PROFILE, "profiles": shipped}))
+        return
+    for p in shipped:
+        default = " (default)" if p["name"] == DEFAULT_PROFILE else ""
+        click.echo(f"{p['name']}{default}: {p['description']}")
+        click.echo(
+            f"  variation {p['variation']!r}, shift {p['shift']!r}, missing return "
+            f"{p['missing_delay']!r}, noise on {p['noise_on']}, input spikes: "
+            f"{p['spikes']}"
+        )
+
+
+@click.command()
+@scenes_option
+@click.option(
+    "--export",
+    "export_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="Write one sampled scene per layout x object into this folder.",
+)
+@click.option(
+    "--format", "fmt", type=click.Choice(["glb", "ply"]), default="glb", show_default=True
+)
+@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
+def scenes(scenes, export_dir, fmt, seed):
+    """List the scene catalog, or export sampled scenes as mesh files."""
+    catalog = load_scene_catalog(scenes)
+    click.echo(f"scene catalog {catalog.root} (sha256 {catalog.fingerprint()[:12]})")
+    click.echo(f"layouts ({len(catalog.layouts)}):")
+    for k, r in enumerate(catalog.layouts):
+        click.echo(f"  {k}  {r.name:<18} {len(r.params):2d} params  {r.description}")
+    click.echo(f"objects ({len(catalog.objects)}):")
+    for k, r in enumerate(catalog.objects):
+        click.echo(f"  {k}  {r.name:<18} {len(r.params):2d} params  {r.description}")
+    click.echo(f"surfaces: {', '.join(catalog.surfaces)}")
+    if export_dir is not None:
+        from simlidar.scene.export import export_scenes
+
+        paths = export_scenes(catalog, export_dir, seed=seed, fmt=fmt)
+        click.echo(f"wrote {len(paths)} scenes to {export_dir}")

@@ -1,0 +1,147 @@
+"""What every command shares: one-line errors with the right exit code, option types, and
+options made from the settings' dataclass fields (:mod:`simlidar.settings`).
+
+User mistakes end in one line on stderr: exit code 2 for a bad option value (usage, including a
+bad model recipe given to --model), 1 for anything else (a bad scene recipe, a path that is not
+a dataset, an existing dataset, ...). ``--debug`` shows the traceback instead.
+"""
+
+import sys
+from pathlib import Path
+
+import click
+
+from simlidar.errors import ConfigError, SimlidarError
+
+_NO_ARGS = getattr(click.exceptions, "NoArgsIsHelpError", ())  # click >= 8.2
+
+
+class Group(click.Group):
+    """Turns library errors into one-line messages with the right exit code."""
+
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except ConfigError as exc:
+            if ctx.meta.get("debug"):
+                raise
+            raise click.UsageError(str(exc)) from None  # exit 2, one line
+        except (SimlidarError, OSError) as exc:  # OSError: permissions, full disk, ...
+            if ctx.meta.get("debug"):
+                raise
+            click.echo(f"Error: {exc}", err=True)
+            ctx.exit(1)
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        """As click's, but a usage error is the one line "Error: ..." (exit 2), without
+        click's usage and "Try --help" lines: the message already names the option."""
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, False, **extra)
+        try:
+            code = super().main(args, prog_name, complete_var, False, **extra)
+        except _NO_ARGS as exc:  # `simlidar` alone: the help, as click shows it
+            exc.show()
+            sys.exit(exc.exit_code)
+        except click.UsageError as exc:
+            click.echo(f"Error: {exc.format_message()}", err=True)
+            sys.exit(exc.exit_code)
+        except click.ClickException as exc:
+            exc.show()
+            sys.exit(exc.exit_code)
+        except click.Abort:
+            click.echo("Aborted!", err=True)
+            sys.exit(1)
+        sys.exit(code if isinstance(code, int) else 0)
+
+
+class NoiseLevels(click.ParamType):
+    """A comma-separated list of noise levels in [0, 1], e.g. ``0.1,0.2,0.33,0.5``."""
+
+    name = "LEVELS"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, list):
+            return value
+        levels = []
+        for part in str(value).split(","):
+            try:
+                level = float(part)
+            except ValueError:
+                self.fail(f"{part!r} is not a number; expected levels like 0.1,0.2", param, ctx)
+            if not 0.0 <= level <= 1.0:
+                self.fail(
+                    f"{level:g} is outside [0, 1]; expected noise levels in [0, 1]", param, ctx
+                )
+            levels.append(level)
+        if len(set(levels)) != len(levels):
+            self.fail(f"{value!r} repeats a level; expected distinct levels", param, ctx)
+        return levels
+
+
+class FiniteRange(click.FloatRange):
+    """A FloatRange that also refuses nan (which compares False with both bounds)."""
+
+    def convert(self, value, param, ctx):
+        number = super().convert(value, param, ctx)
+        if number != number:
+            self.fail(
+                f"{value!r} is not a number in the range {self._describe_range()}.", param, ctx
+            )
+        return number
+
+
+class OutFolder(click.Path):
+    """An --out folder: not an empty string, which would silently mean the current folder."""
+
+    def __init__(self):
+        super().__init__(file_okay=False, path_type=Path)
+
+    def convert(self, value, param, ctx):
+        if value == "":
+            self.fail("'' is empty; expected a folder name ('.': the current one)", param, ctx)
+        return super().convert(value, param, ctx)
+
+
+scenes_option = click.option(
+    "--scenes",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Scene catalog folder (default: the one shipped with simlidar).",
+)
+
+
+def load_scene_catalog(scenes):
+    from simlidar.scene.recipe import load_catalog
+
+    return load_catalog(scenes)
+
+
+def click_type(rule):
+    """The click type that accepts what a setting's rule accepts (None: click's default)."""
+    from simlidar.settings import Choice, Range
+
+    if isinstance(rule, Choice):
+        return click.Choice([str(v) for v in rule.values])
+    if not isinstance(rule, Range):
+        return None
+    kind = click.IntRange if rule.integer else FiniteRange
+    return kind(rule.low, rule.high, min_open=rule.low_open, max_open=rule.high_open)
+
+
+def setting_option(cls, name: str, *decls: str, **overrides):
+    """A click option made from the settings field ``cls.<name>`` (:mod:`simlidar.settings`):
+    its default, its help text and a type accepting what the field accepts; ``overrides``
+    replace any of them (e.g. ``default=None`` where the value comes from elsewhere)."""
+    from simlidar.settings import default_of, help_of, rule_of
+
+    flags = decls or (f"--{name.replace('_', '-')}",)
+    options = {
+        "type": click_type(rule_of(cls, name)),
+        "default": default_of(cls, name),
+        "show_default": True,
+        "help": help_of(cls, name),
+    }
+    options.update(overrides)
+    if options["default"] is None:
+        options["show_default"] = False
+    return click.option(*flags, **options)

@@ -1,0 +1,214 @@
+"""``simlidar train`` and ``bench``: models trained and scored on datasets."""
+
+import json
+from pathlib import Path
+
+import click
+
+from simlidar.cli.options import setting_option
+from simlidar.errors import ConfigError, SimlidarError
+from simlidar.models.training import TrainingConfig
+from simlidar.settings import help_of
+
+MAX_EPOCHS = 10**6
+
+
+def _need_torch(command: str) -> None:
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise SimlidarError(
+            f"simlidar {command} needs PyTorch: pip install 'simlidar[torch]' (or torch itself)"
+        ) from None
+
+
+def _override(name: str, **options):
+    """An option that overrides the recipe's (or suite's) TrainingConfig value ``name``."""
+    what = help_of(TrainingConfig, name)
+    return setting_option(
+        TrainingConfig, name, default=None, help=f"Override: {what[0].lower()}{what[1:]}", **options
+    )
+
+
+_selection_options = [
+    _override("validation"),
+    _override("patience", type=click.IntRange(1, MAX_EPOCHS)),
+]
+
+
+def _selection(command):
+    for option in reversed(_selection_options):
+        command = option(command)
+    return command
+
+
+@click.command()
+@click.option(
+    "--model",
+    "model",
+    required=True,
+    help="Model recipe: a name in baselines/ (snn_simlidar, ...) or a .toml file.",
+)
+@click.option(
+    "--dataset",
+    type=click.Path(path_type=Path),
+    required=True,
+    help="Dataset directory in the simlidar schema.",
+)
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("runs"),
+    show_default=True,
+    help="Folder for the checkpoint.",
+)
+@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
+@_override("epochs", type=click.IntRange(1, MAX_EPOCHS))
+@_override("max_seconds")
+@_selection
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, as_json):
+    """Train a model on a dataset's train split, keep the epoch with the best accuracy on a
+    held-out validation part of it, score that once on the test split, save a checkpoint."""
+    _need_torch("train")
+    from simlidar.bench.train import check_writable, save_checkpoint
+    from simlidar.bench.train import train as run
+    from simlidar.models.registry import load_recipe
+    from simlidar.release.verify import check_trainable
+
+    recipe = load_recipe(model)
+    given = {"validation": validation, "patience": patience}
+    recipe["training"].update({k: v for k, v in given.items() if v is not None})
+    check_trainable(dataset)  # a sound dataset, or a one-line error
+    check_writable(out)  # before training, not after
+    result = run(recipe, dataset, seed=seed, epochs=epochs, max_seconds=max_seconds)
+    path = save_checkpoint(result, out / f"{recipe['name']}-seed{seed}.pt")
+    record = {
+        "model": recipe["name"],
+        "dataset": str(dataset),
+        "seed": seed,
+        "test_accuracy": round(result.test_accuracy, 4),
+        "epochs": result.epochs,
+        **result.selection(),
+        "seconds": round(result.seconds, 1),
+        "checkpoint": str(path),
+    }
+    if result.model.event_driven:  # how early the spiking network decides
+        from simlidar.bench.early import early_decisions
+
+        record["early"] = early_decisions(result.model, dataset)
+    if as_json:
+        click.echo(json.dumps(record))
+        return
+    chosen = (
+        f"epoch {result.best_epoch + 1} of {result.epochs} kept (best validation "
+        f"accuracy of {result.validation_size} held-out samples)"
+        if result.validation_size
+        else f"{result.epochs} epochs, no validation"
+    )
+    why = {
+        "plateau": "stopped on a validation plateau",
+        "epochs": "ran every epoch",
+        "time": "stopped by the time cap",
+    }[result.stopped]
+    click.echo(
+        f"{recipe['name']}: test accuracy {result.test_accuracy:.4f}, {chosen}, {why}, "
+        f"{result.seconds:.0f} s; wrote {path}"
+    )
+    if "early" in record:
+        from simlidar.bench.early import format_early
+
+        click.echo(format_early(record["early"]))
+
+
+@click.command()
+@click.option(
+    "--suite",
+    default="quick",
+    show_default=True,
+    help="Suite: a name in benchmark/ (quick, paper) or a .toml file.",
+)
+@click.option(
+    "--models",
+    default=None,
+    help="Comma-separated model recipes to run instead of the suite's (e.g. snn_simlidar,cnn).",
+)
+@click.option(
+    "--dataset",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Run the suite's models on this dataset directory instead of the suite's datasets.",
+)
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="Output directory (default: bench/<suite name>).",
+)
+@_override("epochs", type=click.IntRange(1, MAX_EPOCHS))
+@_override("max_seconds")
+@_selection
+@click.option(
+    "--remeasure",
+    is_flag=True,
+    help="Measure the finished cells of --out again from their checkpoints (no training).",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print results.json's content on stdout.")
+def bench(
+    suite, models, dataset, out, epochs, max_seconds, validation, patience, remeasure, as_json
+):
+    """Train and score the suite's models on its datasets: accuracy, how early spiking networks
+    decide, energy, latency, size. Writes results.json, report.md and pictures; a rerun into
+    the same directory skips the cells already finished."""
+    _need_torch("bench")
+    from simlidar.bench.run import run_suite
+    from simlidar.bench.suite import load_suite
+
+    try:
+        chosen = load_suite(suite)
+    except ConfigError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--suite'") from None
+    names = None
+    if models is not None:
+        from simlidar.models.registry import load_recipe
+
+        names = [m.strip() for m in models.split(",") if m.strip()]
+        try:
+            for name in names or [models]:
+                load_recipe(name)
+        except ConfigError as exc:
+            raise click.BadParameter(str(exc), param_hint="'--models'") from None
+    chosen = chosen.with_budget(
+        epochs=epochs, max_seconds=max_seconds, validation=validation, patience=patience
+    )
+    out = out if out is not None else Path("bench") / chosen.name
+    if remeasure:
+        given = {
+            "--models": models,
+            "--dataset": dataset,
+            "--epochs": epochs,
+            "--max-seconds": max_seconds,
+            "--validation": validation,
+            "--patience": patience,
+        }
+        extra = [name for name, value in given.items() if value is not None]
+        if extra:
+            raise click.UsageError(
+                f"--remeasure re-measures the finished cells of --out as they "
+                f"were trained; expected no {extra[0]}"
+            )
+        from simlidar.bench.run import remeasure as run_remeasure
+
+        results = run_remeasure(out, chosen, progress=not as_json)
+    else:
+        results = run_suite(chosen, out, models=names, dataset=dataset, progress=not as_json)
+    if as_json:
+        click.echo(json.dumps(results))
+        return
+    click.echo(f"{len(results['cells'])} cells in {out}: results.json, report.md")
+    width = max((len(cell["model"]) for cell in results["cells"]), default=0)
+    for cell in results["cells"]:
+        click.echo(
+            f"  {cell['dataset']}  {cell['model']:<{width}}  seed {cell['seed']}  accuracy "
+            f"{cell['accuracy']:.4f}  latency {cell['latency_ms']:.2f} ms"
+        )

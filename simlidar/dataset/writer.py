@@ -1,0 +1,124 @@
+"""Writing split files: a streaming HDF5 writer whose bytes do not depend on how rows arrive.
+
+Files are written deterministically: no timestamps, fixed chunking, gzip (level 1), shuffle
+where it pays. Level 1 because the noisy delays barely compress and higher levels cost time
+for ~1 %.
+"""
+
+import os
+from contextlib import contextmanager
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from simlidar.dataset.schema import CHUNK_SAMPLES
+from simlidar.errors import DatasetError
+
+
+class SplitWriter:
+    """Appends blocks of rows to the datasets of one HDF5 file; peak memory is a block plus
+    one chunk.
+
+    shapes : name -> (dtype, trailing shape); every dataset gets ``size`` rows
+    Rows are written one whole chunk at a time, every dataset in turn, so the file's layout
+    (and therefore its bytes) does not depend on the size of the blocks handed in.
+
+    Write errors (a full disk) surface at the write that failed, as a DatasetError naming the
+    file and the cause: HDF5's chunk cache is off (``rdcc_nbytes=0``; whole chunks are
+    written, so it saved nothing, and the bytes are the same), and the dataset handles are
+    held open. With the cache on, a failed write surfaced only when a cached chunk was evicted
+    inside a handle's deallocation, where h5py can only print it: generation went on for
+    seconds, printing thousands of tracebacks, and crashed at close. After an error,
+    :meth:`abort` closes the file without raising.
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        size: int,
+        shapes: dict[str, tuple[str, tuple]],
+        attrs: dict,
+        shuffled: frozenset[str] = frozenset(),
+    ):
+        self.size = size
+        self.chunk = min(CHUNK_SAMPLES, size)
+        self.written = 0
+        self.pending: dict[str, list[np.ndarray]] = {name: [] for name in shapes}
+        self.path = Path(path)
+        self.file = h5py.File(
+            path, "w", libver=("earliest", "v110"), track_order=False, rdcc_nbytes=0
+        )
+        self.datasets = {}
+        for name, (dtype, tail) in shapes.items():
+            shape = (size, *tail)
+            self.datasets[name] = self.file.create_dataset(
+                name,
+                shape=shape,
+                dtype=dtype,
+                chunks=(self.chunk, *shape[1:]),
+                compression="gzip",
+                compression_opts=1,
+                shuffle=name in shuffled,
+                track_times=False,
+            )
+        for key, value in attrs.items():
+            self.file.attrs[key] = value
+
+    def append(self, block: dict[str, np.ndarray]) -> None:
+        """Add the next rows (in file order): one array per dataset, equally long."""
+        for name in self.pending:
+            self.pending[name].append(block[name])
+        first = next(iter(self.pending))
+        ready = sum(len(v) for v in self.pending[first])
+        while ready >= self.chunk or (ready and self.written + ready == self.size):
+            rows = min(self.chunk, ready)
+            for name, parts in self.pending.items():
+                block = np.concatenate(parts)
+                with self._failing():
+                    self.datasets[name][self.written : self.written + rows] = block[:rows]
+                self.pending[name] = [block[rows:]]
+            self.written += rows
+            ready -= rows
+
+    def add_rows(self, name: str, values: np.ndarray, dtype: str, chunk: int = 65_536) -> None:
+        """A whole dataset with its own number of rows (e.g. one per event), written at once."""
+        values = np.asarray(values, dtype=dtype)
+        if not len(values):  # HDF5 has no chunks for an empty dataset
+            self.file.create_dataset(name, data=values, track_times=False)
+            return
+        self.file.create_dataset(
+            name,
+            data=values,
+            chunks=(min(chunk, len(values)),),
+            compression="gzip",
+            compression_opts=1,
+            shuffle=True,
+            track_times=False,
+        )
+
+    @contextmanager
+    def _failing(self):
+        """Turn an HDF5 write error into one DatasetError naming the file and the cause."""
+        try:
+            yield
+        except (OSError, RuntimeError) as exc:
+            code = getattr(exc, "errno", None)
+            cause = os.strerror(code) if code else str(exc).splitlines()[0]
+            raise DatasetError(f"{self.path}: cannot write ({cause})") from None
+
+    def close(self) -> None:
+        if self.written != self.size:
+            self.abort()
+            raise RuntimeError(f"{self.path}: {self.written} of {self.size} rows")
+        self.datasets = {}
+        with self._failing():
+            self.file.close()
+
+    def abort(self) -> None:
+        """Close after an error, never raising (what is in the file no longer matters)."""
+        self.datasets = {}
+        try:
+            self.file.close()
+        except Exception:  # noqa: BLE001 - a failed flush of a file about to be deleted
+            pass

@@ -1,0 +1,139 @@
+"""The generator's configuration: one frozen dataclass, stored as JSON in every split file."""
+
+import json
+from dataclasses import asdict, dataclass, replace
+
+from simlidar.errors import ConfigError
+from simlidar.generator.profiles import PHYSICAL_RULE, Profile
+from simlidar.sensor.vlp16 import VLP16
+from simlidar.settings import Range, check, setting
+
+MAX_SPLIT_SIZE = 10**9  # samples per split
+SIZE = Range(1, MAX_SPLIT_SIZE, "an integer")
+
+
+@dataclass(frozen=True)
+class GeneratorConfig:
+    """Everything that decides a dataset's bytes (with the scene catalog and the version)."""
+
+    classes: int = setting(
+        32, "32: layout x object, 8: layout alone, 4: object alone.", Range(2, None, "an integer")
+    )
+    noise: float = setting(0.2, "Noise level a of U(0, a), added to every normalised delay.",
+                           Range(0, 1, "a level"))  # fmt: skip
+    train_size: int = setting(3000, "Samples in train.h5 (the paper's 3000).", SIZE)
+    test_size: int = setting(600, "Samples in test.h5 (the paper's 600).", SIZE)
+    seed: int = setting(
+        0,
+        "Root of every random stream (numpy SeedSequence).",
+        Range(0, 2**63, "an integer", high_open=True),
+    )
+    width: int = setting(16, "Azimuth columns per sample.", Range(1, 1024, "an integer"))
+    fov_deg: float = setting(
+        36.0,
+        "Horizontal field of view of the columns, centred ahead, degrees.",
+        Range(0, 180, "degrees", low_open=True, high_open=True),
+    )
+    min_object_hits: int = setting(
+        4, "A labelled object is hit by at least this many pulses.", Range(1, None, "an integer")
+    )
+    max_attempts: int = setting(
+        200, "Scene redraws allowed per sample before giving up.", Range(1, None, "an integer")
+    )
+    shift_max: float = setting(
+        0.0,
+        "Delay-shift augmentation: every return of a sample moves by U(-s, s).",
+        Range(0, 1, "a value", high_open=True),
+    )
+    # stored only when not 1, so the files of datasets made before the option existed stay
+    # byte for byte the same
+    variation: float = setting(
+        1.0,
+        "Scene variation: every parameter range of the scene catalog shrunk around its centre "
+        "by this factor (1: the recipes as written).",
+        Range(0, 1, "a factor", low_open=True, note="(1: the scene catalog's ranges as written)"),
+    )
+    sensor: VLP16 = setting(help="The sensor model.", default_factory=VLP16)
+    # None: the physical rule of dataset version 1.0.0 (stored only when not None, for the
+    # same reason as variation). `variation` and `shift_max` above are the values used, which
+    # start from the profile's and may be overridden (docs/profiles.md)
+    profile: Profile | None = setting(
+        None, "The dataset profile (simlidar.generator.profiles) whose pulse rule pixels follow."
+    )
+
+    def __post_init__(self) -> None:
+        for name in ("train_size", "test_size"):  # before the rules: a better message
+            value = getattr(self, name)
+            classes = self.classes if SIZE.accepts(self.classes) else SIZE.low
+            if not SIZE.accepts(value) or value < classes:
+                raise ConfigError(
+                    f"{name}={value!r}: expected an integer in [{classes}, "
+                    f"{MAX_SPLIT_SIZE}] (at least one sample of every class: classes are "
+                    "balanced)"
+                )
+        check(self)
+        if self.profile is not None and not isinstance(self.profile, Profile):
+            raise ConfigError(f"profile={self.profile!r}: expected a Profile or None")
+
+    @classmethod
+    def from_profile(
+        cls,
+        profile: Profile,
+        variation: float | None = None,
+        shift_max: float | None = None,
+        **fields,
+    ) -> "GeneratorConfig":
+        """A config that follows ``profile``; ``variation`` and ``shift_max`` given here
+        override the profile's. The shipped ``physical`` profile is stored as None (the 1.0.0
+        rule), so that its datasets keep the bytes of 1.0.0."""
+        physical = profile.name == "physical" and profile.pulse_rule == PHYSICAL_RULE
+        return cls(
+            variation=profile.variation if variation is None else variation,
+            shift_max=profile.shift if shift_max is None else shift_max,
+            profile=None if physical else profile,
+            **fields,
+        )
+
+    @property
+    def profile_name(self) -> str:
+        return "physical" if self.profile is None else self.profile.name
+
+    @property
+    def pulse_rule(self) -> dict:
+        """missing_delay, noise_on, spikes (simlidar.generator.profiles.Profile)."""
+        return dict(PHYSICAL_RULE) if self.profile is None else self.profile.pulse_rule
+
+    @property
+    def overrides(self) -> dict:
+        """Scene values that differ from the profile's own (they are named in the dataset's
+        name): {"variation": ..., "shift_max": ...}."""
+        own = (1.0, 0.0) if self.profile is None else (self.profile.variation, self.profile.shift)
+        used = {"variation": self.variation, "shift_max": self.shift_max}
+        return {k: v for (k, v), mine in zip(used.items(), own) if v != mine}
+
+    @property
+    def split_sizes(self) -> dict[str, int]:
+        return {"train": self.train_size, "test": self.test_size}
+
+    def with_noise(self, noise: float) -> "GeneratorConfig":
+        return replace(self, noise=noise)
+
+    def to_dict(self) -> dict:
+        values = asdict(self)
+        values["sensor"] = self.sensor.to_dict()
+        if values["variation"] == 1.0:
+            del values["variation"]  # absent means 1 (and keeps older datasets' bytes)
+        if values["profile"] is None:
+            del values["profile"]  # absent means the physical rule of 1.0.0 (same reason)
+        return values
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "GeneratorConfig":
+        values = dict(values)
+        values["sensor"] = VLP16.from_dict(values.get("sensor", {}))
+        if values.get("profile") is not None:
+            values["profile"] = Profile(**values["profile"])
+        return cls(**values)

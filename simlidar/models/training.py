@@ -1,0 +1,116 @@
+"""How a model trains: a recipe's ``[training]`` table as one frozen dataclass, every key with
+its default, accepted values and meaning (docs/snn.md, Training; docs/benchmark.md, Training and
+model selection). ``lr``, ``batch_size`` and ``epochs`` have no default: a recipe names them.
+
+A recipe keeps its table as written (its fingerprint is the file's content);
+:meth:`TrainingConfig.from_table` reads it, with a one-line error naming the first unknown key
+or bad value. A suite's ``[budget]`` overrides a few keys and is checked by the same rules
+(:meth:`TrainingConfig.check_table`).
+"""
+
+import math
+from dataclasses import MISSING, dataclass, fields, replace
+
+from simlidar.errors import ConfigError
+from simlidar.settings import Choice, Range, check_value, setting
+
+LOGITS = ("z", "time")  # a spiking model's logits: -z (the paper's) or -t = -ln z
+SCHEDULES = ("constant", "cosine")  # cosine: from lr down to 0 over the run's epochs
+NON_NEGATIVE = Range(0, None, "a finite number", finite=True)
+
+
+@dataclass(frozen=True)
+class TrainingConfig:
+    lr: float = setting(help="Learning rate.", rule=Range(0, None, "a number", low_open=True))
+    batch_size: int = setting(help="Samples per step.", rule=Range(1, None, "an integer"))
+    epochs: int = setting(help="Epoch cap.", rule=Range(1, None, "an integer"))
+    optimizer: str = setting("sgd", "Optimiser.", Choice(("sgd", "adam")))
+    momentum: float = setting(0.0, "SGD momentum.", NON_NEGATIVE)
+    l2: float = setting(0.0, "Weight of the sum of squared parameters in the loss.", NON_NEGATIVE)
+    clip_grad_norm: float = setting(
+        0.0, "Clip the gradient's norm at this value (0: no clipping).", NON_NEGATIVE
+    )
+    max_seconds: float = setting(
+        math.inf,
+        "Time cap: training stops after the epoch that crosses it (inf: none).",
+        Range(0, None, "seconds"),
+    )
+    weight_sum_penalty: float = setting(
+        0.0, "Spiking networks: weight of Mostafa's weight-sum penalty.", NON_NEGATIVE
+    )
+    logits: str = setting(
+        "z", "Spiking networks: logits -z (the paper's) or -t = -ln z.", Choice(LOGITS)
+    )
+    logit_scale: float = setting(
+        1.0,
+        "Spiking networks: inverse softmax temperature of the logits.",
+        Range(0, None, "a finite number", low_open=True, finite=True),
+    )
+    fire_penalty: float = setting(
+        0.0, "Spiking networks: weight of the target-neuron firing penalty.", NON_NEGATIVE
+    )
+    fire_margin: float = setting(0.1, "Spiking networks: margin of that penalty.", NON_NEGATIVE)
+    lr_schedule: str = setting(
+        "constant",
+        "constant, or cosine: from lr down to 0 over the run's epochs (the run then keeps its "
+        "last epoch).",
+        Choice(SCHEDULES),
+    )
+    early_penalty: float = setting(
+        0.0, "Spiking networks: weight of the target output spike's time.", NON_NEGATIVE
+    )
+    noise_augment: bool = setting(
+        False, "Draw fresh noise for the training rows every epoch.", Choice((True, False))
+    )
+    validation: float = setting(
+        0.1,
+        "Fraction of each class held out for model selection (0: none).",
+        Range(0, 1, "a fraction of the train split", high_open=True, note="(0: no validation)"),
+    )
+    patience: int = setting(
+        10,
+        "Epochs without a better validation score before training stops.",
+        Range(1, None, "an integer", note="(epochs without a better validation score)"),
+    )
+
+    @classmethod
+    def check_table(cls, table, where: str, prefix: str = "training.") -> None:
+        """Check the keys of a (possibly partial) table: unknown keys and bad values get a
+        ConfigError ``<where>: key '<prefix><key>': expected ..., got ...``."""
+        if not isinstance(table, dict):
+            key = prefix.rstrip(".")
+            raise ConfigError(f"{where}: key '{key}': expected a table, got {table!r}")
+        names = [f.name for f in fields(cls)]
+        unknown = sorted(set(table) - set(names))
+        if unknown:
+            raise ConfigError(
+                f"{where}: unknown key '{prefix}{unknown[0]}': expected one of {sorted(names)}"
+            )
+        for name in names:
+            if name in table:
+                value = table[name]
+                check_value(
+                    cls,
+                    name,
+                    value,
+                    lambda key, expected, v=value: (
+                        f"{where}: key '{prefix}{key}': expected {expected}, got {v!r}"
+                    ),
+                )
+
+    @classmethod
+    def from_table(cls, table, where: str = "recipe") -> "TrainingConfig":
+        """A recipe's ``[training]`` table, checked (:meth:`check_table`); a required key that is
+        missing is named too."""
+        cls.check_table(table, where)
+        for f in fields(cls):
+            if f.default is MISSING and f.name not in table:
+                rule = f.metadata["rule"]
+                raise ConfigError(
+                    f"{where}: key 'training.{f.name}': expected {rule.expected()}, got nothing"
+                )
+        return cls(**table)
+
+    def over(self, **values) -> "TrainingConfig":
+        """This configuration with ``values`` (None: keep) over it."""
+        return replace(self, **{k: v for k, v in values.items() if v is not None})
