@@ -183,6 +183,13 @@ def cnn(input_shape, classes, generator=None, conv=((48, 5, 2), (24, 5, 2)), den
     return init_weights(CNN(input_shape, classes, conv, dense), generator)
 
 
+@register_model("mlp")
+def mlp(input_shape, classes, generator=None, dense=(400,)):
+    """A ReLU MLP, inputs - dense... - classes (``baselines/mlp.toml``: the dense SNN's shape,
+    256-400-32): the CNN's layers without convolutions, the same modules and initialisation."""
+    return init_weights(CNN(input_shape, classes, (), dense), generator)
+
+
 @register_model("vgg")
 def vgg(input_shape, classes, generator=None, plan="vgg16", classifier=(512,)):
     """VGG (``plan``: a name in VGG_PLANS or a list) with batch norm, for small inputs."""

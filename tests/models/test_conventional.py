@@ -58,3 +58,15 @@ def test_unknown_plans_are_named(tmp_path):
     )
     with pytest.raises(ConfigError, match=r"plan='vgg99': expected one of \['vgg11', 'vgg16'\]"):
         build_model(load_recipe(bad), (1, 16, 16), 4)
+
+
+def test_the_mlp_is_the_cnn_without_convolutions():
+    from simlidar.models.registry import build_model, load_recipe
+
+    mlp = load_recipe("mlp")
+    as_cnn = dict(mlp, model="cnn", architecture={"conv": [], **mlp["architecture"]})
+    for seed in (0, 1):
+        a = build_model(mlp, (1, 16, 16), 32, torch.Generator().manual_seed(seed)).state_dict()
+        b = build_model(as_cnn, (1, 16, 16), 32, torch.Generator().manual_seed(seed)).state_dict()
+        assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    assert [tuple(v.shape) for v in a.values()] == [(400, 256), (400,), (32, 400), (32,)]
