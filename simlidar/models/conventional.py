@@ -16,7 +16,6 @@ import torch
 from torch import nn
 
 from simlidar.errors import ConfigError
-from simlidar.models.registry import register_model
 
 # torchvision's cfgs: channels of 3 x 3 convolutions, "M" = 2 x 2 max pool
 VGG_PLANS: dict[str, list] = {
@@ -177,20 +176,17 @@ class ResNet(Conventional):
         return self.classifier(self.features(x))
 
 
-@register_model("cnn")
 def cnn(input_shape, classes, generator=None, conv=((48, 5, 2), (24, 5, 2)), dense=(256,)):
     """The paper's CNN baseline: the SCNN's layers with ReLU (conv 5x5/2 x48, x24, dense 256)."""
     return init_weights(CNN(input_shape, classes, conv, dense), generator)
 
 
-@register_model("mlp")
 def mlp(input_shape, classes, generator=None, dense=(400,)):
     """A ReLU MLP, inputs - dense... - classes (``baselines/mlp.toml``: the dense SNN's shape,
     256-400-32): the CNN's layers without convolutions, the same modules and initialisation."""
     return init_weights(CNN(input_shape, classes, (), dense), generator)
 
 
-@register_model("vgg")
 def vgg(input_shape, classes, generator=None, plan="vgg16", classifier=(512,)):
     """VGG (``plan``: a name in VGG_PLANS or a list) with batch norm, for small inputs."""
     if isinstance(plan, str) and plan not in VGG_PLANS:
@@ -199,7 +195,6 @@ def vgg(input_shape, classes, generator=None, plan="vgg16", classifier=(512,)):
     return init_weights(VGG(input_shape, classes, layers, classifier), generator)
 
 
-@register_model("resnet")
 def resnet(input_shape, classes, generator=None, plan="resnet50", width=64):
     """ResNet (``plan``: a name in RESNET_PLANS) with a small-input stem."""
     if plan not in RESNET_PLANS:

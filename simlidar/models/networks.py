@@ -6,7 +6,6 @@ from torch import nn
 from simlidar.errors import ConfigError
 from simlidar.models import ttfs
 from simlidar.models.layers import ConvTTFS, DenseTTFS
-from simlidar.models.registry import register_model
 
 MAX_SCALE = 80.0  # exp(80) = 5.5e34, below float32's 3.4e38
 
@@ -55,7 +54,6 @@ class SpikingNet(nn.Module):
         return sum(ttfs.weight_sum_penalty(m.weight) for m in self.layers) / len(self.layers)
 
 
-@register_model("snn")
 def dense_snn(
     input_shape, classes, generator=None, hidden=(400,), scale=3.0, excess=2.0, spread=1.0
 ) -> SpikingNet:
@@ -65,7 +63,6 @@ def dense_snn(
     return SpikingNet(layers, scale)
 
 
-@register_model("scnn")
 def spiking_cnn(
     input_shape,
     classes,

@@ -5,6 +5,7 @@ builder, ``[architecture]`` its arguments and ``[training]`` the hyper-parameter
 and class count come from the dataset, never from the recipe.
 """
 
+import importlib
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -13,25 +14,23 @@ from simlidar.content import content_dir
 from simlidar.errors import ConfigError
 from simlidar.models.training import TrainingConfig
 
-MODELS: dict[str, Callable] = {}  # filled by the model modules (:func:`builders`)
+# model name (a recipe's `model`) -> (module of simlidar.models, builder function); each
+# builder is ``builder(input_shape, classes, generator, **architecture)``. The modules (torch)
+# load on first use, so that the training configuration imports without torch.
+BUILDERS = {
+    "snn": ("networks", "dense_snn"),
+    "scnn": ("networks", "spiking_cnn"),
+    "cnn": ("conventional", "cnn"),
+    "mlp": ("conventional", "mlp"),
+    "vgg": ("conventional", "vgg"),
+    "resnet": ("conventional", "resnet"),
+}
 
 
-def register_model(name: str):
-    """Decorator: make ``builder(input_shape, classes, generator, **architecture)`` buildable."""
-
-    def add(builder: Callable) -> Callable:
-        MODELS[name] = builder
-        return builder
-
-    return add
-
-
-def builders() -> dict[str, Callable]:
-    """Every registered builder; the model modules (torch) load on first use, so that the
-    training configuration (:mod:`simlidar.models.training`) imports without torch."""
-    from simlidar.models import conventional, networks  # noqa: F401  (they register)
-
-    return MODELS
+def builder(name: str) -> Callable:
+    """The builder of the model ``name`` (one of BUILDERS)."""
+    module, function = BUILDERS[name]
+    return getattr(importlib.import_module(f"simlidar.models.{module}"), function)
 
 
 def load_recipe(name_or_path: str | Path) -> dict:
@@ -51,9 +50,9 @@ def load_recipe(name_or_path: str | Path) -> dict:
     for key in ("model", "architecture", "training"):
         if key not in recipe:
             raise ConfigError(f"{path}: key '{key}' is missing")
-    if recipe["model"] not in builders():
+    if recipe["model"] not in BUILDERS:
         raise ConfigError(
-            f"{path}: key 'model': expected one of {sorted(builders())}, got {recipe['model']!r}"
+            f"{path}: key 'model': expected one of {sorted(BUILDERS)}, got {recipe['model']!r}"
         )
     recipe["name"] = path.stem
     TrainingConfig.from_table(recipe["training"], str(path))  # checked; kept as written
@@ -63,8 +62,6 @@ def load_recipe(name_or_path: str | Path) -> dict:
 def build_model(recipe: dict, input_shape: tuple[int, ...], classes: int, generator=None):
     """Instantiate the recipe's model for inputs of ``input_shape`` (C, H, W) and ``classes``."""
     try:
-        return builders()[recipe["model"]](
-            input_shape, classes, generator, **recipe["architecture"]
-        )
+        return builder(recipe["model"])(input_shape, classes, generator, **recipe["architecture"])
     except TypeError as exc:
         raise ConfigError(f"recipe {recipe.get('name', '?')}: [architecture] {exc}") from None

@@ -2,7 +2,7 @@ import pytest
 import torch
 
 from simlidar.errors import ConfigError
-from simlidar.models.registry import build_model, builders, load_recipe
+from simlidar.models.registry import BUILDERS, build_model, load_recipe
 
 RECIPES = ["snn_simlidar", "scnn_kitti", "snn_dvs"]
 
@@ -29,14 +29,14 @@ def test_the_papers_layer_sizes():
         (24 * 13 * 30, 256),
         (256, 8),
     ]
-    assert set(RECIPES) <= {"snn_simlidar", "scnn_kitti", "snn_dvs"} and "snn" in builders()
+    assert set(RECIPES) <= {"snn_simlidar", "scnn_kitti", "snn_dvs"} and "snn" in BUILDERS
 
 
 def test_bad_recipes_are_named(tmp_path):
     with pytest.raises(ConfigError, match="model recipe 'nope': expected one of"):
         load_recipe("nope")
     bad = tmp_path / "bad.toml"
-    bad.write_text('model = "mlp"\n[architecture]\n[training]\n')
+    bad.write_text('model = "perceptron"\n[architecture]\n[training]\n')
     with pytest.raises(ConfigError, match="key 'model': expected one of"):
         load_recipe(bad)
     training = "[training]\nlr = 0.01\nbatch_size = 4\nepochs = 1\n"
