@@ -15,3 +15,22 @@ def test_loading_examples(datasets):
     )
     assert result.attempted >= 10
     assert result.failed == 0
+
+
+def test_the_cli_page_states_the_defaults_the_generate_options_have():
+    """docs/cli.md's generate table against the options (made from GeneratorConfig)."""
+    import re
+
+    from simlidar.cli import main
+
+    section = (DOCS / "cli.md").read_text().split("## `simlidar generate`")[1].split("\n## ")[0]
+    rows = re.findall(r"^\| `(--[a-z-]+)` \| [^|]+ \| ([^|]+) \|", section, re.M)
+    options = {opt: p for p in main.commands["generate"].params for opt in p.opts}
+    checked = []
+    for flag, written in rows:
+        option = options[flag]
+        if option.default is None or option.is_flag:
+            continue  # "the profile's", "the shipped catalog", flags: not a value
+        assert written.strip().strip("`") == str(option.default), flag
+        checked.append(flag)
+    assert {"--classes", "--noise", "--train-size", "--width", "--batch-size"} <= set(checked)
