@@ -24,6 +24,11 @@ the division would amplify rounding error without bound.
 Gradients (hand-written backward, checked by ``torch.autograd.gradcheck``), for i in C:
 ``dz_out/dz_i = w_i / (sum_C w - 1)`` and ``dz_out/dw_i = (z_i - z_out) / (sum_C w - 1)``;
 zero for inputs outside C and for neurons that do not fire.
+
+Two implementations compute the same spikes and gradients: :func:`dense` runs the compiled
+kernels of :mod:`simlidar.models.ttfs_kernels` (each row's inputs walked in time order until
+every neuron has fired; docs/performance.md), and :func:`dense_reference`, the batched tensor
+form below, is their oracle in the tests.
 """
 
 import torch
@@ -76,7 +81,7 @@ def _first_spikes(z: torch.Tensor, w: torch.Tensor):
     return z_out, order, torch.where(fired, last, -1), excess_at
 
 
-class _DenseTTFS(torch.autograd.Function):
+class _DenseTTFSReference(torch.autograd.Function):
     @staticmethod
     def forward(ctx, z, w):
         z_out, order, last, excess = _first_spikes(z, w)
@@ -103,6 +108,43 @@ class _DenseTTFS(torch.autograd.Function):
         return grad_z, grad_w
 
 
+class _DenseTTFS(torch.autograd.Function):
+    """The same layer by the compiled kernels (:mod:`simlidar.models.ttfs_kernels`)."""
+
+    @staticmethod
+    def forward(ctx, z, w):
+        import numba
+
+        from simlidar.models import ttfs_kernels
+
+        dtype = torch.promote_types(z.dtype, w.dtype)  # as the reference's arithmetic would
+        zn, wn = (t.detach().to(dtype).contiguous().numpy() for t in (z, w))
+        threads = max(1, min(numba.get_num_threads(), z.shape[0]))
+        z_out, order, last, excess = ttfs_kernels.forward(zn, wn, MIN_EXCESS, threads)
+        ctx.save_for_backward(z, w, *map(torch.from_numpy, (z_out, order, last, excess)))
+        return torch.from_numpy(z_out)
+
+    @staticmethod
+    def backward(ctx, grad_out):
+        import numba
+
+        from simlidar.models import ttfs_kernels
+
+        z, w, z_out, order, last, excess = ctx.saved_tensors
+        threads = max(1, min(numba.get_num_threads(), z.shape[0]))
+        dtype = z_out.dtype
+        grad_z, grad_w = ttfs_kernels.backward(
+            *(t.detach().to(dtype).contiguous().numpy() for t in (z, w, z_out)),
+            *(t.numpy() for t in (order, last, excess)),
+            grad_out.detach().to(dtype).contiguous().numpy(),
+            threads,
+        )
+        return (
+            torch.from_numpy(grad_z).to(z.dtype) if ctx.needs_input_grad[0] else None,
+            torch.from_numpy(grad_w).to(w.dtype) if ctx.needs_input_grad[1] else None,
+        )
+
+
 def dense(z: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
     """First output spikes of a dense TTFS layer.
 
@@ -113,13 +155,22 @@ def dense(z: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
     return _DenseTTFS.apply(z, w)
 
 
-def conv2d(z: torch.Tensor, w: torch.Tensor, stride: int = 1, padding: int = 0) -> torch.Tensor:
+def dense_reference(z: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
+    """:func:`dense` as batched tensor operations over every prefix of every row: the oracle
+    of the compiled kernels (and of any faster form to come)."""
+    return _DenseTTFSReference.apply(z, w)
+
+
+def conv2d(
+    z: torch.Tensor, w: torch.Tensor, stride: int = 1, padding: int = 0, layer=dense
+) -> torch.Tensor:
     """First output spikes of a 2D convolutional TTFS layer (each output is a dense TTFS neuron
     over its receptive field, weights shared across positions).
 
     z : (B, C_in, H, W) input spikes in the z domain, inf = no spike
     w : (C_out, C_in, k, k) weights
     returns : (B, C_out, H_out, W_out); padding adds "no spike" (inf), never an early spike
+    layer : the dense layer run on every receptive field (:func:`dense` or the reference)
     """
     batch, channels = z.shape[:2]
     c_out, _, k, _ = w.shape
@@ -129,7 +180,7 @@ def conv2d(z: torch.Tensor, w: torch.Tensor, stride: int = 1, padding: int = 0) 
     w_out = (z.shape[3] - k) // stride + 1
     patches = F.unfold(z, k, stride=stride)  # (B, C_in k k, L); copies values, inf stays inf
     flat = patches.transpose(1, 2).reshape(-1, channels * k * k)
-    out = dense(flat, w.reshape(c_out, -1).t())  # (B L, C_out)
+    out = layer(flat, w.reshape(c_out, -1).t())  # (B L, C_out)
     return (
         out.reshape(batch, h_out * w_out, c_out).transpose(1, 2).reshape(batch, c_out, h_out, w_out)
     )

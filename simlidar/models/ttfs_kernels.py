@@ -1,0 +1,116 @@
+"""Compiled (numba) kernels of the dense TTFS layer: the same first spikes and gradients as the
+batched reference (:func:`simlidar.models.ttfs.dense_reference`), row by row.
+
+The reference materialises every prefix of every row: (rows, inputs, outputs) cumulative sums,
+whatever the prefix at which the neurons fire. These kernels sort a row's spiking inputs and
+walk them in time order, keeping one running weight sum and one running weighted sum per output
+neuron, and stop as soon as every neuron of the row has fired: the work is the prefix actually
+used, not the whole row, and nothing larger than a row's outputs is held. The backward pass
+walks each row's causal prefix again. Rows run in parallel (``prange``); each thread adds its
+weight gradient into its own buffer, summed at the end, so the result does not depend on the
+thread count beyond float rounding.
+
+Sums run in float64 whatever the inputs' dtype, prefix by prefix in time order: near the
+threshold (``sum_C w - 1`` close to ``MIN_EXCESS``) a float32 sum loses most of its digits to the
+subtraction, so float32 inputs get float64 decisions and spike times (rounded to float32 at the
+end); in float64 a neuron's causal set is the reference's. Ties do not matter: a firing prefix
+never ends inside a group of equal input times, so the order within a tie changes nothing.
+"""
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True, parallel=True)
+def forward(z, w, min_excess, threads):
+    """z (R, N) input spikes (inf: none), w (N, M), ``min_excess`` (``ttfs.MIN_EXCESS``) ->
+    z_out (R, M) (inf: silent), order (R, N) (each row's spiking inputs in time order, then -1),
+    last (R, M) (position in ``order`` of the causal set's last input; -1: silent) and excess
+    (R, M) float64 (sum_C w - 1; 1 where silent). ``threads`` blocks of rows run in parallel."""
+    rows, n_in = z.shape
+    n_out = w.shape[1]
+    z_out = np.full((rows, n_out), np.inf, dtype=z.dtype)
+    last = np.full((rows, n_out), -1, dtype=np.int64)
+    excess = np.ones((rows, n_out), dtype=np.float64)
+    order = np.full((rows, n_in), -1, dtype=np.int64)
+    per = (rows + threads - 1) // threads
+    low, high = 1 - 1e-14, 1 + 1e-14
+    for t in prange(threads):
+        sum_w = np.empty(n_out, dtype=np.float64)  # scratch of this thread's rows
+        sum_wz = np.empty(n_out, dtype=np.float64)
+        open_ = np.empty(n_out, dtype=np.bool_)
+        spiking = np.empty(n_in, dtype=np.int64)
+        for r in range(t * per, min(rows, (t + 1) * per)):
+            row = z[r]
+            k = 0
+            for i in range(n_in):  # only the spiking inputs are sorted
+                if np.isfinite(row[i]):
+                    spiking[k] = i
+                    k += 1
+            idx = spiking[:k][np.argsort(row[spiking[:k]])]
+            order[r, :k] = idx
+            sum_w[:] = 0
+            sum_wz[:] = 0
+            open_[:] = True
+            remaining = n_out
+            for j in range(k):
+                i = idx[j]
+                zj = np.float64(row[i])
+                znext = np.float64(row[idx[j + 1]]) if j + 1 < k else np.inf
+                for m in range(n_out):
+                    wm = np.float64(w[i, m])
+                    sw = sum_w[m] + wm
+                    swz = sum_wz[m] + wm * zj
+                    sum_w[m] = sw
+                    sum_wz[m] = swz
+                    ex = sw - 1
+                    # cheap filter (no division; loose by a few ulps), then the exact test
+                    if (
+                        open_[m]
+                        and ex > min_excess
+                        and swz >= zj * ex * low
+                        and swz < znext * ex * high
+                    ):
+                        cand = swz / ex
+                        if cand >= zj and cand < znext:
+                            z_out[r, m] = cand
+                            last[r, m] = j
+                            excess[r, m] = ex
+                            open_[m] = False
+                            remaining -= 1
+                if remaining == 0:
+                    break
+    return z_out, order, last, excess
+
+
+@njit(cache=True, parallel=True)
+def backward(z, w, z_out, order, last, excess, grad_out, threads):
+    """Gradients of the summed ``grad_out * z_out`` with respect to z (R, N) and w (N, M):
+    for i in a neuron's causal set, dz_out/dz_i = w_i / excess and dz_out/dw_i = (z_i - z_out)
+    / excess; nothing for silent neurons and inputs outside the set."""
+    rows, n_in = z.shape
+    n_out = w.shape[1]
+    grad_z = np.zeros_like(z)
+    parts = np.zeros((threads, n_in, n_out), dtype=np.float64)
+    per = (rows + threads - 1) // threads
+    for t in prange(threads):
+        gw = parts[t]
+        g = np.zeros(n_out, dtype=np.float64)
+        for r in range(t * per, min(rows, (t + 1) * per)):
+            deepest = -1
+            for m in range(n_out):
+                if last[r, m] >= 0:
+                    g[m] = grad_out[r, m] / excess[r, m]
+                    deepest = max(deepest, last[r, m])
+                else:
+                    g[m] = 0.0
+            for j in range(deepest + 1):
+                i = order[r, j]
+                zi = np.float64(z[r, i])
+                acc = 0.0
+                for m in range(n_out):
+                    if j <= last[r, m]:
+                        acc += g[m] * w[i, m]
+                        gw[i, m] += g[m] * (zi - z_out[r, m])
+                grad_z[r, i] = acc
+    return grad_z, parts.sum(axis=0).astype(w.dtype)

@@ -1,0 +1,95 @@
+"""The compiled TTFS kernels (simlidar.models.ttfs_kernels) against the batched reference
+(ttfs.dense_reference): the same spikes (the same neurons silent, the same causal sets) and
+gradients to float rounding, on random batches with ties, silent inputs, all-silent rows and
+empty batches, for dense and convolutional layers."""
+
+import numba
+import pytest
+import torch
+
+from simlidar.models import ttfs
+
+
+def _batch(rows: int, n_in: int, n_out: int, seed: int, dtype=torch.float64):
+    generator = torch.Generator().manual_seed(seed)
+    z = torch.exp(3 * torch.rand(rows, n_in, generator=generator, dtype=dtype))
+    z[torch.rand(rows, n_in, generator=generator) < 0.25] = torch.inf  # silent inputs
+    if rows > 3:
+        z[1] = torch.inf  # an all-silent row
+        z[2, : n_in // 2] = z[2, 0]  # a tie of half the row
+        z[3] = torch.round(z[3] * 2) / 2  # many ties
+    w = torch.randn(n_in, n_out, generator=generator, dtype=dtype) / n_in**0.5 + 3.0 / n_in
+    return z, w
+
+
+def _run(layer, z, w, seed: int):
+    z, w = z.clone().requires_grad_(), w.clone().requires_grad_()
+    out = layer(z, w)
+    fired = torch.isfinite(out)
+    weights = torch.randn(
+        out.shape, generator=torch.Generator().manual_seed(seed), dtype=torch.float64
+    )
+    weights = weights.to(z.dtype)
+    (torch.where(fired, out, 0.0) * weights).sum().backward()
+    return out.detach(), z.grad, w.grad
+
+
+@pytest.mark.parametrize(("rows", "n_in", "n_out"), [(40, 30, 12), (7, 256, 50), (0, 10, 4)])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_kernels_give_the_reference_spikes_and_gradients(rows, n_in, n_out, seed):
+    z, w = _batch(rows, n_in, n_out, seed)
+    ref = _run(ttfs.dense_reference, z, w, seed)
+    fast = _run(ttfs.dense, z, w, seed)
+    assert torch.equal(torch.isfinite(ref[0]), torch.isfinite(fast[0]))  # the same silent set
+    fired = torch.isfinite(ref[0])
+    assert torch.allclose(ref[0][fired], fast[0][fired], rtol=1e-12, atol=0)
+    for a, b in zip(ref[1:], fast[1:]):
+        assert torch.allclose(a, b, rtol=1e-10, atol=1e-10)
+    if rows:
+        assert 0 < fired.float().mean() < 1  # both firing and silent neurons were tested
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_float32_inputs_get_float64_decisions(seed):
+    """The kernels sum in float64: on float32 inputs their spikes are the float64 reference's
+    rounded to float32, where the float32 reference loses digits near the threshold (seed 3:
+    one neuron of 24,000 fires in float64 and is silent in the float32 reference)."""
+    z, w = _batch(60, 256, 400, seed, torch.float32)
+    fast = _run(ttfs.dense, z, w, seed)
+    exact = _run(ttfs.dense_reference, z.double(), w.double(), seed)
+    assert torch.equal(torch.isfinite(fast[0]), torch.isfinite(exact[0]))
+    fired = torch.isfinite(exact[0])
+    assert torch.allclose(fast[0][fired].double(), exact[0][fired], rtol=1e-7)
+    for a, b in zip(fast[1:], exact[1:]):
+        assert torch.allclose(a.double(), b, rtol=1e-5, atol=1e-5 * b.abs().max().item())
+
+
+def test_the_convolution_matches_its_reference():
+    generator = torch.Generator().manual_seed(4)
+    z = torch.exp(3 * torch.rand(3, 2, 9, 11, generator=generator, dtype=torch.float64))
+    z[torch.rand(z.shape, generator=generator) < 0.3] = torch.inf
+    w = torch.randn(4, 2, 3, 3, generator=generator, dtype=torch.float64) / 3 + 3.0 / 18
+
+    def conv(layer):
+        return lambda a, b: ttfs.conv2d(a, b, stride=2, padding=1, layer=layer)
+
+    ref, fast = _run(conv(ttfs.dense_reference), z, w, 4), _run(conv(ttfs.dense), z, w, 4)
+    assert torch.equal(torch.isfinite(ref[0]), torch.isfinite(fast[0]))
+    fired = torch.isfinite(ref[0])
+    assert torch.allclose(ref[0][fired], fast[0][fired], rtol=1e-12)
+    for a, b in zip(ref[1:], fast[1:]):
+        assert torch.allclose(a, b, rtol=1e-10, atol=1e-10)
+
+
+def test_the_thread_count_changes_nothing_but_rounding():
+    z, w = _batch(50, 40, 16, 5)
+    previous = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = _run(ttfs.dense, z, w, 5)
+        numba.set_num_threads(max(2, previous))
+        many = _run(ttfs.dense, z, w, 5)
+    finally:
+        numba.set_num_threads(previous)
+    assert torch.equal(one[0], many[0]) and torch.equal(one[1], many[1])
+    assert torch.allclose(one[2], many[2], rtol=1e-12)
