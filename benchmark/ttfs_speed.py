@@ -10,8 +10,9 @@ the conventional networks of the same shape, in one process on the same batch:
 
 Inputs are the paper profile's kind of delays: uniform in [0, 1) with a quarter of the pixels
 at 1.0 (no return), so that both the spiking and the silent paths run. Each figure is the
-median over ``--steps`` steps after two warm-up steps; the ratio is measured in the same run,
-so it holds on another machine where the absolute times do not. docs/performance.md records
+median over ``--steps`` steps after two warm-up steps, the two networks' steps taken in turn;
+the ratio is measured in the same run, so it holds on another machine where the absolute times
+do not. docs/performance.md records
 the figures.
 """
 
@@ -42,22 +43,33 @@ def batch(shape, size: int, classes: int, seed: int = 0):
     return x, torch.randint(0, classes, (size,), generator=generator)
 
 
-def step_seconds(name: str, x, y, classes: int, steps: int) -> float:
-    """Median seconds of one training step of recipe ``name`` on (x, y)."""
+def trainer(name: str, x, y, classes: int):
+    """One training step of recipe ``name`` on (x, y), as a function of no arguments."""
     recipe = load_recipe(name)
     training = TrainingConfig.from_table(recipe["training"])
     model = build_model(recipe, tuple(x.shape[1:]), classes, torch.Generator().manual_seed(0))
     optimizer = _optimizer(model.parameters(), training)
-    times = []
-    for i in range(steps + 2):
-        start = time.perf_counter()
+
+    def step():
         _, total = _loss(model, x, y, training)
         optimizer.zero_grad()
         total.backward()
         optimizer.step()
-        if i >= 2:
-            times.append(time.perf_counter() - start)
-    return statistics.median(times)
+
+    return step
+
+
+def step_seconds(steps: int, *trainers) -> list[float]:
+    """Median seconds of a step of each trainer, their steps taken in turn (so that a change of
+    load on the machine falls on all of them alike), after two warm-up rounds."""
+    times = [[] for _ in trainers]
+    for i in range(steps + 2):
+        for step, spent in zip(trainers, times):
+            start = time.perf_counter()
+            step()
+            if i >= 2:
+                spent.append(time.perf_counter() - start)
+    return [statistics.median(t) for t in times]
 
 
 def main() -> None:
@@ -71,8 +83,9 @@ def main() -> None:
     for spiking, conventional, shape, size, target in PAIRS:
         x, y = batch(shape, size, 8 if spiking == "scnn_kitti" else 32)
         classes = 8 if spiking == "scnn_kitti" else 32
-        snn = step_seconds(spiking, x, y, classes, args.steps)
-        ann = step_seconds(conventional, x, y, classes, args.steps)
+        snn, ann = step_seconds(
+            args.steps, trainer(spiking, x, y, classes), trainer(conventional, x, y, classes)
+        )
         ratio = snn / ann
         print(
             f"{spiking} {1e3 * snn:8.1f} ms, {conventional} {1e3 * ann:6.1f} ms a step "

@@ -45,3 +45,18 @@ def test_scripts_explain_themselves(script):
         check=True,
     )
     assert "--samples" in done.stdout
+
+
+def test_ttfs_speed_prints_both_ratios():
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "benchmark" / "ttfs_speed.py"), "--steps", "1"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    )
+    lines = done.stdout.splitlines()[1:]
+    assert [line.split()[0] for line in lines] == ["scnn_kitti", "snn_simlidar"]
+    for line in lines:
+        ratio = float(line.split("ratio ")[1].split()[0])
+        assert ratio > 0 and ("target <= 5" in line or "target <= 3" in line)

@@ -38,7 +38,8 @@ def forward(z, w, min_excess, threads):
     for t in prange(threads):
         sum_w = np.empty(n_out, dtype=np.float64)  # scratch of this thread's rows
         sum_wz = np.empty(n_out, dtype=np.float64)
-        open_ = np.empty(n_out, dtype=np.bool_)
+        open_ = np.empty(n_out, dtype=np.int64)  # 1 while the neuron has not fired
+        flag = np.empty(n_out, dtype=np.int64)  # 1: passed the filter at this input
         spiking = np.empty(n_in, dtype=np.int64)
         for r in range(t * per, min(rows, (t + 1) * per)):
             row = z[r]
@@ -51,33 +52,40 @@ def forward(z, w, min_excess, threads):
             order[r, :k] = idx
             sum_w[:] = 0
             sum_wz[:] = 0
-            open_[:] = True
+            open_[:] = 1
             remaining = n_out
             for j in range(k):
                 i = idx[j]
                 zj = np.float64(row[i])
                 znext = np.float64(row[idx[j + 1]]) if j + 1 < k else np.inf
+                hits = 0  # open neurons that may fire here (branch-free: vectorised)
                 for m in range(n_out):
                     wm = np.float64(w[i, m])
                     sw = sum_w[m] + wm
                     swz = sum_wz[m] + wm * zj
                     sum_w[m] = sw
                     sum_wz[m] = swz
-                    ex = sw - 1
-                    # cheap filter (no division; loose by a few ulps), then the exact test
-                    if (
+                    ex = sw - 1.0
+                    # a filter without division, loose by a few ulps: the exact test follows
+                    hit = (
                         open_[m]
-                        and ex > min_excess
-                        and swz >= zj * ex * low
-                        and swz < znext * ex * high
-                    ):
-                        cand = swz / ex
-                        if cand >= zj and cand < znext:
-                            z_out[r, m] = cand
-                            last[r, m] = j
-                            excess[r, m] = ex
-                            open_[m] = False
-                            remaining -= 1
+                        & (ex > min_excess)
+                        & (swz >= zj * ex * low)
+                        & (swz < znext * ex * high)
+                    )
+                    flag[m] = hit
+                    hits += hit
+                if hits:
+                    for m in range(n_out):
+                        if flag[m]:
+                            ex = sum_w[m] - 1.0
+                            cand = sum_wz[m] / ex
+                            if cand >= zj and cand < znext:
+                                z_out[r, m] = cand
+                                last[r, m] = j
+                                excess[r, m] = ex
+                                open_[m] = 0
+                                remaining -= 1
                 if remaining == 0:
                     break
     return z_out, order, last, excess
@@ -96,21 +104,25 @@ def backward(z, w, z_out, order, last, excess, grad_out, threads):
     for t in prange(threads):
         gw = parts[t]
         g = np.zeros(n_out, dtype=np.float64)
+        gzo = np.zeros(n_out, dtype=np.float64)
         for r in range(t * per, min(rows, (t + 1) * per)):
             deepest = -1
             for m in range(n_out):
                 if last[r, m] >= 0:
                     g[m] = grad_out[r, m] / excess[r, m]
+                    gzo[m] = g[m] * z_out[r, m]
                     deepest = max(deepest, last[r, m])
                 else:
                     g[m] = 0.0
+                    gzo[m] = 0.0
             for j in range(deepest + 1):
                 i = order[r, j]
                 zi = np.float64(z[r, i])
                 acc = 0.0
-                for m in range(n_out):
-                    if j <= last[r, m]:
-                        acc += g[m] * w[i, m]
-                        gw[i, m] += g[m] * (zi - z_out[r, m])
+                for m in range(n_out):  # masked, branch-free: vectorised
+                    causal = j <= last[r, m]
+                    gm = g[m] * causal
+                    acc += gm * w[i, m]
+                    gw[i, m] += gm * zi - gzo[m] * causal
                 grad_z[r, i] = acc
     return grad_z, parts.sum(axis=0).astype(w.dtype)
