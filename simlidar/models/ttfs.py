@@ -155,6 +155,58 @@ def dense(z: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
     return _DenseTTFS.apply(z, w)
 
 
+class _ConvTTFS(torch.autograd.Function):
+    """The convolutional layer by the event-driven kernels (:mod:`simlidar.models.ttfs_kernels`:
+    each sample's spikes sorted once, delivered to every receptive field that holds them)."""
+
+    @staticmethod
+    def forward(ctx, z, w, stride, padding):
+        from simlidar.models import ttfs_kernels
+
+        dtype = torch.promote_types(z.dtype, w.dtype)
+        zn = z.detach().to(dtype).contiguous().numpy()
+        wt = w.detach().to(dtype).permute(1, 2, 3, 0).contiguous().numpy()  # output channel last
+        k = w.shape[2]
+        h_out = (z.shape[2] + 2 * padding - k) // stride + 1
+        w_out = (z.shape[3] + 2 * padding - k) // stride + 1
+        z_out, z_last, excess = ttfs_kernels.conv_forward(
+            zn, wt, stride, padding, h_out, w_out, MIN_EXCESS
+        )
+        outs = tuple(map(torch.from_numpy, (z_out, z_last, excess)))
+        ctx.save_for_backward(z, w, *outs)
+        ctx.geometry = (stride, padding)
+        return outs[0]
+
+    @staticmethod
+    def backward(ctx, grad_out):
+        import numba
+
+        from simlidar.models import ttfs_kernels
+
+        z, w, z_out, z_last, excess = ctx.saved_tensors
+        stride, padding = ctx.geometry
+        dtype = z_out.dtype
+        threads = max(1, min(numba.get_num_threads(), z.shape[0]))
+        grad_z, grad_wt = ttfs_kernels.conv_backward(
+            z.detach().to(dtype).contiguous().numpy(),
+            w.detach().to(dtype).permute(1, 2, 3, 0).contiguous().numpy(),
+            stride,
+            padding,
+            z_out.numpy(),
+            z_last.numpy(),
+            excess.numpy(),
+            grad_out.detach().to(dtype).contiguous().numpy(),
+            threads,
+        )
+        grad_w = torch.from_numpy(grad_wt).permute(3, 0, 1, 2).to(w.dtype).contiguous()
+        return (
+            torch.from_numpy(grad_z).to(z.dtype) if ctx.needs_input_grad[0] else None,
+            grad_w if ctx.needs_input_grad[1] else None,
+            None,
+            None,
+        )
+
+
 def dense_reference(z: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
     """:func:`dense` as batched tensor operations over every prefix of every row: the oracle
     of the compiled kernels (and of any faster form to come)."""
@@ -162,7 +214,7 @@ def dense_reference(z: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
 
 
 def conv2d(
-    z: torch.Tensor, w: torch.Tensor, stride: int = 1, padding: int = 0, layer=dense
+    z: torch.Tensor, w: torch.Tensor, stride: int = 1, padding: int = 0, layer=None
 ) -> torch.Tensor:
     """First output spikes of a 2D convolutional TTFS layer (each output is a dense TTFS neuron
     over its receptive field, weights shared across positions).
@@ -170,8 +222,11 @@ def conv2d(
     z : (B, C_in, H, W) input spikes in the z domain, inf = no spike
     w : (C_out, C_in, k, k) weights
     returns : (B, C_out, H_out, W_out); padding adds "no spike" (inf), never an early spike
-    layer : the dense layer run on every receptive field (:func:`dense` or the reference)
+    layer : None (the event-driven kernels), or a dense layer run on every receptive field
+        (e.g. :func:`dense_reference`, the oracle)
     """
+    if layer is None:
+        return _ConvTTFS.apply(z, w, stride, padding)
     batch, channels = z.shape[:2]
     c_out, _, k, _ = w.shape
     if padding:

@@ -126,3 +126,142 @@ def backward(z, w, z_out, order, last, excess, grad_out, threads):
                     gw[i, m] += gm * zi - gzo[m] * causal
                 grad_z[r, i] = acc
     return grad_z, parts.sum(axis=0).astype(w.dtype)
+
+
+@njit(cache=True)
+def _field_range(pos, padding, stride, kernel, n_fields):
+    """The receptive fields (first, stop) of one axis that hold input position ``pos``."""
+    first = max(0, (pos + padding - kernel + stride) // stride)
+    stop = min(n_fields, (pos + padding) // stride + 1)
+    return first, stop
+
+
+@njit(cache=True, parallel=True)
+def conv_forward(z, wt, stride, padding, h_out, w_out, min_excess):
+    """The convolutional layer, event by event: each sample's input spikes are sorted once
+    (not once per receptive field) and delivered in time order to every receptive field that
+    holds them; a field's neuron fires at the first prefix of its own inputs that is valid,
+    which is known when the field's next input arrives (or at the end). Padding is "no spike":
+    it never arrives.
+
+    z (B, C, H, W) input spikes (inf: none); wt (C, k, k, C_out): the weights, output channel
+    last; returns z_out (B, C_out, H_out, W_out) (inf: silent), z_last (the time of each
+    neuron's last causal input; a causal set is the field's inputs at or before it) and excess
+    (float64; 1 where silent)."""
+    batch, channels, height, width = z.shape
+    kernel = wt.shape[1]
+    n_out = wt.shape[3]
+    z_out = np.full((batch, n_out, h_out, w_out), np.inf, dtype=z.dtype)
+    z_last = np.full((batch, n_out, h_out, w_out), -np.inf, dtype=z.dtype)
+    excess = np.ones((batch, n_out, h_out, w_out), dtype=np.float64)
+    low, high = 1 - 1e-14, 1 + 1e-14
+    for b in prange(batch):
+        flat = z[b].ravel()
+        spikes = np.nonzero(np.isfinite(flat))[0]
+        spikes = spikes[np.argsort(flat[spikes])]
+        sum_w = np.zeros((h_out, w_out, n_out), dtype=np.float64)
+        sum_wz = np.zeros((h_out, w_out, n_out), dtype=np.float64)
+        prev = np.full((h_out, w_out), -np.inf)  # the field's latest input time (-inf: none)
+        open_ = np.ones((h_out, w_out, n_out), dtype=np.int64)
+        remaining = np.full((h_out, w_out), n_out, dtype=np.int64)
+        for s in range(len(spikes) + 1):
+            if s < len(spikes):
+                index = spikes[s]
+                c, rest = divmod(index, height * width)
+                y, x = divmod(rest, width)
+                t = np.float64(flat[index])
+                fy0, fy1 = _field_range(y, padding, stride, kernel, h_out)
+                fx0, fx1 = _field_range(x, padding, stride, kernel, w_out)
+            else:  # the end: every field's last prefix, before a next input that never comes
+                t = np.inf
+                fy0, fy1, fx0, fx1 = 0, h_out, 0, w_out
+            for fy in range(fy0, fy1):
+                for fx in range(fx0, fx1):
+                    zp = prev[fy, fx]
+                    if remaining[fy, fx] == 0 or zp == -np.inf and s == len(spikes):
+                        continue
+                    if zp > -np.inf:  # did a neuron fire on the prefix before this input?
+                        hits = 0
+                        for m in range(n_out):
+                            ex = sum_w[fy, fx, m] - 1.0
+                            swz = sum_wz[fy, fx, m]
+                            hits += (
+                                open_[fy, fx, m]
+                                & (ex > min_excess)
+                                & (swz >= zp * ex * low)
+                                & (swz < t * ex * high)
+                            )
+                        if hits:
+                            for m in range(n_out):
+                                ex = sum_w[fy, fx, m] - 1.0
+                                if open_[fy, fx, m] and ex > min_excess:
+                                    cand = sum_wz[fy, fx, m] / ex
+                                    if cand >= zp and cand < t:
+                                        z_out[b, m, fy, fx] = cand
+                                        z_last[b, m, fy, fx] = zp
+                                        excess[b, m, fy, fx] = ex
+                                        open_[fy, fx, m] = 0
+                                        remaining[fy, fx] -= 1
+                    if s < len(spikes):
+                        ky = y + padding - fy * stride
+                        kx = x + padding - fx * stride
+                        for m in range(n_out):
+                            wm = np.float64(wt[c, ky, kx, m])
+                            sum_w[fy, fx, m] += wm
+                            sum_wz[fy, fx, m] += wm * t
+                        prev[fy, fx] = t
+    return z_out, z_last, excess
+
+
+@njit(cache=True, parallel=True)
+def conv_backward(z, wt, stride, padding, z_out, z_last, excess, grad_out, threads):
+    """Gradients of the summed ``grad_out * z_out`` of :func:`conv_forward` with respect to z
+    and to wt (C, k, k, C_out): every field's inputs at or before each neuron's ``z_last``."""
+    batch, channels, height, width = z.shape
+    kernel = wt.shape[1]
+    n_out = wt.shape[3]
+    h_out, w_out = z_out.shape[2], z_out.shape[3]
+    grad_z = np.zeros((batch, channels, height, width), dtype=np.float64)
+    parts = np.zeros((threads, channels, kernel, kernel, n_out), dtype=np.float64)
+    per = (batch + threads - 1) // threads
+    for t in prange(threads):
+        gw = parts[t]
+        g = np.zeros(n_out)
+        gzo = np.zeros(n_out)
+        limit = np.zeros(n_out)
+        for b in range(t * per, min(batch, (t + 1) * per)):
+            for fy in range(h_out):
+                for fx in range(w_out):
+                    fired = 0
+                    for m in range(n_out):
+                        if np.isfinite(z_out[b, m, fy, fx]):
+                            g[m] = grad_out[b, m, fy, fx] / excess[b, m, fy, fx]
+                            gzo[m] = g[m] * z_out[b, m, fy, fx]
+                            limit[m] = z_last[b, m, fy, fx]
+                            fired += 1
+                        else:
+                            g[m] = 0.0
+                            gzo[m] = 0.0
+                            limit[m] = -np.inf
+                    if fired == 0:
+                        continue
+                    for c in range(channels):
+                        for ky in range(kernel):
+                            y = fy * stride - padding + ky
+                            if y < 0 or y >= height:
+                                continue
+                            for kx in range(kernel):
+                                x = fx * stride - padding + kx
+                                if x < 0 or x >= width:
+                                    continue
+                                zi = np.float64(z[b, c, y, x])
+                                if not np.isfinite(zi):
+                                    continue
+                                acc = 0.0
+                                for m in range(n_out):  # masked, branch-free
+                                    causal = zi <= limit[m]
+                                    gm = g[m] * causal
+                                    acc += gm * wt[c, ky, kx, m]
+                                    gw[c, ky, kx, m] += gm * zi - gzo[m] * causal
+                                grad_z[b, c, y, x] += acc
+    return grad_z, parts.sum(axis=0)

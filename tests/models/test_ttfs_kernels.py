@@ -64,21 +64,28 @@ def test_float32_inputs_get_float64_decisions(seed):
         assert torch.allclose(a.double(), b, rtol=1e-5, atol=1e-5 * b.abs().max().item())
 
 
-def test_the_convolution_matches_its_reference():
-    generator = torch.Generator().manual_seed(4)
-    z = torch.exp(3 * torch.rand(3, 2, 9, 11, generator=generator, dtype=torch.float64))
+@pytest.mark.parametrize("fast", [None, ttfs.dense])  # event-driven, or dense per field
+@pytest.mark.parametrize(("batch", "stride", "padding"), [(3, 2, 1), (2, 1, 2), (0, 2, 1)])
+def test_the_convolution_matches_its_reference(fast, batch, stride, padding):
+    generator = torch.Generator().manual_seed(4 + stride)
+    z = torch.exp(3 * torch.rand(batch, 2, 9, 11, generator=generator, dtype=torch.float64))
     z[torch.rand(z.shape, generator=generator) < 0.3] = torch.inf
+    if batch > 1:
+        z[1] = torch.inf  # an all-silent sample
+        z[0, 0, :4] = z[0, 0, 0, 0]  # a tie across fields and channels
     w = torch.randn(4, 2, 3, 3, generator=generator, dtype=torch.float64) / 3 + 3.0 / 18
 
     def conv(layer):
-        return lambda a, b: ttfs.conv2d(a, b, stride=2, padding=1, layer=layer)
+        return lambda a, b: ttfs.conv2d(a, b, stride=stride, padding=padding, layer=layer)
 
-    ref, fast = _run(conv(ttfs.dense_reference), z, w, 4), _run(conv(ttfs.dense), z, w, 4)
-    assert torch.equal(torch.isfinite(ref[0]), torch.isfinite(fast[0]))
+    ref, got = _run(conv(ttfs.dense_reference), z, w, 4), _run(conv(fast), z, w, 4)
+    assert torch.equal(torch.isfinite(ref[0]), torch.isfinite(got[0]))
     fired = torch.isfinite(ref[0])
-    assert torch.allclose(ref[0][fired], fast[0][fired], rtol=1e-12)
-    for a, b in zip(ref[1:], fast[1:]):
+    assert torch.allclose(ref[0][fired], got[0][fired], rtol=1e-12)
+    for a, b in zip(ref[1:], got[1:]):
         assert torch.allclose(a, b, rtol=1e-10, atol=1e-10)
+    if batch:
+        assert 0 < fired.float().mean() < 1
 
 
 def test_the_thread_count_changes_nothing_but_rounding():
