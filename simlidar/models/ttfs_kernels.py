@@ -7,8 +7,10 @@ walk them in time order, keeping one running weight sum and one running weighted
 neuron, and stop as soon as every neuron of the row has fired: the work is the prefix actually
 used, not the whole row, and nothing larger than a row's outputs is held. The backward pass
 walks each row's causal prefix again. Rows run in parallel (``prange``); each thread adds its
-weight gradient into its own buffer, summed at the end, so the result does not depend on the
-thread count beyond float rounding.
+weight gradient into its own buffer (in the weights' dtype), summed at the end, so the result
+does not depend on the thread count beyond float rounding. The convolutional layer has kernels
+of its own (:func:`conv_forward`): each sample's spikes are sorted once and delivered to every
+receptive field that holds them, as the sensor would deliver them.
 
 Sums run in float64 whatever the inputs' dtype, prefix by prefix in time order: near the
 threshold (``sum_C w - 1`` close to ``MIN_EXCESS``) a float32 sum loses most of its digits to the
@@ -99,7 +101,7 @@ def backward(z, w, z_out, order, last, excess, grad_out, threads):
     rows, n_in = z.shape
     n_out = w.shape[1]
     grad_z = np.zeros_like(z)
-    parts = np.zeros((threads, n_in, n_out), dtype=np.float64)
+    parts = np.zeros((threads, n_in, n_out), dtype=w.dtype)  # rows summed in the weights dtype
     per = (rows + threads - 1) // threads
     for t in prange(threads):
         gw = parts[t]
@@ -125,7 +127,7 @@ def backward(z, w, z_out, order, last, excess, grad_out, threads):
                     acc += gm * w[i, m]
                     gw[i, m] += gm * zi - gzo[m] * causal
                 grad_z[r, i] = acc
-    return grad_z, parts.sum(axis=0).astype(w.dtype)
+    return grad_z, parts.sum(axis=0)
 
 
 @njit(cache=True)
