@@ -1,4 +1,4 @@
-"""How early a trained dense spiking network decides, over a whole split."""
+"""How early a trained spiking network (dense or convolutional) decides, over a whole split."""
 
 from pathlib import Path
 
@@ -8,13 +8,16 @@ import torch
 from simlidar.dataset.loaders import load_split, spike_threshold, split_path
 from simlidar.dataset.reader import read_split_info
 from simlidar.models import ttfs
-from simlidar.models.decisions import ALPHAS_PJ, decide
+from simlidar.models.decisions import ALPHAS_PJ, decide_all
+
+BATCH = 256  # samples run at once
 
 
 def decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test"):
-    """Run :func:`simlidar.models.decisions.decide` on every sample of a split.
+    """The decision of every sample of a split (:func:`simlidar.models.decisions.decide_all`:
+    the event-driven run's, from the exact spike times), ``BATCH`` samples at a time.
 
-    The model must be a dense spiking network (``SpikingNet`` of dense layers).
+    The model must be a ``SpikingNet`` (dense layers and convolutions).
     returns : list of Decision, labels (N,), time of flight at delay 1 in ns (None if the
         dataset is not a time-of-flight one)
     """
@@ -22,11 +25,11 @@ def decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test"):
     attrs = read_split_info(split_path(dataset, split)).attrs  # one read of the attributes
     tof_max_ns = float(attrs["tof_max_ns"]) if "tof_max_ns" in attrs else None
     silent_from = spike_threshold(attrs)
-    weights = [m.weight.detach().double().numpy() for m in model.layers]
-    z = ttfs.encode(
-        torch.from_numpy(x.astype(np.float64)).flatten(1), model.scale, silent_from
-    ).numpy()
-    return [decide(weights, sample) for sample in z], y, tof_max_ns
+    z = ttfs.encode(torch.from_numpy(x.astype(np.float64))[:, None], model.scale, silent_from)
+    runs = []
+    for start in range(0, len(z), BATCH):
+        runs += decide_all(model, z[start : start + BATCH])
+    return runs, y, tof_max_ns
 
 
 def early_decisions(

@@ -21,6 +21,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from simlidar.models.decisions import network_size
 from simlidar.models.layers import ConvTTFS, DenseTTFS
 
 MAC_PJ = 4.6  # energy of a 32-bit float multiply-accumulate at 45 nm (Horowitz, ISSCC 2014)
@@ -226,7 +227,7 @@ def conventional_figures(model: nn.Module, x: torch.Tensor, board_power_w: float
 
 def spiking_figures(model: nn.Module, x: torch.Tensor, early: dict | None) -> dict:
     """Latency and throughput of a spiking network's batched forward pass; with the summary of
-    :func:`simlidar.bench.early.early_decisions` (dense networks of any depth), NeuroBench's
+    :func:`simlidar.bench.early.early_decisions` (dense and convolutional networks), NeuroBench's
     workload metrics of the event-driven run, over the split:
 
     * ``activation_sparsity``: the fraction of (sample, hidden or output neuron) pairs without a
@@ -235,10 +236,10 @@ def spiking_figures(model: nn.Module, x: torch.Tensor, early: dict | None) -> di
       has one output per sample.
     * ``synaptic_operations``: ``effective_acs``, accumulates per sample (one per non-zero
       synapse reached by an input or hidden spike delivered before the decision);
-      ``effective_macs`` 0; ``dense``, every synapse once (each neuron spikes at most once).
+      ``effective_macs`` 0; ``dense``, every synapse once (each neuron spikes at most once; a
+      convolution's weights once per receptive field, padding excluded).
 
-    Without ``early`` (the spiking CNN has no event-driven evaluator) all but ``effective_macs``
-    are None.
+    Without ``early`` all but ``effective_macs`` are None.
     """
     figures = {
         **latency(model, x),
@@ -247,9 +248,9 @@ def spiking_figures(model: nn.Module, x: torch.Tensor, early: dict | None) -> di
     }
     if early is None:
         return figures
-    neurons = sum(m.weight.shape[1] for m in model.layers)  # hidden and output
+    neurons, synapses = network_size(model, tuple(x.shape[1:]))  # hidden and output neurons
     fired = early["hidden_spikes_mean"] + (1 - early["no_decision"] / early["samples"])
     figures["activation_sparsity"] = 1.0 - fired / neurons
     figures["synaptic_operations"]["effective_acs"] = early["accumulates_mean"]
-    figures["synaptic_operations"]["dense"] = sum(m.weight.numel() for m in model.layers)
+    figures["synaptic_operations"]["dense"] = synapses
     return figures

@@ -1,4 +1,8 @@
-"""Early decisions, as the paper claims them: an event-driven run of a dense spiking network.
+"""Early decisions, as the paper claims them: an event-driven run of a spiking network.
+
+:func:`decide` runs a dense network event by event (below); :func:`decide_all` gives the same
+decisions for a whole batch and for convolutional networks too, from the layer-wise spike
+times (the tests hold it to :func:`decide`).
 
 Input spikes are fed in time order; every neuron keeps the sums of the weights and of the
 weighted z of the spikes it has received, and so knows when it would fire if nothing else
@@ -17,7 +21,10 @@ reaches) and the energy spikes x alpha.
 from dataclasses import dataclass
 
 import numpy as np
+import torch
+import torch.nn.functional as F
 
+from simlidar.models import ttfs
 from simlidar.models.ttfs import MIN_EXCESS
 
 ALPHAS_PJ = (0.37, 45.0)  # energy per spike in the paper's estimate, picojoules
@@ -110,3 +117,88 @@ def decide(weights: list[np.ndarray], z_in: np.ndarray) -> Decision:
             return Decision(best_neuron, float(best_z), next_input, len(order), hidden, accumulates)
         hidden += 1
         deliver(best_layer + 1, best_neuron, best_z)
+
+
+def fan_outs(model, shapes: list[tuple[int, ...]], zeros: bool = False) -> list[np.ndarray]:
+    """Per layer of a spiking network, the synapses (non-zero weights; with ``zeros``, every
+    weight) each of its inputs reaches, flattened as the layer's input: a dense layer's weight
+    row; for a convolution, the weights of every receptive field that holds the input position
+    (padding connects nothing). ``shapes``: each layer's input shape without the batch."""
+    out = []
+    for layer, shape in zip(model.layers, shapes):
+        w = layer.weight.detach()
+        w = torch.ones_like(w) if zeros else w
+        if w.dim() == 4:
+            (_, h, wd), k, s, p = shape, w.shape[2], layer.stride, layer.padding
+            h_out, w_out = (h + 2 * p - k) // s + 1, (wd + 2 * p - k) // s + 1
+            extra = (h - ((h_out - 1) * s - 2 * p + k), wd - ((w_out - 1) * s - 2 * p + k))
+            ones = torch.ones(1, w.shape[0], h_out, w_out, dtype=torch.float64)
+            nonzero = (w != 0).double()
+            reach = F.conv_transpose2d(ones, nonzero, stride=s, padding=p, output_padding=extra)
+            out.append(reach.reshape(-1).round().long().numpy())
+        else:
+            out.append(np.count_nonzero(w.numpy(), axis=1))
+    return out
+
+
+def layer_shapes(model, input_shape: tuple[int, ...]) -> list[tuple[int, ...]]:
+    """Each layer's input shape (without the batch) and, last, the output's."""
+    shapes, z = [], torch.full((1, *input_shape), torch.inf, dtype=torch.float64)
+    with torch.no_grad():
+        for layer in model.layers:
+            shapes.append(tuple(z.shape[1:]))
+            w = layer.weight.detach().double()
+            if w.dim() == 4:
+                z = ttfs.conv2d(z, w, layer.stride, layer.padding)
+            else:
+                z = ttfs.dense(z.flatten(1), w)
+    return shapes + [tuple(z.shape[1:])]
+
+
+def network_size(model, input_shape: tuple[int, ...]) -> tuple[int, int]:
+    """(neurons, synapses) of a spiking network: hidden and output neurons, and every
+    connection from an input position to a neuron (a convolution's weights once per receptive
+    field, padding excluded)."""
+    shapes = layer_shapes(model, input_shape)
+    neurons = sum(int(np.prod(shape)) for shape in shapes[1:])
+    return neurons, int(sum(r.sum() for r in fan_outs(model, shapes[:-1], zeros=True)))
+
+
+def decide_all(model, z_in: torch.Tensor) -> list[Decision]:
+    """:func:`decide` for every sample of a batch and for any spiking network (dense layers and
+    convolutions), from the exact spike times of the layer-wise forward pass in float64.
+
+    A neuron's spike depends only on the spikes before it, so the event-driven run to the first
+    output spike delivers exactly the spikes at or before that time (an input or hidden spike
+    at the same instant goes first, as in :func:`decide`). ``tests/models/test_decisions.py``
+    holds this to :func:`decide` on dense networks and on convolutions written out as dense
+    layers.
+
+    model : a ``SpikingNet``; z_in : (B, ...) its input spikes (z domain, inf = none)
+    """
+    spikes = [z_in.double()]
+    with torch.no_grad():
+        for layer in model.layers:
+            w = layer.weight.detach().double()
+            if w.dim() == 4:
+                spikes.append(ttfs.conv2d(spikes[-1], w, layer.stride, layer.padding))
+            else:
+                spikes.append(ttfs.dense(spikes[-1].flatten(1), w))
+    reach = fan_outs(model, [tuple(s.shape[1:]) for s in spikes[:-1]])
+    inputs = [s.flatten(1).numpy() for s in spikes[:-1]]
+    result = []
+    for b, out in enumerate(spikes[-1].numpy()):
+        label = int(np.argmin(out)) if np.isfinite(out).any() else -1
+        z_dec = float(out[label]) if label >= 0 else np.inf
+        delivered = [layer[b] <= z_dec for layer in inputs]  # silent (inf) never
+        result.append(
+            Decision(
+                label,
+                z_dec,
+                int(delivered[0].sum()),
+                int(np.isfinite(inputs[0][b]).sum()),
+                int(sum(d.sum() for d in delivered[1:])),
+                int(sum(r[d].sum() for r, d in zip(reach, delivered))),
+            )
+        )
+    return result

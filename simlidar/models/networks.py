@@ -33,11 +33,7 @@ class SpikingNet(nn.Module):
         self.scale = scale
         self.silent_from = 1.0
 
-    @property
-    def event_driven(self) -> bool:
-        """Whether the event-driven evaluator (:mod:`simlidar.models.decisions`: how early the
-        network decides) runs this network: dense layers only, for now."""
-        return all(isinstance(m, DenseTTFS) for m in self.layers)
+    event_driven = True  # the decision evaluator (simlidar.models.decisions) runs it
 
     def forward(self, delays: torch.Tensor) -> torch.Tensor:
         return self.spikes(delays)[-1]

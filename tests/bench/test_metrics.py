@@ -194,3 +194,18 @@ def test_latency_and_board_energy():
     assert np.isclose(figures["energy_pj_board"], 10.0 * figures["latency_ms"] * 1e9)
     assert figures["energy_pj_mac"] == figures["macs"] * metrics.MAC_PJ
     assert figures["synaptic_operations"]["dense"] < figures["macs"]  # no padding products
+
+
+def test_the_spiking_cnn_has_the_synapses_neurobench_counts_for_its_cnn(pulses):
+    """A spiking CNN's synapses (each neuron spikes at most once: NeuroBench's dense count of an
+    event-driven run) are the products NeuroBench's Dense counts for the ReLU CNN of the same
+    layers: padding connects nothing in both."""
+    from simlidar.models.decisions import network_size
+    from simlidar.models.registry import build_model, load_recipe
+
+    scnn = build_model(load_recipe("scnn_kitti"), (1, 16, 16), 32)
+    cnn = _model("cnn")
+    dense = _neurobench(cnn, pulses)["SynapticOperations"]["Dense"]
+    neurons, synapses = network_size(scnn, (1, 16, 16))
+    assert synapses == dense == 505_136
+    assert neurons == 48 * 8 * 8 + 24 * 4 * 4 + 256 + 32

@@ -83,3 +83,86 @@ def test_accumulates_of_a_deeper_network_follow_the_closed_form(datasets):
         ), i
         deep += int(before[2].sum() > 0)
     assert deep > len(x) // 2  # the second hidden layer took part
+
+
+def _dense_net(weights):
+    """A SpikingNet of dense layers with these (N_in, N_out) weights."""
+    from simlidar.models.layers import DenseTTFS
+    from simlidar.models.networks import SpikingNet
+
+    layers = []
+    for w in weights:
+        layer = DenseTTFS(*w.shape)
+        layer.weight.data = torch.from_numpy(w)
+        layers.append(layer)
+    return SpikingNet(layers, 3.0)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_batched_decisions_equal_the_event_driven_run(datasets, seed):
+    from simlidar.models.decisions import decide_all
+
+    x, _ = load_split(datasets[0.5], "test")
+    weights = _random_net(seed)
+    weights[0][np.random.default_rng(seed).random(weights[0].shape) < 0.2] = 0.0  # pruned
+    z = ttfs.encode(torch.from_numpy(x.astype(np.float64)).flatten(1), 3.0)
+    batched = decide_all(_dense_net(weights), z)
+    for i in range(len(x)):
+        one = decide(weights, z[i].numpy())
+        assert batched[i].label == one.label, i
+        assert batched[i].z == pytest.approx(one.z, rel=1e-9) or one.z == batched[i].z == np.inf
+        got = (batched[i].input_spikes, batched[i].hidden_spikes, batched[i].accumulates)
+        assert got == (one.input_spikes, one.hidden_spikes, one.accumulates), i
+    assert 0 < np.mean([d.data_ratio for d in batched]) <= 1
+
+
+def _conv_as_dense(w, shape, stride, padding):
+    """A convolution's weights written out as a dense (C H W, C_out H_out W_out) matrix: zero
+    where an input is not in an output's receptive field (padding: no input at all)."""
+    c_out, c_in, k, _ = w.shape
+    _, h, wd = shape
+    h_out, w_out = (h + 2 * padding - k) // stride + 1, (wd + 2 * padding - k) // stride + 1
+    dense = np.zeros((c_in, h, wd, c_out, h_out, w_out))
+    for fy in range(h_out):
+        for fx in range(w_out):
+            for ky in range(k):
+                for kx in range(k):
+                    y, x = fy * stride - padding + ky, fx * stride - padding + kx
+                    if 0 <= y < h and 0 <= x < wd:
+                        dense[:, y, x, :, fy, fx] = w[:, :, ky, kx].T
+    return dense.reshape(c_in * h * wd, c_out * h_out * w_out), (c_out, h_out, w_out)
+
+
+def test_a_convolutional_network_decides_as_its_dense_equivalent():
+    """decide_all on a spiking CNN equals the event-driven run of the same network with each
+    convolution written out as a dense layer (same spikes, same synapses)."""
+    from simlidar.models.decisions import decide_all
+    from simlidar.models.networks import spiking_cnn
+
+    generator = torch.Generator().manual_seed(3)
+    model = spiking_cnn(
+        (1, 9, 13), 4, generator, conv=((3, 3, 2), (2, 3, 1)), dense=(12,), excess=8.0
+    )
+    for layer in model.layers:
+        layer.weight.data = layer.weight.data.double()
+    model.layers[0].weight.data[0, 0, 1, 1] = 0.0  # a pruned synapse
+    x = torch.rand(12, 1, 9, 13, generator=generator, dtype=torch.float64)
+    z = ttfs.encode(x, 3.0, 0.9)  # delays above 0.9: no spike
+    batched = decide_all(model, z)
+    weights, shape = [], (1, 9, 13)
+    for layer in model.layers:
+        w = layer.weight.detach().numpy()
+        if w.ndim == 4:
+            dense, shape = _conv_as_dense(w, shape, layer.stride, layer.padding)
+            weights.append(dense)
+        else:
+            weights.append(w)
+    for i in range(len(x)):
+        one = decide(weights, z[i].flatten().numpy())
+        assert (batched[i].label, batched[i].input_spikes) == (one.label, one.input_spikes), i
+        assert (batched[i].hidden_spikes, batched[i].accumulates) == (
+            one.hidden_spikes,
+            one.accumulates,
+        ), i
+        assert batched[i].z == pytest.approx(one.z, rel=1e-9) or one.z == batched[i].z
+    assert any(d.label >= 0 for d in batched) and any(d.data_ratio < 1 for d in batched)
