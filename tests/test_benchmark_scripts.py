@@ -60,3 +60,18 @@ def test_ttfs_speed_prints_both_ratios():
     for line in lines:
         ratio = float(line.split("ratio ")[1].split()[0])
         assert ratio > 0 and ("target <= 5" in line or "target <= 3" in line)
+
+
+def test_generation_workers_compares_the_counts_on_the_same_bytes():
+    done = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "benchmark" / "generation_workers.py"),
+            *("--samples", "400", "--rounds", "1"),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=300,
+    )
+    assert "ratio" in done.stdout and "the same bytes for every count: yes" in done.stdout

@@ -85,6 +85,8 @@ def test_version(run):
         (["generate", "--variation", "0"], 2, "--variation"),
         (["generate", "--variation", "1.5"], 2, "--variation"),
         (["generate", "--out", "afile"], 2, "afile"),
+        (["generate", "--workers", "0"], 2, "'--workers': 0 is below 1; expected N >= 1 or auto"),
+        (["generate", "--workers", "two"], 2, "'two' is not a whole number"),
         (["generate", "--test-size", "-5"], 2, "'--test-size': -5 is not in the range 1<=x<="),
         (["generate", "--train-size", "20"], 2, "at least one sample of every class"),
         (["preview", "nowhere", "--out", "x.jpg"], 2, "ending in .png"),

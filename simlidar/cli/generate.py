@@ -9,6 +9,7 @@ import click
 from simlidar.cli.options import (
     NoiseLevels,
     OutFolder,
+    Workers,
     load_scene_catalog,
     scenes_option,
     setting_option,
@@ -71,6 +72,14 @@ from simlidar.settings import help_of
     show_default=True,
     help="Samples ray-cast together (does not change the data).",
 )
+@click.option(
+    "--workers",
+    type=Workers(),
+    default="1",
+    show_default=True,
+    help="Processes that simulate (auto: every core this process may use); the files are the "
+    "same for every count.",
+)
 @click.option("--force", is_flag=True, help="Overwrite existing datasets.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def generate(
@@ -86,6 +95,7 @@ def generate(
     width,
     scenes,
     batch_size,
+    workers,
     force,
     as_json,
 ):
@@ -128,7 +138,7 @@ def generate(
         width=width,
     )
     start = time.perf_counter()
-    written = run(config, noise, catalog, out, batch_size=batch_size, force=force)
+    written = run(config, noise, catalog, out, batch_size=batch_size, force=force, workers=workers)
     seconds = time.perf_counter() - start
     if as_json:
         record = {

@@ -6,6 +6,7 @@ bad model recipe given to --model), 1 for anything else (a bad scene recipe, a p
 a dataset, an existing dataset, ...). ``--debug`` shows the traceback instead.
 """
 
+import os
 import sys
 from pathlib import Path
 
@@ -76,6 +77,30 @@ class NoiseLevels(click.ParamType):
         if len(set(levels)) != len(levels):
             self.fail(f"{value!r} repeats a level; expected distinct levels", param, ctx)
         return levels
+
+
+class Workers(click.ParamType):
+    """A number of worker processes >= 1, or ``auto``: the cores this process may run on."""
+
+    name = "N|auto"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, int) and not isinstance(value, bool):
+            number = value
+        elif str(value).strip().lower() == "auto":
+            return (
+                len(os.sched_getaffinity(0))
+                if hasattr(os, "sched_getaffinity")
+                else (os.cpu_count() or 1)
+            )
+        else:
+            try:
+                number = int(str(value))
+            except ValueError:
+                self.fail(f"{value!r} is not a whole number; expected N >= 1 or auto", param, ctx)
+        if number < 1:
+            self.fail(f"{number} is below 1; expected N >= 1 or auto", param, ctx)
+        return number
 
 
 class FiniteRange(click.FloatRange):

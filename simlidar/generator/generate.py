@@ -8,7 +8,10 @@ on any failure the temporary folders are removed and nothing appears under a fin
 """
 
 import json
+import multiprocessing
+from collections import deque
 from dataclasses import dataclass
+from itertools import islice
 from pathlib import Path
 
 import h5py
@@ -19,7 +22,7 @@ from simlidar.atomic import Temporary, claim_folder, install
 from simlidar.dataset.schema import SHUFFLED, SPLITS, generated_shapes
 from simlidar.dataset.version import dataset_version
 from simlidar.dataset.writer import SplitWriter
-from simlidar.errors import DatasetError
+from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.card import generated_card, generated_croissant
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.pulses import split_rows
@@ -32,6 +35,58 @@ from simlidar.scene.recipe import Catalog
 from simlidar.sensor.raycast import MAX_BATCH
 from simlidar.sensor.rays import column_centres_deg
 from simlidar.sensor.vlp16 import row_order
+
+_SHARED: tuple | None = None  # (config, catalog) of the batches the worker processes simulate
+
+
+def _simulate_job(job: tuple[str, int, int]):
+    config, catalog = _SHARED
+    return simulate(config, catalog, *job)
+
+
+class Batches:
+    """The Samples of ``jobs`` (split, start, stop), in order. With ``workers`` > 1 a pool of
+    forked processes simulates them (the scene catalog is shared by the fork: its compiled
+    expressions do not pickle), at most two batches a worker ahead of the consumer, so memory
+    stays flat in the number of samples; a worker's error is raised by ``next``. The pool is
+    forked when this object is made: make it before opening any file the workers must not hold
+    (HDF5 locks are shared with a forked child). ``close`` stops the workers."""
+
+    def __init__(self, config: GeneratorConfig, catalog: Catalog, jobs: list, workers: int = 1):
+        global _SHARED
+        self.config, self.catalog = config, catalog
+        self.todo = iter(jobs)
+        self.pending: deque = deque()
+        self.pool = None
+        if workers > 1 and len(jobs) > 1:
+            _SHARED = (config, catalog)
+            try:
+                self.pool = multiprocessing.get_context("fork").Pool(workers)
+            finally:
+                _SHARED = None  # the workers have their copy
+            for job in islice(self.todo, 2 * workers):
+                self.pending.append(self.pool.apply_async(_simulate_job, (job,)))
+
+    def __iter__(self):
+        return self
+
+    def __next__(self):
+        if self.pool is None:
+            job = next(self.todo)
+            return simulate(self.config, self.catalog, *job)
+        if not self.pending:
+            raise StopIteration
+        samples = self.pending.popleft().get()
+        job = next(self.todo, None)
+        if job is not None:
+            self.pending.append(self.pool.apply_async(_simulate_job, (job,)))
+        return samples
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.terminate()
+            self.pool.join()
+            self.pool = None
 
 
 @dataclass(frozen=True)
@@ -102,12 +157,19 @@ def generate(
     force: bool = False,
     progress: bool = True,
     preview: bool = True,
+    workers: int = 1,
 ) -> list[Written]:
-    """Generate one dataset directory per noise level under ``out``; return what was written."""
+    """Generate one dataset directory per noise level under ``out``; return what was written.
+
+    workers : processes that simulate batches (the calling process writes them, in order); the
+        bytes are the same for every count, as every sample draws from its own random streams
+    """
     from tqdm import tqdm
 
     if not 1 <= batch_size <= MAX_BATCH:
         raise DatasetError(f"batch_size={batch_size}: expected 1..{MAX_BATCH}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ConfigError(f"workers={workers!r}: expected a number of processes >= 1")
     configs = [config.with_noise(level) for level in noise_levels]
     class_plan(catalog, config.classes)  # fail before touching the disk
     out = Path(out)
@@ -117,7 +179,17 @@ def generate(
     existing = [str(f) for f in finals if f.exists()]
     if existing and not force:
         raise DatasetError(f"{existing[0]} already exists: pass --force to overwrite it")
-    created = claim_folder(out)
+    jobs = [
+        (split, start, min(start + batch_size, config.split_sizes[split]))
+        for split in SPLITS
+        for start in range(0, config.split_sizes[split], batch_size)
+    ]
+    batches = Batches(config, catalog, jobs, workers)  # forks before any file or lock is open
+    try:
+        created = claim_folder(out)
+    except BaseException:
+        batches.close()
+        raise
     claims: list[Temporary] = []
     bar = None
     writers: list[SplitWriter] = []
@@ -138,12 +210,13 @@ def generate(
                 writers.append(SplitWriter(temp / f"{split}.h5", size, shapes, attrs, SHUFFLED))
             for start in range(0, size, batch_size):
                 stop = min(start + batch_size, size)
-                samples = simulate(config, catalog, split, start, stop)
+                samples = next(batches)
                 for cfg, writer in zip(configs, writers):
                     writer.append(split_rows(samples, cfg.noise, cfg.pulse_rule))
                 bar.update(stop - start)
             for writer in writers:
                 writer.close()
+        batches.close()
         bar.close()
         for temp, final in zip(temps, finals):
             if preview:
@@ -160,6 +233,7 @@ def generate(
             bar.close()  # the error then gets a line of its own, not the end of the bar's
         raise
     finally:
+        batches.close()
         for claim in claims:
             claim.release()
         if created and out.is_dir() and not any(out.iterdir()):

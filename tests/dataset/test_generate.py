@@ -72,6 +72,54 @@ def test_same_seed_same_bytes_whatever_the_batch_size(tmp_path, catalog):
         assert (one.path / name).read_bytes() == (two.path / name).read_bytes(), name
 
 
+@pytest.mark.parametrize(("workers", "batch_size"), [(2, 7), (3, 40)])
+def test_the_same_bytes_whatever_the_number_of_workers(tmp_path, catalog, workers, batch_size):
+    config = GeneratorConfig(train_size=40, test_size=32, classes=8)
+    one = generate(config, [0.2, 0.4], catalog, tmp_path / "one", batch_size=16, progress=False)
+    many = generate(
+        config,
+        [0.2, 0.4],
+        catalog,
+        tmp_path / "many",
+        batch_size=batch_size,
+        progress=False,
+        workers=workers,
+    )
+    for a, b in zip(one, many):
+        files = sorted(p.name for p in a.path.iterdir())
+        assert files == sorted(p.name for p in b.path.iterdir())
+        for name in files:
+            assert (a.path / name).read_bytes() == (b.path / name).read_bytes(), name
+
+
+def test_a_workers_failure_leaves_nothing_behind(tmp_path, catalog, monkeypatch):
+    """An error in a worker process (the fork carries the patched simulate) reaches the
+    caller, the workers stop and no dataset directory or temporary is left."""
+    import simlidar.generator.generate as gen
+
+    real = gen.simulate
+
+    def failing(config, catalog, split, start, stop):
+        if split == "test":
+            raise RuntimeError(f"worker failed at {split} {start}")
+        return real(config, catalog, split, start, stop)
+
+    monkeypatch.setattr(gen, "simulate", failing)
+    config = GeneratorConfig(train_size=16, test_size=8, classes=4)
+    with pytest.raises(RuntimeError, match="worker failed at test 0"):
+        generate(config, [0.1], catalog, tmp_path, batch_size=4, progress=False, workers=2)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_bad_worker_count_is_refused(tmp_path, catalog):
+    from simlidar.errors import ConfigError
+
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ConfigError, match=r"workers=.*: expected a number of processes >= 1"):
+            generate(GeneratorConfig(), [0.2], catalog, tmp_path, workers=bad, progress=False)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_info_counts_every_class(datasets):
     info = dataset_info(datasets[0.5])
     assert info["splits"] == {"train": 96, "test": 64}
