@@ -10,6 +10,8 @@ on any failure the temporary folders are removed and nothing appears under a fin
 import json
 import multiprocessing
 from collections import deque
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
@@ -45,12 +47,13 @@ def _simulate_job(job: tuple[str, int, int]):
 
 
 class Batches:
-    """The Samples of ``jobs`` (split, start, stop), in order. With ``workers`` > 1 a pool of
-    forked processes simulates them (the scene catalog is shared by the fork: its compiled
-    expressions do not pickle), at most two batches a worker ahead of the consumer, so memory
-    stays flat in the number of samples; a worker's error is raised by ``next``. The pool is
-    forked when this object is made: make it before opening any file the workers must not hold
-    (HDF5 locks are shared with a forked child). ``close`` stops the workers."""
+    """The Samples of ``jobs`` (split, start, stop), in order. With ``workers`` > 1 forked
+    processes simulate them (the scene catalog is shared by the fork: its compiled expressions
+    do not pickle), at most two batches a worker ahead of the consumer, so memory stays flat in
+    the number of samples. A worker's error is raised by ``next``; a worker that dies (killed,
+    out of memory) ends the run with a DatasetError, never a wait without end. The workers are
+    forked when this object is made: make it before opening any file or lock they must not
+    hold (a forked child shares the parent's HDF5 file locks). ``close`` stops them."""
 
     def __init__(self, config: GeneratorConfig, catalog: Catalog, jobs: list, workers: int = 1):
         global _SHARED
@@ -60,12 +63,10 @@ class Batches:
         self.pool = None
         if workers > 1 and len(jobs) > 1:
             _SHARED = (config, catalog)
-            try:
-                self.pool = multiprocessing.get_context("fork").Pool(workers)
-            finally:
-                _SHARED = None  # the workers have their copy
-            for job in islice(self.todo, 2 * workers):
-                self.pending.append(self.pool.apply_async(_simulate_job, (job,)))
+            context = multiprocessing.get_context("fork")
+            self.pool = ProcessPoolExecutor(workers, mp_context=context)
+            for job in islice(self.todo, 2 * workers):  # forks every worker now
+                self.pending.append((job, self.pool.submit(_simulate_job, job)))
 
     def __iter__(self):
         return self
@@ -76,17 +77,26 @@ class Batches:
             return simulate(self.config, self.catalog, *job)
         if not self.pending:
             raise StopIteration
-        samples = self.pending.popleft().get()
-        job = next(self.todo, None)
-        if job is not None:
-            self.pending.append(self.pool.apply_async(_simulate_job, (job,)))
+        job, future = self.pending.popleft()
+        try:
+            samples = future.result()
+        except BrokenProcessPool:
+            split, start, stop = job
+            raise DatasetError(
+                f"a worker process died while simulating {split} samples {start}..{stop - 1} "
+                "(killed, or out of memory); nothing was kept: run the command again"
+            ) from None
+        following = next(self.todo, None)
+        if following is not None:
+            self.pending.append((following, self.pool.submit(_simulate_job, following)))
         return samples
 
     def close(self) -> None:
+        global _SHARED
         if self.pool is not None:
-            self.pool.terminate()
-            self.pool.join()
+            self.pool.shutdown(wait=True, cancel_futures=True)
             self.pool = None
+            _SHARED = None
 
 
 @dataclass(frozen=True)

@@ -111,6 +111,25 @@ def test_a_workers_failure_leaves_nothing_behind(tmp_path, catalog, monkeypatch)
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_killed_worker_ends_the_run_with_an_error_not_a_wait(tmp_path, catalog, monkeypatch):
+    import os
+
+    import simlidar.generator.generate as gen
+
+    real = gen.simulate
+
+    def dying(config, catalog, split, start, stop):
+        if split == "train" and start == 8:
+            os._exit(9)  # as if killed
+        return real(config, catalog, split, start, stop)
+
+    monkeypatch.setattr(gen, "simulate", dying)
+    config = GeneratorConfig(train_size=16, test_size=8, classes=4)
+    with pytest.raises(DatasetError, match="a worker process died while simulating train"):
+        generate(config, [0.1], catalog, tmp_path, batch_size=4, progress=False, workers=2)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_bad_worker_count_is_refused(tmp_path, catalog):
     from simlidar.errors import ConfigError
 
