@@ -12,7 +12,7 @@ STAGES = [
     {"simlidar", "simlidar.errors", "simlidar.content", "simlidar.atomic", "simlidar.settings"},
     {"simlidar.scene"},
     {"simlidar.sensor"},
-    {"simlidar.dataset"},
+    {"simlidar.dataset", "simlidar.data"},
     {"simlidar.release"},
     {"simlidar.generator"},
     {"simlidar.convert"},

@@ -161,7 +161,7 @@ def converted_card(path: str | Path) -> str:
         "## Versions\n",
         "\n".join(f"* {v} ({dates.get(v, 'unreleased')}): {n}" for v, n in notes.items()) + "\n",
         "## Loading\n",
-        "```python\nfrom simlidar.dataset import load_split\n"
+        "```python\nfrom simlidar.data import load_split\n"
         f"x, y = load_split('.', 'train')  # x: (N, {info.height}, {info.width}) float32, "
         "y: (N,) int64\n```\n",
         "## Citation\n\nPlease cite the source data and the paper whose pipeline this follows:\n",

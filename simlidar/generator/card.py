@@ -265,7 +265,7 @@ def generated_card(path: str | Path) -> str:
         )
         + "\n",
         "## Loading\n",
-        "```python\nfrom simlidar.dataset import load_split\n"
+        "```python\nfrom simlidar.data import load_split\n"
         "x, y = load_split('.', 'train')  # x: (N, 16, W) float32, y: (N,) int64\n```\n",
         "## Citation\n\nPlease cite the paper whose dataset this rebuilds:\n",
         f"```bibtex\n{CITATION}\n```\n",

@@ -1,21 +1,34 @@
 import pytest
 import torch
 
+from simlidar.content import content_dir
 from simlidar.errors import ConfigError
 from simlidar.models.registry import BUILDERS, build_model, load_recipe
 
-RECIPES = ["snn_simlidar", "scnn_kitti", "snn_dvs"]
+SHIPPED = sorted(p.stem for p in content_dir("baselines").glob("*.toml"))
 
 
-@pytest.mark.parametrize("name", RECIPES)
+def _data_of(name: str) -> tuple[tuple[int, ...], int]:
+    """The input shape and classes of the data a shipped recipe is made for (by its name)."""
+    if "kitti" in name:
+        return (1, 50, 118), 8
+    if "dvs" in name:
+        return (1, 32, 32), 36
+    return (1, 16, 16), 32
+
+
+@pytest.mark.parametrize("name", SHIPPED)
 def test_every_shipped_recipe_builds_and_runs(name):
     recipe = load_recipe(name)
-    shape = {"snn_simlidar": (1, 16, 16), "scnn_kitti": (1, 50, 118), "snn_dvs": (1, 32, 32)}
-    classes = {"snn_simlidar": 32, "scnn_kitti": 8, "snn_dvs": 36}[name]
-    model = build_model(recipe, shape[name], classes, torch.Generator().manual_seed(0))
-    out = model(torch.rand(2, *shape[name]))
+    shape, classes = _data_of(name)
+    model = build_model(recipe, shape, classes, torch.Generator().manual_seed(0))
+    out = model(torch.rand(2, *shape))
     assert out.shape == (2, classes)
-    assert torch.isfinite(out).any()  # the initial weights let neurons fire
+    assert torch.isfinite(out).any()  # the initial weights let spiking neurons fire
+
+
+def test_the_shipped_folder_is_what_the_registry_serves():
+    assert len(SHIPPED) >= 9 and {load_recipe(n)["model"] for n in SHIPPED} == set(BUILDERS)
 
 
 def test_the_papers_layer_sizes():
@@ -29,7 +42,6 @@ def test_the_papers_layer_sizes():
         (24 * 13 * 30, 256),
         (256, 8),
     ]
-    assert set(RECIPES) <= {"snn_simlidar", "scnn_kitti", "snn_dvs"} and "snn" in BUILDERS
 
 
 def test_bad_recipes_are_named(tmp_path):

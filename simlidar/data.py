@@ -1,0 +1,34 @@
+"""Loading simlidar datasets, under the name every dataset card gives::
+
+    from simlidar.data import load_split, PulseDataset, to_events
+
+The loaders live in :mod:`simlidar.dataset.loaders` (the dataset stage); this module is their
+public name, kept so that published cards and user code keep working. ``PulseDataset``
+imports torch on first use, so importing this module does not. Examples: ``docs/loading.md``.
+"""
+
+from simlidar.dataset.loaders import (
+    EVENT_DTYPE,
+    load_split,
+    sensor_size,
+    spike_threshold,
+    split_path,
+    to_events,
+)
+
+__all__ = [  # and PulseDataset, made on first use (below)
+    "EVENT_DTYPE",
+    "load_split",
+    "sensor_size",
+    "spike_threshold",
+    "split_path",
+    "to_events",
+]
+
+
+def __getattr__(name: str):
+    if name == "PulseDataset":
+        from simlidar.dataset.loaders import PulseDataset
+
+        return PulseDataset
+    raise AttributeError(f"module 'simlidar.data' has no attribute {name!r}")
