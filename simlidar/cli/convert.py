@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from simlidar.cli.options import FiniteRange, setting_option
+from simlidar.cli.options import DEFAULT_OUT, FiniteRange, setting_option
 from simlidar.convert.options import DvsConfig, KittiConfig
 
 
@@ -33,7 +33,7 @@ def _convert_options(config, command):
             click.option(
                 "--out",
                 type=click.Path(file_okay=False, path_type=Path),
-                default=Path("data"),
+                default=DEFAULT_OUT,
                 show_default=True,
                 help="Folder for the dataset directory.",
             ),

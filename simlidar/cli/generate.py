@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from simlidar.cli.options import (
+    DEFAULT_OUT,
     NoiseLevels,
     OutFolder,
     Workers,
@@ -16,6 +17,7 @@ from simlidar.cli.options import (
 )
 from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.generate import BATCH
 from simlidar.generator.profiles import DEFAULT_PROFILE
 from simlidar.sensor.raycast import MAX_BATCH
 from simlidar.settings import help_of
@@ -59,7 +61,7 @@ from simlidar.settings import help_of
 @click.option(
     "--out",
     type=OutFolder(),
-    default=Path("data"),
+    default=DEFAULT_OUT,
     show_default=True,
     help="Folder that receives the dataset directories.",
 )
@@ -68,7 +70,7 @@ from simlidar.settings import help_of
 @click.option(
     "--batch-size",
     type=click.IntRange(1, MAX_BATCH),
-    default=1024,
+    default=BATCH,
     show_default=True,
     help="Samples ray-cast together (does not change the data).",
 )

@@ -79,6 +79,9 @@ class NoiseLevels(click.ParamType):
         return levels
 
 
+DEFAULT_OUT = Path("data")  # where generate, convert and fetch write datasets
+
+
 class Workers(click.ParamType):
     """A number of worker processes >= 1, or ``auto``: the cores this process may run on."""
 

@@ -8,9 +8,11 @@ from pathlib import Path
 import click
 
 from simlidar.cli.options import (
+    DEFAULT_OUT,
     FiniteRange,
     OutFolder,
 )
+from simlidar.release.archive import MAX_TIMEOUT_S, TIMEOUT_S
 
 
 @click.command()
@@ -122,11 +124,11 @@ def _hex_sha256(ctx, param, value):
     callback=_hex_sha256,
     help="Expected sha256 of the archive (default: read from URL.sha256).",
 )
-@click.option("--out", type=OutFolder(), default=Path("data"), show_default=True)
+@click.option("--out", type=OutFolder(), default=DEFAULT_OUT, show_default=True)
 @click.option(
     "--timeout",
-    type=FiniteRange(0.1, 86_400),  # archive.MAX_TIMEOUT_S (not imported: cli stays light)
-    default=30.0,
+    type=FiniteRange(0.1, MAX_TIMEOUT_S),
+    default=TIMEOUT_S,
     show_default=True,
     help="Seconds to wait for the server (at most a day).",
 )

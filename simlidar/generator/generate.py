@@ -38,6 +38,7 @@ from simlidar.sensor.raycast import MAX_BATCH
 from simlidar.sensor.rays import column_centres_deg
 from simlidar.sensor.vlp16 import row_order
 
+BATCH = 1024  # samples ray-cast together by default (does not change the data)
 _SHARED: tuple | None = None  # (config, catalog) of the batches the worker processes simulate
 
 
@@ -163,7 +164,7 @@ def generate(
     noise_levels: list[float],
     catalog: Catalog,
     out: str | Path,
-    batch_size: int = 1024,
+    batch_size: int = BATCH,
     force: bool = False,
     progress: bool = True,
     preview: bool = True,

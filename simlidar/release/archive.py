@@ -25,6 +25,7 @@ from simlidar.release.verify import verify
 
 DEFAULT_MAX_BYTES = 20 * 2**30  # refuse archives that unpack to more than this
 MAX_TIMEOUT_S = 86_400.0  # one day: the longest wait for the server that makes sense
+TIMEOUT_S = 30.0  # the default wait for the server
 _CHUNK = 1 << 16
 _PLAIN_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
 
@@ -203,7 +204,7 @@ def fetch(
     url: str,
     sha256: str | None = None,
     out: str | Path = ".",
-    timeout: float = 30.0,
+    timeout: float = TIMEOUT_S,
     force: bool = False,
     max_bytes: int = DEFAULT_MAX_BYTES,
     progress: bool = True,
