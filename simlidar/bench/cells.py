@@ -1,0 +1,87 @@
+"""What a benchmark cell is made from, and whether it is done: a cell (one model, one dataset,
+one seed) records the fingerprints of its data and recipe and the training rules it ran by, and
+a rerun never reuses a cell made from other inputs (docs/benchmark.md)."""
+
+import hashlib
+import json
+from pathlib import Path
+
+from simlidar.bench.train import selection_rule
+from simlidar.errors import DatasetError
+from simlidar.models.registry import load_recipe
+from simlidar.models.training import TrainingConfig
+from simlidar.release.checksums import SUMS, read_sums
+
+
+def cell_id(dataset: Path, model: str, seed: int) -> str:
+    return f"{dataset.name}__{Path(model).stem}__seed{seed}"
+
+
+def training_rules(model: str, budget: dict) -> dict:
+    """The rules a cell trains by: the recipe's [training] with the suite's budget over it
+    (epochs, time cap, validation fraction, patience), defaults filled in, and the selection
+    rule's name."""
+    training = TrainingConfig.from_table({**load_recipe(model)["training"], **budget}, model)
+    return {
+        "epochs": training.epochs,
+        "max_seconds": training.max_seconds,
+        "validation": training.validation,
+        "patience": training.patience,
+        "selection": selection_rule(training),
+    }
+
+
+def splits_sha256(dataset: Path) -> str | None:
+    """sha256 of the split files' lines of the dataset's SHA256SUMS (``train.h5``, ``test.h5``):
+    the data a cell trains and is tested on, not the card, whose text follows the simlidar
+    version. None without SHA256SUMS."""
+    if not (dataset / SUMS).is_file():
+        return None
+    sums = read_sums(dataset)
+    lines = "".join(f"{sums[name]}  {name}\n" for name in sorted(sums) if name.endswith(".h5"))
+    return hashlib.sha256(lines.encode()).hexdigest()
+
+
+def cell_inputs(dataset: Path, model: str, budget: dict) -> dict:
+    """Fingerprints of what a cell was made from: the data (:func:`splits_sha256`), the recipe
+    (sha256 of its content) and the training rules."""
+    recipe = load_recipe(model)
+    return {
+        "splits_sha256": splits_sha256(dataset),
+        "recipe_sha256": hashlib.sha256(json.dumps(recipe, sort_keys=True).encode()).hexdigest(),
+        "rules": training_rules(model, budget),
+    }
+
+
+def finished(out: Path, dataset: Path, model: str, seed: int, budget: dict) -> bool:
+    """Whether the cell is done in ``out``; a cell made from another dataset, recipe of the
+    same name or other training rules is refused (results are never silently reused for
+    different inputs)."""
+    path = out / "cells" / f"{cell_id(dataset, model, seed)}.json"
+    if not path.is_file():
+        return False
+    recorded = json.loads(path.read_text()).get("inputs")
+    if recorded is None:  # made before fingerprints and model selection were recorded
+        recorded = {"rules": "none recorded (a run before model selection)"}
+    for key, value in cell_inputs(dataset, model, budget).items():
+        if recorded.get(key) == value:
+            continue
+        if key == "rules":
+            raise DatasetError(
+                f"--out {out}: cell {path.stem} was made with other training rules "
+                f"({_rules(recorded.get(key))}; now {_rules(value)}); expected the same "
+                "rules: use a new --out"
+            )
+        what = "dataset" if key == "splits_sha256" else "recipe"
+        raise DatasetError(
+            f"--out {out}: cell {path.stem} was made from another {what} ({key} "
+            f"{str(recorded.get(key))[:12]}, now {str(value)[:12]}); expected the same inputs: "
+            "use a new --out"
+        )
+    return True
+
+
+def _rules(rules) -> str:
+    if not isinstance(rules, dict):
+        return str(rules)
+    return ", ".join(f"{k} {v}" for k, v in rules.items())
