@@ -12,6 +12,7 @@ from simlidar.dataset.loaders import (
     load_split,
     sensor_size,
     spike_threshold,
+    split_files,
     split_path,
     to_events,
 )
@@ -21,6 +22,7 @@ __all__ = [  # and PulseDataset, made on first use (below)
     "load_split",
     "sensor_size",
     "spike_threshold",
+    "split_files",
     "split_path",
     "to_events",
 ]

@@ -30,6 +30,24 @@ def datasets(tmp_path_factory, catalog, small_config):
     return {w.noise: w.path for w in written}
 
 
+@pytest.fixture(scope="session")
+def sharded(tmp_path_factory, catalog, small_config):
+    """The noise-0.1 dataset of ``datasets`` written as shards of 40 samples (train: 3 files,
+    test: 2), by two worker processes in batches of 16."""
+    out = tmp_path_factory.mktemp("sharded")
+    (written,) = generate(
+        small_config,
+        [0.1],
+        catalog,
+        out,
+        batch_size=16,
+        progress=False,
+        workers=2,
+        shard_samples=40,
+    )
+    return written.path
+
+
 @pytest.fixture
 def catalog_copy(tmp_path):
     """A writable copy of the shipped scene catalog."""

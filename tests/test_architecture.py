@@ -9,7 +9,14 @@ import simlidar
 PACKAGE = Path(simlidar.__file__).parent
 # lowest first; a module may import its own stage and those before it
 STAGES = [
-    {"simlidar", "simlidar.errors", "simlidar.content", "simlidar.atomic", "simlidar.settings"},
+    {
+        "simlidar",
+        "simlidar.errors",
+        "simlidar.content",
+        "simlidar.atomic",
+        "simlidar.settings",
+        "simlidar.cluster",
+    },
     {"simlidar.scene"},
     {"simlidar.sensor"},
     {"simlidar.dataset", "simlidar.data"},

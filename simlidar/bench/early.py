@@ -5,8 +5,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from simlidar.dataset.loaders import load_split, spike_threshold, split_path
-from simlidar.dataset.reader import read_split_info
+from simlidar.dataset.loaders import load_split, spike_threshold, split_info
 from simlidar.models import ttfs
 from simlidar.models.decisions import ALPHAS_PJ, decide_all
 
@@ -22,7 +21,7 @@ def decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test"):
         dataset is not a time-of-flight one)
     """
     x, y = load_split(dataset, split)
-    attrs = read_split_info(split_path(dataset, split)).attrs  # one read of the attributes
+    attrs = split_info(dataset, split).attrs  # one read of the attributes
     tof_max_ns = float(attrs["tof_max_ns"]) if "tof_max_ns" in attrs else None
     silent_from = spike_threshold(attrs)
     z = ttfs.encode(torch.from_numpy(x.astype(np.float64))[:, None], model.scale, silent_from)

@@ -15,6 +15,7 @@ import os
 import platform
 import re
 import shutil
+import socket
 import time
 from pathlib import Path
 
@@ -35,7 +36,7 @@ from simlidar.bench.train import (
 )
 from simlidar.content import content_dir
 from simlidar.dataset.loaders import load_split
-from simlidar.dataset.reader import dataset_splits, load_arrays
+from simlidar.dataset.reader import dataset_splits
 from simlidar.dataset.version import GENERATOR
 from simlidar.errors import ConfigError, DatasetError
 from simlidar.models.registry import load_recipe
@@ -317,7 +318,7 @@ def check_validation(suite: Suite, models: list[str], dataset: Path | None) -> N
         labelled = []
         for path in [dataset] if dataset is not None else suite.datasets:
             info = dataset_splits(path)["train"]
-            labels = load_arrays(info.path, ("labels",))["labels"]
+            labels = info.read(("labels",))["labels"]
             labelled.append((labels, [str(n) for n in info.attrs["class_names"]]))
     for model in models:
         fraction = training_rules(model, suite.budget_for(model))["validation"]
@@ -339,9 +340,14 @@ def run_suite(
     models: list[str] | None = None,
     dataset: Path | None = None,
     progress: bool = True,
+    scheduler: str | None = None,
+    workers: int = 2,
 ) -> dict:
     """Run every unfinished cell of the suite into ``out``; write results.json and the report.
 
+    scheduler : a Dask scheduler's address (or ``local``: a LocalCluster of ``workers``
+        processes): each cell is then one task on the cluster, writing its own file into
+        ``out`` (a path every worker must see; :mod:`simlidar.cluster`)
     returns : the results (what results.json holds)
     """
     from tqdm import tqdm
@@ -359,22 +365,55 @@ def run_suite(
     cells = [(d, m, s) for d in datasets for m in models for s in suite.seeds]
     todo = [c for c in cells if not finished(out, *c, suite.budget_for(c[1]))]
     bar = tqdm(
-        todo, desc=f"bench {suite.name}", unit="cell", disable=not progress, dynamic_ncols=True
+        total=len(todo),
+        desc=f"bench {suite.name}",
+        unit="cell",
+        disable=not progress,
+        dynamic_ncols=True,
     )
-    for d, m, s in bar:
+    if scheduler is not None:
+        from simlidar.cluster import connect, run_tasks
+
+        with connect(scheduler, workers) as client:
+            tasks = [(d, m, s, suite, out) for d, m, s in todo]
+            names = [f"cell {cell_id(d, m, s)}" for d, m, s in todo]
+            run_tasks(client, _cluster_cell, tasks, names, lambda index, _: bar.update())
+    for d, m, s in todo if scheduler is None else ():
         bar.set_postfix_str(cell_id(d, m, s))
-        start = time.perf_counter()
-        record = run_cell(d, m, s, suite, out / "checkpoints" / f"{cell_id(d, m, s)}.pt")
-        record["seconds"] = round(time.perf_counter() - start, 2)
-        record.update(
-            inputs=cell_inputs(d, m, suite.budget_for(m)),
-            machine=machine(),
-            simlidar_version=__version__,
-        )
-        _write_json(out / "cells" / f"{cell_id(d, m, s)}.json", record, indent=None)
+        run_and_write(d, m, s, suite, out)
+        bar.update()
+    bar.close()
     results = collect(out, suite)
     write_report(results, out)
     return results
+
+
+def run_and_write(dataset: Path, model: str, seed: int, suite: Suite, out: Path) -> str:
+    """Run one cell and write it (``out/cells/<cell>.json``, its checkpoint beside); its id."""
+    name = cell_id(dataset, model, seed)
+    start = time.perf_counter()
+    record = run_cell(dataset, model, seed, suite, out / "checkpoints" / f"{name}.pt")
+    record["seconds"] = round(time.perf_counter() - start, 2)
+    record.update(
+        inputs=cell_inputs(dataset, model, suite.budget_for(model)),
+        machine=machine(),
+        simlidar_version=__version__,
+    )
+    _write_json(out / "cells" / f"{name}.json", record, indent=None)
+    return name
+
+
+def _cluster_cell(dataset: Path, model: str, seed: int, suite: Suite, out: Path) -> str:
+    """A cluster task: one cell on one torch thread (a worker runs as many cells at once as it
+    has threads); the cell records the machine it ran on."""
+    torch.set_num_threads(1)
+    for folder in (dataset, out):
+        if not Path(folder).is_dir():
+            raise DatasetError(
+                f"{folder}: not found on worker {socket.gethostname()}; expected it on a file "
+                "system that every worker shares"
+            )
+    return run_and_write(dataset, model, seed, suite, out)
 
 
 def collect(out: Path, suite: Suite) -> dict:

@@ -21,8 +21,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from simlidar.dataset.loaders import load_split, spike_threshold, split_path
-from simlidar.dataset.reader import read_split_info
+from simlidar.dataset.loaders import load_split, spike_threshold, split_info
 from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.pulses import noisy_delays
 from simlidar.models import ttfs
@@ -223,7 +222,7 @@ def train(
         epochs=epochs, max_seconds=max_seconds
     )
     x_all, y_all = (torch.from_numpy(a) for a in load_split(dataset, "train"))
-    attrs = read_split_info(split_path(dataset, "train")).attrs
+    attrs = split_info(dataset, "train").attrs
     classes = len(attrs["class_names"])
     try:
         rows, held = validation_split(

@@ -13,8 +13,10 @@ from simlidar.cli.options import (
     Workers,
     load_scene_catalog,
     scenes_option,
+    scheduler_option,
     setting_option,
 )
+from simlidar.dataset.shards import SHARD_SAMPLES
 from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.generate import BATCH
@@ -82,6 +84,15 @@ from simlidar.settings import help_of
     help="Processes that simulate (auto: every core this process may use); the files are the "
     "same for every count.",
 )
+@click.option(
+    "--shard-size",
+    type=click.IntRange(1),
+    default=SHARD_SAMPLES,
+    show_default=True,
+    help="A split of more samples is written as shard files of this many samples "
+    "(train-00000-of-00004.h5, ...; docs/dataset-format.md).",
+)
+@scheduler_option("every split file as one task")
 @click.option("--force", is_flag=True, help="Overwrite existing datasets.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def generate(
@@ -98,6 +109,8 @@ def generate(
     scenes,
     batch_size,
     workers,
+    shard_size,
+    scheduler,
     force,
     as_json,
 ):
@@ -140,7 +153,17 @@ def generate(
         width=width,
     )
     start = time.perf_counter()
-    written = run(config, noise, catalog, out, batch_size=batch_size, force=force, workers=workers)
+    written = run(
+        config,
+        noise,
+        catalog,
+        out,
+        batch_size=batch_size,
+        force=force,
+        workers=workers,
+        shard_samples=shard_size,
+        scheduler=scheduler,
+    )
     seconds = time.perf_counter() - start
     if as_json:
         record = {

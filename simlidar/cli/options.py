@@ -106,6 +106,35 @@ class Workers(click.ParamType):
         return number
 
 
+class Scheduler(click.ParamType):
+    """A Dask scheduler's address (``tcp://HOST:PORT``) or ``local``, checked to be reachable
+    (and Dask installed) before anything is written."""
+
+    name = "ADDRESS|local"
+
+    def convert(self, value, param, ctx):
+        from simlidar.cluster import check_scheduler
+        from simlidar.errors import ConfigError
+
+        try:
+            check_scheduler(str(value))
+        except ConfigError as exc:
+            self.fail(str(exc).removeprefix(f"--scheduler {value}: "), param, ctx)
+        return str(value)
+
+
+def scheduler_option(what: str):
+    """``--scheduler ADDRESS|local``: run ``what`` as tasks on a Dask cluster."""
+    return click.option(
+        "--scheduler",
+        type=Scheduler(),
+        default=None,
+        help=f"Run {what} on a Dask cluster: a scheduler's address (tcp://HOST:8786; the output "
+        "folder must be on a file system every worker shares), or local: a LocalCluster of "
+        '--workers processes here. Needs pip install "simlidar[cluster]".',
+    )
+
+
 class FiniteRange(click.FloatRange):
     """A FloatRange that also refuses nan (which compares False with both bounds)."""
 

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from simlidar.cli.options import setting_option
+from simlidar.cli.options import Workers, scheduler_option, setting_option
 from simlidar.errors import ConfigError, SimlidarError
 from simlidar.models.training import TrainingConfig
 from simlidar.settings import help_of
@@ -153,9 +153,27 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
     is_flag=True,
     help="Measure the finished cells of --out again from their checkpoints (no training).",
 )
+@scheduler_option("every unfinished cell as one task")
+@click.option(
+    "--workers",
+    type=Workers(),
+    default=None,
+    help="With --scheduler local: the LocalCluster's processes (default: auto, every core).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print results.json's content on stdout.")
 def bench(
-    suite, models, dataset, out, epochs, max_seconds, validation, patience, remeasure, as_json
+    suite,
+    models,
+    dataset,
+    out,
+    epochs,
+    max_seconds,
+    validation,
+    patience,
+    remeasure,
+    scheduler,
+    workers,
+    as_json,
 ):
     """Train and score the suite's models on its datasets: accuracy, how early spiking networks
     decide, energy, latency, size. Writes results.json, report.md and pictures; a rerun into
@@ -191,6 +209,7 @@ def bench(
             "--validation": validation,
             "--patience": patience,
         }
+        given["--scheduler"] = scheduler
         extra = [name for name, value in given.items() if value is not None]
         if extra:
             raise click.UsageError(
@@ -201,7 +220,19 @@ def bench(
 
         results = run_remeasure(out, chosen, progress=not as_json)
     else:
-        results = run_suite(chosen, out, models=names, dataset=dataset, progress=not as_json)
+        if workers is not None and scheduler != "local":
+            raise click.UsageError(
+                f"--workers {workers} sizes a LocalCluster; expected --scheduler local with it"
+            )
+        results = run_suite(
+            chosen,
+            out,
+            models=names,
+            dataset=dataset,
+            progress=not as_json,
+            scheduler=scheduler,
+            workers=workers or Workers().convert("auto", None, None),
+        )
     if as_json:
         click.echo(json.dumps(results))
         return

@@ -8,7 +8,7 @@ The generator's datasets get theirs from :mod:`simlidar.release.card` and
 from pathlib import Path
 
 from simlidar.convert.about import ABOUT
-from simlidar.dataset.reader import dataset_splits, load_arrays
+from simlidar.dataset.reader import dataset_splits
 from simlidar.dataset.schema import CONVERTED_SCHEMAS, SPLITS
 from simlidar.dataset.version import SOURCES
 from simlidar.generator.about import CITATION
@@ -65,7 +65,7 @@ def _source_rows(splits: dict) -> list[list]:
     if "time_window_us" in attrs:
         rows.append(["`time_window_us`", f"{attrs['time_window_us']:g} us: the delay 1.0"])
     if "frame" in CONVERTED_SCHEMAS[splits["train"].source]:
-        frames = {s: len(set(load_arrays(i.path, ("frame",))["frame"])) for s, i in splits.items()}
+        frames = {s: len(set(i.read(("frame",))["frame"])) for s, i in splits.items()}
         empty = len(attrs.get("frames_without_objects", []))
         rows.append(
             [
@@ -196,6 +196,7 @@ def converted_croissant(path: str | Path, name: str | None = None) -> dict:
                     schema[n][0],
                     _shape(schema[n][1], info.height, info.width),
                     _DOCS[n],
+                    sharded=info.sharded,
                 )
                 for n in fields
             ],

@@ -8,38 +8,54 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from simlidar.dataset.reader import load_arrays, read_split_info
+from simlidar.dataset.reader import SplitInfo, read_split
 from simlidar.errors import DatasetError
 
 EVENT_DTYPE = np.dtype([("x", np.int64), ("y", np.int64), ("t", np.int64), ("p", np.int64)])
 
 
-def split_path(path: str | Path, split: str) -> Path:
-    """The file of ``split`` in the dataset directory ``path`` (checked to be a split)."""
+def split_info(path: str | Path, split: str) -> SplitInfo:
+    """``split`` of the dataset directory ``path``, checked (schema, version, shards): its
+    files, sizes and attributes."""
     if split not in ("train", "test"):
         raise DatasetError(f"split {split!r}: expected 'train' or 'test'")
-    file = Path(path) / f"{split}.h5"
-    if not file.is_file():
-        raise DatasetError(f"{path}: expected a dataset directory with {split}.h5")
-    read_split_info(file)  # schema and version checks
-    return file
+    return read_split(path, split)
+
+
+def split_files(path: str | Path, split: str) -> list[Path]:
+    """The files of ``split`` in the dataset directory ``path``, in sample order: ``train.h5``,
+    or its shards (``train-00000-of-00004.h5``, ...; docs/dataset-format.md)."""
+    return list(split_info(path, split).files)
+
+
+def split_path(path: str | Path, split: str) -> Path:
+    """The file of ``split`` in the dataset directory ``path`` (checked to be a split); a split
+    written as shards has several: :func:`split_files`."""
+    info = split_info(path, split)
+    if info.sharded:
+        raise DatasetError(
+            f"{path}: the {split} split is {len(info.files)} shard files; expected one file "
+            "(use split_files, or load_split and PulseDataset, which read shards)"
+        )
+    return info.path
 
 
 def load_split(path: str | Path, split: str = "train", field: str = "delays"):
-    """A whole split as numpy arrays.
+    """A whole split as numpy arrays (one file or its shards).
 
     returns : x (N, H, W) float32 (``field``: "delays" with noise, or "clean_delays" of a
         generated dataset; H = 16 there), y (N,) int64 class labels
     """
-    arrays = load_arrays(split_path(path, split), (field, "labels"))
+    arrays = split_info(path, split).read((field, "labels"))
     return arrays[field], arrays["labels"]
 
 
 class _PulseSplit:
     """A ``torch.utils.data.Dataset`` over one split: (delays as a float tensor, label).
 
-    The HDF5 file is opened lazily, once in each process that reads from it, so a
-    ``DataLoader`` with ``num_workers > 0`` works (h5py handles do not survive a fork).
+    The HDF5 files (one, or the split's shards) are opened lazily, once in each process that
+    reads from them, so a ``DataLoader`` with ``num_workers > 0`` works (h5py handles do not
+    survive a fork).
 
     transform : optional callable applied to the (H, W) float tensor
     field : "delays" (with noise, the default) or "clean_delays"
@@ -48,11 +64,13 @@ class _PulseSplit:
     def __init__(
         self, path: str | Path, split: str = "train", transform=None, field: str = "delays"
     ):
-        self.file = split_path(path, split)
+        info = split_info(path, split)
+        self.files = info.files
+        self.starts = np.cumsum((0, *info.sizes))  # the first sample of each file
         self.field = field
         self.transform = transform
-        self.size = read_split_info(self.file).size
-        self._h5 = None
+        self.size = info.size
+        self._h5 = None  # open files, by position in self.files
 
     def __len__(self) -> int:
         return self.size
@@ -62,12 +80,17 @@ class _PulseSplit:
 
         if not -self.size <= index < self.size:
             raise IndexError(f"index {index} out of range for {self.size} samples")
+        index %= self.size
+        part = int(np.searchsorted(self.starts, index, side="right")) - 1
         if self._h5 is None:
-            self._h5 = h5py.File(self.file, "r")
-        x = torch.from_numpy(self._h5[self.field][index])
+            self._h5 = {}
+        if part not in self._h5:
+            self._h5[part] = h5py.File(self.files[part], "r")
+        f, row = self._h5[part], index - int(self.starts[part])
+        x = torch.from_numpy(f[self.field][row])
         if self.transform is not None:
             x = self.transform(x)
-        return x, int(self._h5["labels"][index])
+        return x, int(f["labels"][row])
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
@@ -75,8 +98,11 @@ class _PulseSplit:
         return state
 
     def __del__(self) -> None:
-        if getattr(self, "_h5", None) is not None:
-            self._h5.close()
+        for f in (getattr(self, "_h5", None) or {}).values():
+            try:
+                f.close()
+            except Exception:  # noqa: BLE001 - h5py half torn down at interpreter exit
+                pass
 
 
 def __getattr__(name: str):

@@ -9,21 +9,44 @@ import h5py
 import numpy as np
 
 from simlidar.dataset.schema import REQUIRED_ATTRS, SPLITS, split_source
+from simlidar.dataset.shards import find_split_files, shard_of
 from simlidar.dataset.version import GENERATOR, PHYSICAL_VERSION, SOURCES, major
 from simlidar.errors import DatasetError
 
 
 @dataclass(frozen=True)
 class SplitInfo:
-    path: Path
-    size: int
+    path: Path  # the split's (first) file
+    size: int  # samples in all its files
     width: int
-    attrs: dict  # JSON attributes decoded
+    attrs: dict  # JSON attributes decoded (of the first file; a shard's own are left out)
     height: int = 16  # rows H of a sample
+    files: tuple[Path, ...] = ()  # every file of the split, in sample order (default: path)
+    sizes: tuple[int, ...] = ()  # samples in each file
+
+    def __post_init__(self):
+        if not self.files:
+            object.__setattr__(self, "files", (self.path,))
+            object.__setattr__(self, "sizes", (self.size,))
 
     @property
     def source(self) -> str:
         return self.attrs.get("source", GENERATOR)
+
+    @property
+    def sharded(self) -> bool:
+        """Whether the split is written as shard files (``train-00000-of-00004.h5``, ...)."""
+        return shard_of(self.files[0].name) is not None
+
+    @property
+    def nbytes(self) -> int:
+        """The size of the split's files on disk."""
+        return sum(f.stat().st_size for f in self.files)
+
+    def read(self, names: tuple[str, ...], rows=slice(None)) -> dict[str, np.ndarray]:
+        """Datasets ``names`` of the whole split (all rows, or ``rows``: a slice or sorted
+        indices into the split), across its files."""
+        return read_rows(self.files, self.sizes, names, rows)
 
 
 def _decode(value):
@@ -104,22 +127,83 @@ def check_version(
         )
 
 
+_SHARD_ATTRS = ("shard", "shards")  # a shard file's own attributes (docs/dataset-format.md)
+
+
+def read_split(path: str | Path, split: str) -> SplitInfo:
+    """The split ``split`` of the dataset directory ``path``, one file or sharded (every shard
+    checked: the schema, its index and count, the same attributes and sample shape as the
+    first); DatasetError naming the file otherwise."""
+    path = Path(path)
+    files = find_split_files(path, split)
+    if not files:
+        raise DatasetError(f"{path}: expected a dataset directory with {split}.h5")
+    infos = [read_split_info(f) for f in files]
+    first = infos[0]
+    if len(files) == 1 and first.attrs.get("shards") is None:
+        return first
+    common = {k: v for k, v in first.attrs.items() if k not in _SHARD_ATTRS}
+    for index, info in enumerate(infos):
+        if (info.attrs.get("shard"), info.attrs.get("shards")) != (index, len(files)):
+            raise DatasetError(
+                f"{info.path}: attributes shard={info.attrs.get('shard')!r}, "
+                f"shards={info.attrs.get('shards')!r}; expected {index} and {len(files)} "
+                "(renamed shard files?)"
+            )
+        own = {k: v for k, v in info.attrs.items() if k not in _SHARD_ATTRS}
+        if own != common or (info.height, info.width) != (first.height, first.width):
+            raise DatasetError(
+                f"{info.path}: attributes or sample shape differ from {first.path.name}'s; "
+                "expected the shards of one split"
+            )
+    return SplitInfo(
+        first.path,
+        sum(i.size for i in infos),
+        first.width,
+        common,
+        first.height,
+        tuple(files),
+        tuple(i.size for i in infos),
+    )
+
+
 def dataset_splits(path: str | Path) -> dict[str, SplitInfo]:
     """The splits of a dataset directory; raises DatasetError if it is not one."""
     path = Path(path)
     if not path.is_dir():
         raise DatasetError(f"{path}: expected a dataset directory with train.h5 and test.h5")
-    files = {s: path / f"{s}.h5" for s in SPLITS}
-    absent = [f.name for f in files.values() if not f.is_file()]
+    absent = [f"{s}.h5" for s in SPLITS if not find_split_files(path, s)]
     if absent:
         raise DatasetError(
             f"{path}: not a simlidar dataset (missing {', '.join(absent)}; expected train.h5 "
             "and test.h5)"
         )
-    return {s: read_split_info(f) for s, f in files.items()}
+    return {s: read_split(path, s) for s in SPLITS}
 
 
 def load_arrays(path: Path, names: tuple[str, ...], rows=slice(None)) -> dict[str, np.ndarray]:
     """Read some datasets (all rows by default) of one split file."""
     with h5py.File(path, "r") as f:
         return {n: f[n][rows] for n in names}
+
+
+def read_rows(files, sizes, names: tuple[str, ...], rows=slice(None)) -> dict[str, np.ndarray]:
+    """Datasets ``names`` of a split written as ``files`` of ``sizes`` samples each: all rows,
+    a slice, or sorted row indices into the whole split, concatenated in sample order."""
+    if len(files) == 1:
+        return load_arrays(files[0], names, rows)
+    total = sum(sizes)
+    wanted = np.arange(total)[rows] if isinstance(rows, slice) else np.asarray(rows)
+    if not len(wanted):
+        return load_arrays(files[0], names, slice(0, 0))
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    parts: dict[str, list] = {n: [] for n in names}
+    for file, start, stop in zip(files, starts[:-1], starts[1:]):
+        mine = wanted[(wanted >= start) & (wanted < stop)] - start
+        if not len(mine):
+            continue
+        if isinstance(rows, slice) and len(mine) == stop - start:
+            mine = slice(None)  # the whole file: one contiguous read
+        for name, values in load_arrays(file, names, mine).items():
+            parts[name].append(values)
+    return {n: np.concatenate(v) for n, v in parts.items()}

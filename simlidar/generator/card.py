@@ -7,6 +7,7 @@ from pathlib import Path
 
 from simlidar.dataset.reader import dataset_splits
 from simlidar.dataset.schema import SCHEMA, SPLITS
+from simlidar.dataset.shards import SHARD_SAMPLES
 from simlidar.dataset.version import RELEASE_DATES, RELEASE_NOTES
 from simlidar.generator.about import (
     CITATION,
@@ -82,8 +83,24 @@ def _shipped_catalog_sha256() -> str:
     return load_catalog().fingerprint()
 
 
-def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
-    """The command that writes this dataset again, bit for bit (or the Python equivalent)."""
+def shard_option(splits: dict) -> int | None:
+    """The shard size that writes these splits' files again (their names and bytes); None
+    where the default (:data:`~simlidar.dataset.shards.SHARD_SAMPLES`) does."""
+    sharded = [info for info in splits.values() if info.sharded]
+    if sharded:
+        size = sharded[0].sizes[0]
+    else:
+        size = max(info.size for info in splits.values())
+        if size <= SHARD_SAMPLES:
+            return None
+    return None if size == SHARD_SAMPLES else size
+
+
+def regenerate_command(
+    config: GeneratorConfig, catalog_sha256: str, shard_samples: int | None = None
+) -> str:
+    """The command that writes this dataset again, bit for bit (or the Python equivalent);
+    ``shard_samples``: a shard size other than the default (:func:`shard_option`)."""
     from simlidar.generator.profiles import load_profile, profile_names
 
     default = GeneratorConfig()
@@ -109,7 +126,9 @@ def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
             "from simlidar.generator.generate import generate\n"
             "from simlidar.scene.recipe import load_catalog\n"
             f"config = GeneratorConfig.from_dict({config.to_dict()!r})\n"
-            f"generate(config, [{config.noise!r}], load_catalog(CATALOG), 'data')"
+            f"generate(config, [{config.noise!r}], load_catalog(CATALOG), 'data'"
+            + (f", shard_samples={shard_samples}" if shard_samples else "")
+            + ")"
             f"  # CATALOG: the scene catalog with sha256 {catalog_sha256}"
         )
     parts = [
@@ -127,9 +146,28 @@ def regenerate_command(config: GeneratorConfig, catalog_sha256: str) -> str:
         parts.append(f"--shift {config.shift_max!r}")
     if "variation" in over:
         parts.append(f"--variation {config.variation!r}")
+    if shard_samples:
+        parts.append(f"--shard-size {shard_samples}")
     if catalog_sha256 != _shipped_catalog_sha256():
         parts.append(f"--scenes CATALOG  # the scene catalog with sha256 {catalog_sha256}")
     return " ".join(parts)
+
+
+def _shards_line(splits: dict) -> str:
+    """The Distribution paragraph's words on shard files (none for one-file splits)."""
+    sharded = {s: info for s, info in splits.items() if info.sharded}
+    if not sharded:
+        return ""
+    parts = [
+        f"the {s} split is {len(i.files)} files, `{i.files[0].name}` to `{i.files[-1].name}`, "
+        f"of {i.sizes[0]} samples each (the last: {i.sizes[-1]})"
+        for s, i in sharded.items()
+    ]
+    return (
+        " Sharded (the Hugging Face convention): " + "; ".join(parts) + ". Each shard is a "
+        "complete split file with its index and count in the attributes `shard` and `shards`; "
+        "`load_split` and `PulseDataset` read a split's shards in order."
+    )
 
 
 def _profile_line(config: GeneratorConfig) -> str:
@@ -253,11 +291,13 @@ def generated_card(path: str | Path) -> str:
         "(numpy `SeedSequence(seed, spawn_key=(split, index))`).\n",
         f"## Preprocessing\n\n{PREPROCESSING}\n",
         f"## Uses\n\n{USES}\n\n### Out-of-scope uses\n\n{OUT_OF_SCOPE}\n",
-        f"## Distribution\n\n{DISTRIBUTION}\n",
+        f"## Distribution\n\n{DISTRIBUTION}{_shards_line(splits)}\n",
         f"## Maintenance\n\n{MAINTENANCE}\n",
         "## Regenerate\n",
         f"With simlidar {attrs['simlidar_version']} (dataset version {version}):\n",
-        "```\n" + regenerate_command(config, attrs["catalog_sha256"]) + "\n```\n",
+        "```\n"
+        + regenerate_command(config, attrs["catalog_sha256"], shard_option(splits))
+        + "\n```\n",
         "## Versions\n",
         "\n".join(
             f"* {v} ({RELEASE_DATES.get(v, 'unreleased')}): {notes}"
@@ -299,6 +339,7 @@ def generated_croissant(path: str | Path, name: str | None = None) -> dict:
                     name,
                     SCHEMA[name][0],
                     ("N", *SCHEMA[name][1](splits[split].width)),
+                    sharded=splits[split].sharded,
                 )
                 for name in RECORD_FIELDS
             ],

@@ -9,9 +9,13 @@ on any failure the temporary folders are removed and nothing appears under a fin
 
 import json
 import multiprocessing
+import os
+import secrets
+import socket
 from collections import deque
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import ExitStack, closing
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
@@ -21,7 +25,9 @@ import numpy as np
 
 from simlidar import __version__
 from simlidar.atomic import Temporary, claim_folder, install
+from simlidar.content import content_dir
 from simlidar.dataset.schema import SHUFFLED, SPLITS, generated_shapes
+from simlidar.dataset.shards import SHARD_SAMPLES, shard_bounds, split_file_names
 from simlidar.dataset.version import dataset_version
 from simlidar.dataset.writer import SplitWriter
 from simlidar.errors import ConfigError, DatasetError
@@ -113,6 +119,83 @@ class Batches:
 
 
 @dataclass(frozen=True)
+class Shard:
+    """One file of a split: the samples ``first`` .. ``stop - 1``, written as ``name``."""
+
+    split: str
+    index: int
+    count: int  # files of the split (1: not sharded)
+    first: int
+    stop: int
+    name: str
+
+    def batches(self, batch_size: int) -> list[tuple[str, int, int]]:
+        """The simulation jobs (split, start, stop) of this file, in order."""
+        return [
+            (self.split, start, min(start + batch_size, self.stop))
+            for start in range(self.first, self.stop, batch_size)
+        ]
+
+
+def split_shards(config: GeneratorConfig, shard_samples: int) -> list[Shard]:
+    """Every file of every split of ``config``'s datasets, in order."""
+    shards = []
+    for split in SPLITS:
+        size = config.split_sizes[split]
+        bounds = shard_bounds(size, shard_samples)
+        names = split_file_names(split, size, shard_samples)
+        shards += [
+            Shard(split, i, len(bounds), first, stop, name)
+            for i, ((first, stop), name) in enumerate(zip(bounds, names))
+        ]
+    return shards
+
+
+def write_shard(
+    configs: list[GeneratorConfig],
+    catalog: Catalog,
+    shard: Shard,
+    temps: list[Path],
+    batches,
+    batch_size: int,
+    on_rows=lambda rows: None,
+) -> None:
+    """Write ``shard`` of every noise level's dataset (``configs``, into the folders ``temps``)
+    from ``batches``, an iterator of its simulated batches in order. Each file is written
+    under a hidden name of its own and renamed when complete; on any error the hidden files
+    are removed."""
+    shapes = generated_shapes(configs[0].width)
+    token = secrets.token_hex(4)  # two runs of one shard (a retried task) never share a file
+    writers: list[SplitWriter] = []
+    try:
+        for cfg, temp in zip(configs, temps):
+            attrs = generated_split_attrs(cfg, catalog, shard.split)
+            if shard.count > 1:  # a shard's own attributes (a one-file split has none)
+                attrs |= {"shard": shard.index, "shards": shard.count}
+            hidden = temp / f".{shard.name}.partial-{token}"
+            writers.append(SplitWriter(hidden, shard.stop - shard.first, shapes, attrs, SHUFFLED))
+        for _, start, stop in shard.batches(batch_size):
+            samples = next(batches)
+            for cfg, writer in zip(configs, writers):
+                writer.append(split_rows(samples, cfg.noise, cfg.pulse_rule))
+            on_rows(stop - start)
+        for writer, temp in zip(writers, temps):
+            writer.close()
+            os.replace(writer.path, temp / shard.name)  # complete: under its own name
+    except BaseException:
+        for writer in writers:
+            writer.abort()
+            writer.path.unlink(missing_ok=True)
+        raise
+
+
+def _remove_partials(temp: Path) -> None:
+    """Remove the hidden files of shards whose writers died (their shards were written again)."""
+    for leftover in temp.glob(".*.partial-*"):
+        leftover.unlink(missing_ok=True)
+
+
+@dataclass(frozen=True)
 class Written:
     path: Path
     noise: float
@@ -181,11 +264,20 @@ def generate(
     progress: bool = True,
     preview: bool = True,
     workers: int = 1,
+    shard_samples: int = SHARD_SAMPLES,
+    scheduler: str | None = None,
 ) -> list[Written]:
     """Generate one dataset directory per noise level under ``out``; return what was written.
 
     workers : processes that simulate batches (the calling process writes them, in order); the
-        bytes are the same for every count, as every sample draws from its own random streams
+        bytes are the same for every count, as every sample draws from its own random streams.
+        With ``scheduler`` ``local``: the LocalCluster's worker processes
+    shard_samples : a split of more samples is written as shard files of this many samples
+        (``train-00000-of-00004.h5``, ...; :mod:`simlidar.dataset.shards`); each file is
+        written under a hidden name and renamed when complete
+    scheduler : a Dask scheduler's address (or ``local``): every file is then one task on the
+        cluster, which simulates and writes it into ``out`` (a path every worker must see);
+        the same bytes as without (:mod:`simlidar.cluster`)
     """
     from tqdm import tqdm
 
@@ -193,6 +285,8 @@ def generate(
         raise DatasetError(f"batch_size={batch_size}: expected 1..{MAX_BATCH}")
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ConfigError(f"workers={workers!r}: expected a number of processes >= 1")
+    if isinstance(shard_samples, bool) or not isinstance(shard_samples, int) or shard_samples < 1:
+        raise ConfigError(f"shard_samples={shard_samples!r}: expected a number of samples >= 1")
     configs = [config.with_noise(level) for level in noise_levels]
     class_plan(catalog, config.classes)  # fail before touching the disk
     out = Path(out)
@@ -202,63 +296,110 @@ def generate(
     existing = [str(f) for f in finals if f.exists()]
     if existing and not force:
         raise DatasetError(f"{existing[0]} already exists: pass --force to overwrite it")
-    jobs = [
-        (split, start, min(start + batch_size, config.split_sizes[split]))
-        for split in SPLITS
-        for start in range(0, config.split_sizes[split], batch_size)
-    ]
-    batches = Batches(config, catalog, jobs, workers)  # forks before any file or lock is open
-    try:
+    shards = split_shards(config, shard_samples)
+    with ExitStack() as stack:
+        if scheduler is not None:
+            from simlidar.cluster import connect
+
+            client = stack.enter_context(connect(scheduler, workers))
+        else:  # batches never straddle two files; forked before any file or lock is open
+            jobs = [job for shard in shards for job in shard.batches(batch_size)]
+            batches = stack.enter_context(closing(Batches(config, catalog, jobs, workers)))
         created = claim_folder(out)
-    except BaseException:
-        batches.close()
-        raise
-    claims: list[Temporary] = []
-    bar = None
-    writers: list[SplitWriter] = []
-    try:
-        for final in finals:
-            claims.append(Temporary(out, final.name))
-        temps = [c.path for c in claims]
-        total = sum(config.split_sizes.values())
-        bar = tqdm(
-            total=total, unit="sample", disable=not progress, desc="generate", dynamic_ncols=True
-        )
-        for split in SPLITS:
-            size = config.split_sizes[split]
-            writers = []
-            for cfg, temp in zip(configs, temps):
-                attrs = generated_split_attrs(cfg, catalog, split)
-                shapes = generated_shapes(cfg.width)
-                writers.append(SplitWriter(temp / f"{split}.h5", size, shapes, attrs, SHUFFLED))
-            for start in range(0, size, batch_size):
-                stop = min(start + batch_size, size)
-                samples = next(batches)
-                for cfg, writer in zip(configs, writers):
-                    writer.append(split_rows(samples, cfg.noise, cfg.pulse_rule))
-                bar.update(stop - start)
-            for writer in writers:
-                writer.close()
-        batches.close()
-        bar.close()
-        for temp, final in zip(temps, finals):
-            if preview:
-                write_preview(temp, temp / "preview.png", title=final.name)
-            write_croissant(temp, generated_croissant(temp, final.name))
-            write_card(temp, generated_card(temp))
-            write_sums(temp)
-        for claim, final in zip(claims, finals):
-            install(claim, final, force)
-    except BaseException:
-        for writer in writers:
-            writer.abort()
-        if bar is not None:
-            bar.close()  # the error then gets a line of its own, not the end of the bar's
-        raise
-    finally:
-        batches.close()
-        for claim in claims:
-            claim.release()
-        if created and out.is_dir() and not any(out.iterdir()):
-            out.rmdir()
+        claims: list[Temporary] = []
+        bar = None
+        try:
+            for final in finals:
+                claims.append(Temporary(out, final.name))
+            temps = [c.path for c in claims]
+            total = sum(config.split_sizes.values())
+            bar = tqdm(
+                total=total,
+                unit="sample",
+                disable=not progress,
+                desc="generate",
+                dynamic_ncols=True,
+            )
+            if scheduler is not None:
+                _write_on_cluster(
+                    client, config, noise_levels, catalog, shards, temps, batch_size, bar
+                )
+            else:
+                for shard in shards:
+                    write_shard(configs, catalog, shard, temps, batches, batch_size, bar.update)
+                batches.close()
+            bar.close()
+            for temp, final in zip(temps, finals):
+                _remove_partials(temp)
+                if preview:
+                    write_preview(temp, temp / "preview.png", title=final.name)
+                write_croissant(temp, generated_croissant(temp, final.name))
+                write_card(temp, generated_card(temp))
+                write_sums(temp)
+            for claim, final in zip(claims, finals):
+                install(claim, final, force)
+        except BaseException:
+            if bar is not None:
+                bar.close()  # the error then gets a line of its own, not the end of the bar's
+            raise
+        finally:
+            stack.close()  # the workers stop before their files are removed
+            for claim in claims:
+                claim.release()
+            if created and out.is_dir() and not any(out.iterdir()):
+                out.rmdir()
     return [Written(f, c.noise, c.classes, dict(c.split_sizes)) for f, c in zip(finals, configs)]
+
+
+def _write_on_cluster(client, config, noise_levels, catalog, shards, temps, batch_size, bar):
+    """Every file as one task on the Dask cluster of ``client``; the bar counts finished files'
+    samples."""
+    from simlidar.cluster import run_tasks
+
+    shipped = Path(catalog.root).resolve() == content_dir("scenes").resolve()
+    where = (None if shipped else str(catalog.root), catalog.fingerprint())
+    tasks = [
+        (config, list(noise_levels), where, shard, [str(t) for t in temps], batch_size)
+        for shard in shards
+    ]
+    run_tasks(
+        client,
+        _cluster_shard,
+        tasks,
+        [f"{s.name} of {', '.join(t.name for t in temps)}" for s in shards],
+        lambda index, _: bar.update(shards[index].stop - shards[index].first),
+    )
+
+
+_CATALOGS: dict = {}  # a worker process's scene catalogs, loaded once
+
+
+def _cluster_shard(config, noise_levels, where, shard, temps, batch_size) -> str:
+    """A cluster task: simulate and write one file of every noise level's dataset."""
+    from threadpoolctl import threadpool_limits
+
+    from simlidar.scene.recipe import load_catalog
+
+    root, fingerprint = where
+    if where not in _CATALOGS:
+        catalog = load_catalog(root)
+        if catalog.fingerprint() != fingerprint:
+            raise DatasetError(
+                f"scene catalog {root or '(shipped)'} on worker {socket.gethostname()}: sha256 "
+                f"{catalog.fingerprint()}; expected {fingerprint}, the caller's (install the "
+                "same simlidar and scene catalog on every worker)"
+            )
+        _CATALOGS[where] = catalog
+    catalog = _CATALOGS[where]
+    folders = [Path(t) for t in temps]
+    for folder in folders:
+        if not folder.is_dir():
+            raise DatasetError(
+                f"{folder}: not found on worker {socket.gethostname()}; expected the output "
+                "folder on a file system that every worker shares"
+            )
+    configs = [config.with_noise(level) for level in noise_levels]
+    with threadpool_limits(1, user_api="blas"):  # one thread a worker (see _one_blas_thread)
+        batches = (simulate(config, catalog, *job) for job in shard.batches(batch_size))
+        write_shard(configs, catalog, shard, folders, batches, batch_size)
+    return shard.name

@@ -38,6 +38,11 @@ def hf_feature(name: str, dtype: str, shape: tuple, class_names) -> dict:
     return {"name": name, "dtype": dtype}
 
 
+def data_files(split: str, info) -> str:
+    """The card's ``data_files`` path of a split: its file, or a pattern of its shards."""
+    return f"{split}-*.h5" if info.sharded else f"{split}.h5"
+
+
 def hf_front_matter(
     splits: dict,
     features: list[dict],
@@ -47,7 +52,7 @@ def hf_front_matter(
     config_name: str,
 ) -> dict:
     """The Hugging Face card metadata of a dataset directory's splits (generated or converted)."""
-    nbytes = {s: info.path.stat().st_size for s, info in splits.items()}
+    nbytes = {s: info.nbytes for s, info in splits.items()}
     return {
         "license": license,
         "pretty_name": pretty_name,
@@ -57,7 +62,7 @@ def hf_front_matter(
         "configs": [
             {
                 "config_name": config_name,
-                "data_files": [{"split": s, "path": f"{s}.h5"} for s in SPLITS],
+                "data_files": [{"split": s, "path": data_files(s, splits[s])} for s in SPLITS],
             }
         ],
         "dataset_info": {

@@ -56,34 +56,62 @@ DATA_TYPES = {
 
 
 def file_objects(splits: dict, kind: str) -> list[dict]:
-    """The Croissant FileObjects of a dataset's split files (with their sha256)."""
-    return [
-        {
-            "@type": "cr:FileObject",
-            "@id": f"{split}.h5",
-            "name": f"{split}.h5",
-            "description": f"The {split} split ({kind}).",
-            "contentUrl": f"{split}.h5",
-            "contentSize": f"{splits[split].path.stat().st_size} B",
-            "encodingFormat": "application/x-hdf5",
-            "sha256": sha256_file(splits[split].path),
-        }
-        for split in SPLITS
-    ]
+    """The Croissant distribution of a dataset's splits: a FileObject (with its sha256) for a
+    one-file split, a FileSet (``includes``: the shards' pattern) for a sharded one, whose
+    files' checksums are in SHA256SUMS."""
+    objects = []
+    for split in SPLITS:
+        info = splits[split]
+        if info.sharded:
+            objects.append(
+                {
+                    "@type": "cr:FileSet",
+                    "@id": f"{split}-*.h5",
+                    "name": f"{split}-*.h5",
+                    "description": f"The {split} split ({kind}) in {len(info.files)} shard "
+                    f"files of {info.sizes[0]} samples (the last: {info.sizes[-1]}), in order.",
+                    "encodingFormat": "application/x-hdf5",
+                    "includes": f"{split}-*.h5",
+                }
+            )
+            continue
+        objects.append(
+            {
+                "@type": "cr:FileObject",
+                "@id": f"{split}.h5",
+                "name": f"{split}.h5",
+                "description": f"The {split} split ({kind}).",
+                "contentUrl": f"{split}.h5",
+                "contentSize": f"{info.path.stat().st_size} B",
+                "encodingFormat": "application/x-hdf5",
+                "sha256": sha256_file(info.path),
+            }
+        )
+    return objects
 
 
 def field(
-    record_set: str, split: str, name: str, dtype: str, shape: tuple, doc: str | None = None
+    record_set: str,
+    split: str,
+    name: str,
+    dtype: str,
+    shape: tuple,
+    doc: str | None = None,
+    sharded: bool = False,
 ) -> dict:
-    """A Croissant Field: column ``name`` of ``split``.h5, of ``dtype`` and ``shape``."""
+    """A Croissant Field: column ``name`` of ``split``.h5 (or of its shards), of ``dtype`` and
+    ``shape``."""
     shape_text = str(tuple(shape)).replace("'", "")
+    source = (
+        {"fileSet": {"@id": f"{split}-*.h5"}} if sharded else {"fileObject": {"@id": f"{split}.h5"}}
+    )
     return {
         "@type": "cr:Field",
         "@id": f"{record_set}/{name}",
         "name": name,
         "description": f"HDF5 dataset `{name}`, {dtype} {shape_text}" + (f": {doc}" if doc else ""),
         "dataType": DATA_TYPES[dtype],
-        "source": {"fileObject": {"@id": f"{split}.h5"}, "extract": {"column": name}},
+        "source": source | {"extract": {"column": name}},
     }
 
 

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simlidar.dataset.reader import dataset_splits, load_arrays
+from simlidar.dataset.reader import SplitInfo, dataset_splits
 from simlidar.dataset.version import GENERATOR, SOURCES
 from simlidar.errors import DatasetError
 
@@ -20,7 +20,7 @@ def dataset_info(path: str | Path) -> dict:
     names = first["class_names"]
     counts = {}
     for split, info in splits.items():
-        labels = _checked_labels(info.path, len(names))
+        labels = _checked_labels(info, len(names))
         counts[split] = dict(zip(names, np.bincount(labels, minlength=len(names)).tolist()))
     return {
         "path": str(Path(path)),
@@ -40,10 +40,11 @@ def dataset_info(path: str | Path) -> dict:
     }
 
 
-def _checked_labels(path: Path, classes: int) -> np.ndarray:
-    """A split file's labels; DatasetError naming the file and the values unless every one is
-    a class index in 0 .. classes - 1."""
-    labels = load_arrays(path, ("labels",))["labels"]
+def _checked_labels(info: SplitInfo, classes: int) -> np.ndarray:
+    """A split's labels; DatasetError naming the (first) file and the values unless every one
+    is a class index in 0 .. classes - 1."""
+    path = info.path
+    labels = info.read(("labels",))["labels"]
     if labels.dtype.kind not in "iu":
         raise DatasetError(f"{path}: labels are {labels.dtype}, expected integer class indices")
     bad = np.unique(labels[(labels < 0) | (labels >= classes)])

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from simlidar.atomic import write_file
-from simlidar.dataset.reader import dataset_splits, load_arrays
+from simlidar.dataset.reader import dataset_splits
 from simlidar.dataset.version import GENERATOR
 
 
@@ -27,10 +27,10 @@ def write_preview(
 
     info = dataset_splits(dataset)[split]
     names = info.attrs["class_names"]
-    labels = load_arrays(info.path, ("labels",))["labels"]
+    labels = info.read(("labels",))["labels"]
     rows = first_of_each_class(labels, len(names))
     present = np.unique(rows[rows >= 0])  # read these rows only: memory stays flat
-    delays = dict(zip(present, load_arrays(info.path, ("delays",), present)["delays"]))
+    delays = dict(zip(present, info.read(("delays",), present)["delays"]))
     n_cols = 4 if len(names) % 4 == 0 else min(len(names), 6)
     n_rows = -(-len(names) // n_cols)
     fig = Figure(figsize=(2.2 * n_cols, 2.0 * n_rows + 0.6), layout="constrained")

@@ -7,6 +7,7 @@ import numpy as np
 
 from simlidar.dataset.reader import _decode, check_version, written_version
 from simlidar.dataset.schema import REQUIRED_ATTRS, SPLITS, expected_shapes, split_source
+from simlidar.dataset.shards import find_split_files, shard_of, split_of
 from simlidar.errors import DatasetError
 from simlidar.release.card import read_front_matter
 from simlidar.release.checksums import check_sums
@@ -14,12 +15,16 @@ from simlidar.release.checksums import check_sums
 _BLOCK = 65_536  # rows read at a time: memory stays flat whatever the split size
 
 
-def _check_split(path: Path, expected_size: int | None) -> list[str]:
+def _check_split(
+    path: Path, split: str, shard: tuple[int, int] | None = None
+) -> tuple[list[str], int | None]:
+    """The problems of one split file (of ``split``; ``shard``: its index and count when the
+    split is sharded) and its number of samples (None where unreadable)."""
     problems = []
     try:
         f = h5py.File(path, "r")
     except OSError as exc:
-        return [f"{path}: cannot read as HDF5 ({exc})"]
+        return [f"{path}: cannot read as HDF5 ({exc})"], None
     with f:
         missing = [k for k in REQUIRED_ATTRS if k not in f.attrs]
         problems += [f"{path}: attribute '{k}' missing" for k in missing]
@@ -40,7 +45,7 @@ def _check_split(path: Path, expected_size: int | None) -> list[str]:
         try:
             shapes = expected_shapes(source, size, height, width, events)
         except DatasetError as exc:  # an unknown source
-            return problems + [f"{path}: {exc}"]
+            return problems + [f"{path}: {exc}"], None
         for name, (dtype, shape) in shapes.items():
             if name not in f:
                 problems.append(f"{path}: dataset '{name}' missing")
@@ -51,15 +56,19 @@ def _check_split(path: Path, expected_size: int | None) -> list[str]:
             if size is not None and width is not None and ds.shape != shape:
                 problems.append(f"{path}: '{name}' has shape {ds.shape}, expected {shape}")
         if problems or size is None or width is None:  # not readable as the schema says
-            return problems
-        split = _decode(f.attrs["split"])
-        if split != path.stem:
+            return problems, None
+        held = _decode(f.attrs["split"])
+        if held != split:
             problems.append(
-                f"{path}: holds the {split!r} split, expected {path.stem!r} (files "
-                "swapped or renamed?)"
+                f"{path}: holds the {held!r} split, expected {split!r} (files swapped or renamed?)"
             )
-        if expected_size is not None and size != expected_size:
-            problems.append(f"{path}: {size} samples, the card says {expected_size}")
+        own = tuple(_decode(f.attrs[k]) if k in f.attrs else None for k in ("shard", "shards"))
+        if own != (shard or (None, None)):
+            expected = f"shard={shard[0]}, shards={shard[1]}" if shard else "none"
+            problems.append(
+                f"{path}: shard attributes shard={own[0]!r}, shards={own[1]!r}; expected "
+                f"{expected} (shard files renamed?)"
+            )
         classes = len(f.attrs["class_names"])
         if "classes" in f.attrs and int(f.attrs["classes"]) != classes:
             problems.append(f"{path}: {classes} class_names for {int(f.attrs['classes'])} classes")
@@ -79,7 +88,7 @@ def _check_split(path: Path, expected_size: int | None) -> list[str]:
                 problems += _check_events(path, f)
         except OSError as exc:  # a chunk that does not decompress
             problems.append(f"{path}: unreadable data ({exc})")
-    return sorted(set(problems), key=problems.index)
+    return sorted(set(problems), key=problems.index), size
 
 
 def _check_events(path: Path, f: h5py.File) -> list[str]:
@@ -115,7 +124,7 @@ def verify(path: str | Path) -> list[str]:
     path = Path(path)
     if not path.is_dir():
         raise DatasetError(f"{path}: expected a dataset directory")
-    if not any((path / f"{s}.h5").exists() for s in SPLITS):
+    if not any(split_of(p.name) for p in path.iterdir()):
         raise DatasetError(f"{path}: not a simlidar dataset (no train.h5 or test.h5)")
     # the splits' problems first (they say what is wrong with the data), then the card's,
     # then the checksums' (which only say that something changed)
@@ -131,9 +140,23 @@ def verify(path: str | Path) -> list[str]:
             else f"{path / 'README.md'}: dataset_info.splits malformed"
         )
     for split in SPLITS:
-        file = path / f"{split}.h5"
-        if not file.is_file():
-            problems.append(f"{file}: missing")
+        try:
+            files = find_split_files(path, split)
+        except DatasetError as exc:  # incomplete shards
+            problems.append(str(exc))
             continue
-        problems += _check_split(file, sizes.get(split))
+        if not files:
+            problems.append(f"{path / f'{split}.h5'}: missing")
+            continue
+        sharded = shard_of(files[0].name) is not None
+        found, total = [], 0
+        for index, file in enumerate(files):
+            more, size = _check_split(file, split, (index, len(files)) if sharded else None)
+            found += more
+            total = None if size is None or total is None else total + size
+        problems += found
+        expected = sizes.get(split)
+        if expected is not None and total is not None and total != expected:
+            where = f"{path / f'{split}-*.h5'} ({len(files)} shards)" if sharded else files[0]
+            problems.append(f"{where}: {total} samples, the card says {expected}")
     return problems + card + check_sums(path)

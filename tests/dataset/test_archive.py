@@ -102,6 +102,19 @@ def test_an_archive_made_with_dot_slash_members_installs(server, datasets, tmp_p
     assert installed.name == datasets[0.1].name
 
 
+def test_a_sharded_dataset_packs_and_fetches_whole(server, sharded, tmp_path):
+    from simlidar.data import load_split
+    from simlidar.release.verify import verify
+
+    url, root = server
+    archive, _ = pack(sharded, root)
+    installed = fetch(f"{url}/{archive.name}", out=tmp_path / "d", progress=False)
+    names = sorted(p.name for p in installed.iterdir())
+    assert names == sorted(p.name for p in sharded.iterdir())
+    assert verify(installed) == []
+    assert (load_split(installed, "train")[1] == load_split(sharded, "train")[1]).all()
+
+
 def test_a_member_conflict_names_the_extract_step(server, datasets, tmp_path):
     url, root = server
     buffer = io.BytesIO()

@@ -1,0 +1,159 @@
+"""Generation and benchmark cells on a real Dask LocalCluster (2 worker processes, loopback):
+the same bytes as one process, also after a worker is killed mid-shard (issue "Scale out")."""
+
+import json
+import os
+import signal
+import threading
+import time
+
+import pytest
+from click.testing import CliRunner
+from distributed import Client, LocalCluster
+
+from simlidar.cli import main
+from simlidar.errors import ConfigError, DatasetError
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.generate import Shard, _cluster_shard, generate
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with (
+        LocalCluster(
+            n_workers=2, threads_per_worker=1, host="127.0.0.1", dashboard_address=None
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        yield cluster.scheduler_address, client
+
+
+def _files(path):
+    return {p.name: p.read_bytes() for p in sorted(path.iterdir())}
+
+
+def test_the_cluster_writes_the_bytes_of_one_process(
+    cluster, sharded, datasets, catalog, small_config, tmp_path
+):
+    address, _ = cluster
+    written = generate(
+        small_config,
+        [0.1, 0.5],
+        catalog,
+        tmp_path,
+        batch_size=16,
+        progress=False,
+        shard_samples=40,
+        scheduler=address,
+    )
+    assert _files(written[0].path) == _files(sharded)  # 2 noise levels, 5 shard files each
+    (alone,) = generate(
+        small_config, [0.5], catalog, tmp_path / "one", progress=False, shard_samples=40
+    )
+    assert _files(written[1].path) == _files(alone.path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [written[0].path.name, written[1].path.name, "one"]
+    )
+
+
+def test_a_worker_killed_mid_shard_changes_nothing(cluster, catalog, tmp_path):
+    address, client = cluster
+    config = GeneratorConfig(train_size=1600, test_size=400)
+    (alone,) = generate(config, [0.2], catalog, tmp_path / "one", progress=False, shard_samples=400)
+    out = tmp_path / "cluster"
+    out.mkdir()
+    done, errors = [], []
+
+    def run():
+        try:
+            done.extend(
+                generate(
+                    config,
+                    [0.2],
+                    catalog,
+                    out,
+                    batch_size=8,
+                    progress=False,
+                    shard_samples=400,
+                    scheduler=address,
+                )
+            )
+        except Exception as exc:  # noqa: BLE001 - reported by the assertion below
+            errors.append(exc)
+
+    thread = threading.Thread(target=run)
+    thread.start()
+    killed = None
+    deadline = time.monotonic() + 60
+    while killed is None and thread.is_alive() and time.monotonic() < deadline:
+        if any(out.glob(".*/.train-*.h5.partial-*")):  # a shard half written
+            busy = [w for w, keys in client.processing().items() if keys]
+            if busy:
+                pids = client.run(os.getpid, workers=busy[:1])
+                killed = pids[busy[0]]
+                os.kill(killed, signal.SIGKILL)
+        time.sleep(0.005)
+    thread.join(timeout=120)
+    assert killed is not None, "no worker was caught writing a shard"
+    assert not errors, errors
+    assert _files(done[0].path) == _files(alone.path)
+    assert [p.name for p in out.iterdir()] == [alone.path.name]  # no temporaries left
+    client.wait_for_workers(2, timeout=60)  # the nanny restarted it, for the tests after
+
+
+def test_a_worker_without_the_output_folder_says_so(small_config, catalog, tmp_path):
+    shard = Shard("train", 0, 1, 0, 8, "train.h5")
+    where = (None, catalog.fingerprint())
+    with pytest.raises(DatasetError, match="not found on worker .*; expected the output folder"):
+        _cluster_shard(small_config, [0.1], where, shard, [str(tmp_path / "absent")], 8)
+    with pytest.raises(DatasetError, match="expected 0+, the caller's"):
+        _cluster_shard(small_config, [0.1], (None, "0" * 64), shard, [str(tmp_path)], 8)
+
+
+def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(catalog, tmp_path, monkeypatch):
+    import simlidar.cluster
+
+    monkeypatch.setattr(simlidar.cluster, "CONNECT_SECONDS", 1)
+    result = CliRunner().invoke(
+        main, ["generate", "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "d")]
+    )
+    assert result.exit_code == 2
+    assert "Invalid value for '--scheduler': cannot reach a Dask scheduler" in result.output
+    assert (
+        "expected the address of a running scheduler (tcp://HOST:8786) or 'local'" in result.output
+    )
+    assert not (tmp_path / "d").exists()
+    with pytest.raises(ConfigError, match="cannot reach a Dask scheduler"):
+        generate(
+            GeneratorConfig(train_size=32, test_size=32),
+            [0.1],
+            catalog,
+            tmp_path,
+            scheduler="nonsense://x",
+        )
+
+
+def test_bench_cells_on_the_cluster_equal_cells_run_here(cluster, datasets, tmp_path):
+    address, _ = cluster
+    args = ["bench", "--suite", "quick", "--models", "mlp", "--dataset", str(datasets[0.1])]
+    args += ["--epochs", "2"]
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # as a cluster task runs (float sums in the same order)
+    try:
+        here = CliRunner().invoke(main, args + ["--out", str(tmp_path / "here"), "--json"])
+    finally:
+        torch.set_num_threads(threads)
+    there = CliRunner().invoke(
+        main, args + ["--out", str(tmp_path / "there"), "--json", "--scheduler", address]
+    )
+    assert here.exit_code == 0 and there.exit_code == 0, there.output
+    cells = sorted((tmp_path / "here" / "cells").iterdir())
+    assert [c.name for c in cells] == sorted(
+        p.name for p in (tmp_path / "there" / "cells").iterdir()
+    )
+    for cell in cells:
+        a = json.loads(cell.read_text())
+        b = json.loads((tmp_path / "there" / "cells" / cell.name).read_text())
+        assert a["accuracy"] == b["accuracy"] and a["validation_curve"] == b["validation_curve"]
