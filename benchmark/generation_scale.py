@@ -42,8 +42,7 @@ def child(samples: int, workers: int, out: str) -> None:
                 "seconds": seconds,
                 "samples_per_s": samples / seconds,
                 "peak_rss_mb_main": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-                "peak_rss_mb_worker": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-                / 1024,
+                "peak_rss_mb_worker": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024,
                 "disk_mb": sum(p.stat().st_size for p in files) / 2**20,
                 "split_files": sum(p.suffix == ".h5" for p in files),
             }

@@ -28,7 +28,7 @@ class VLP16:
     vertical_offsets_mm: tuple[float, ...] = VERTICAL_OFFSETS_MM  # per laser id
     firing_interval_us: float = 2.304  # between two consecutive laser firings
     cycle_us: float = 55.296  # 16 firings (36.864 us) + 18.432 us recharge
-    rpm: float = 600.0  # rotation speed, 300..1200 per the manual
+    rpm: float = 600.0  # rotation speed, 300..1200 in steps of 60 per the manual
     min_range_m: float = 1.0  # returns nearer than this are dropped
     max_range_m: float = 100.0  # returns at this range or farther are dropped
     range_resolution_m: float = 0.002  # the packet encodes distance in 2 mm steps
@@ -42,8 +42,11 @@ class VLP16:
                 f"sensor needs 16 elevations and 16 vertical offsets, got "
                 f"{len(self.elevations_deg)} and {len(self.vertical_offsets_mm)}"
             )
-        if not 300.0 <= self.rpm <= 1200.0:
-            raise ConfigError(f"rpm={self.rpm}: expected a value in [300, 1200] (VLP-16 manual)")
+        if not 300.0 <= self.rpm <= 1200.0 or self.rpm % 60:
+            raise ConfigError(
+                f"rpm={self.rpm}: expected 300 to 1200 in steps of 60 (VLP-16 manual 63-9243 "
+                "Rev D, p. 50: other settings break motor speed control and phase lock)"
+            )
         if not 0.0 < self.min_range_m < self.max_range_m:
             raise ConfigError(
                 f"range limits {self.min_range_m}..{self.max_range_m} m: expected "

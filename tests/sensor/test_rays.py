@@ -7,7 +7,7 @@ from simlidar.sensor import VLP16, column_centres_deg, firing_azimuths_deg, row_
 
 @settings(max_examples=30, deadline=None)
 @given(
-    rpm=st.floats(300, 1200),
+    rpm=st.integers(5, 20).map(lambda k: 60.0 * k),  # the manual's settings
     pitch=st.floats(-10, 10),
     width=st.integers(1, 64),
     fov=st.floats(1.0, 170.0),

@@ -47,6 +47,7 @@ def test_rows_run_from_the_highest_elevation_down():
     [
         ({"rpm": 1500.0}, "rpm=1500.0"),
         ({"rpm": 200.0}, "rpm=200.0"),
+        ({"rpm": 610.0}, "rpm=610.0: expected 300 to 1200 in steps of 60"),
         ({"min_range_m": 5.0, "max_range_m": 2.0}, "range limits"),
         ({"mount_height_m": 0.0}, "mount_height_m=0.0"),
         ({"pitch_deg": 45.0}, "pitch_deg=45.0"),
