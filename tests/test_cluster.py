@@ -14,7 +14,8 @@ from distributed import Client, LocalCluster
 from simlidar.cli import main
 from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.config import GeneratorConfig
-from simlidar.generator.generate import Shard, _cluster_shard, generate
+from simlidar.generator.generate import Shard, generate
+from simlidar.generator.on_cluster import _cluster_shard
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,6 @@ import json
 import multiprocessing
 import os
 import secrets
-import socket
 from collections import deque
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -25,7 +24,6 @@ import numpy as np
 
 from simlidar import __version__
 from simlidar.atomic import Temporary, claim_folder, install
-from simlidar.content import content_dir
 from simlidar.dataset.schema import SHUFFLED, SPLITS, generated_shapes
 from simlidar.dataset.shards import SHARD_SAMPLES, shard_bounds, split_file_names
 from simlidar.dataset.version import dataset_version
@@ -321,7 +319,9 @@ def generate(
                 dynamic_ncols=True,
             )
             if scheduler is not None:
-                _write_on_cluster(
+                from simlidar.generator.on_cluster import write_on_cluster
+
+                write_on_cluster(
                     client, config, noise_levels, catalog, shards, temps, batch_size, bar
                 )
             else:
@@ -349,57 +349,3 @@ def generate(
             if created and out.is_dir() and not any(out.iterdir()):
                 out.rmdir()
     return [Written(f, c.noise, c.classes, dict(c.split_sizes)) for f, c in zip(finals, configs)]
-
-
-def _write_on_cluster(client, config, noise_levels, catalog, shards, temps, batch_size, bar):
-    """Every file as one task on the Dask cluster of ``client``; the bar counts finished files'
-    samples."""
-    from simlidar.cluster import run_tasks
-
-    shipped = Path(catalog.root).resolve() == content_dir("scenes").resolve()
-    where = (None if shipped else str(catalog.root), catalog.fingerprint())
-    tasks = [
-        (config, list(noise_levels), where, shard, [str(t) for t in temps], batch_size)
-        for shard in shards
-    ]
-    run_tasks(
-        client,
-        _cluster_shard,
-        tasks,
-        [f"{s.name} of {', '.join(t.name for t in temps)}" for s in shards],
-        lambda index, _: bar.update(shards[index].stop - shards[index].first),
-    )
-
-
-_CATALOGS: dict = {}  # a worker process's scene catalogs, loaded once
-
-
-def _cluster_shard(config, noise_levels, where, shard, temps, batch_size) -> str:
-    """A cluster task: simulate and write one file of every noise level's dataset."""
-    from threadpoolctl import threadpool_limits
-
-    from simlidar.scene.recipe import load_catalog
-
-    root, fingerprint = where
-    if where not in _CATALOGS:
-        catalog = load_catalog(root)
-        if catalog.fingerprint() != fingerprint:
-            raise DatasetError(
-                f"scene catalog {root or '(shipped)'} on worker {socket.gethostname()}: sha256 "
-                f"{catalog.fingerprint()}; expected {fingerprint}, the caller's (install the "
-                "same simlidar and scene catalog on every worker)"
-            )
-        _CATALOGS[where] = catalog
-    catalog = _CATALOGS[where]
-    folders = [Path(t) for t in temps]
-    for folder in folders:
-        if not folder.is_dir():
-            raise DatasetError(
-                f"{folder}: not found on worker {socket.gethostname()}; expected the output "
-                "folder on a file system that every worker shares"
-            )
-    configs = [config.with_noise(level) for level in noise_levels]
-    with threadpool_limits(1, user_api="blas"):  # one thread a worker (see _one_blas_thread)
-        batches = (simulate(config, catalog, *job) for job in shard.batches(batch_size))
-        write_shard(configs, catalog, shard, folders, batches, batch_size)
-    return shard.name
