@@ -153,7 +153,7 @@ def run_one_at_a_time(config, catalog, count, out: Path, backend):
     writer = SplitWriter(
         out / "train.h5",
         count,
-        generated_shapes(config.width),
+        generated_shapes(config.sensor.beams, config.width),
         generated_split_attrs(config, catalog, "train"),
         SHUFFLED,
     )

@@ -1,10 +1,15 @@
-"""Where the declarative content folders (``scenes/``, ``baselines/``, ``benchmark/``) live.
+"""Where the declarative content folders (``scenes/``, ``profiles/``, ``sensors/``, ``baselines/``,
+``benchmark/``) live.
 
 In a wheel they are packaged as ``simlidar/_content/<name>``; in a source checkout (and an
 editable install) they are the top-level folders beside the package.
 """
 
+import re
+import tomllib
 from pathlib import Path
+
+from simlidar.errors import ConfigError
 
 _PACKAGE = Path(__file__).resolve().parent
 
@@ -15,3 +20,32 @@ def content_dir(name: str) -> Path:
     if packaged.is_dir():
         return packaged
     return _PACKAGE.parent / name
+
+
+_NAME = re.compile(r"^[a-z0-9][a-z0-9_.-]{0,63}$")
+
+
+def read_named_toml(path: Path, where: str, what: str, max_bytes: int) -> dict:
+    """The parsed TOML of a content file (a profile, a sensor) whose stem becomes part of
+    dataset names; ConfigError starting with ``where`` for a bad name, a missing, oversized,
+    unreadable or non-TOML file. ``what`` names the kind of file in the size message."""
+    if not _NAME.match(path.stem):
+        raise ConfigError(
+            f"{where}: file name {path.stem!r}: expected lower-case letters, "
+            "digits, '_', '-' or '.' (it becomes part of dataset names)"
+        )
+    try:
+        if not path.is_file():
+            raise ConfigError(f"{where}: file not found")
+        if path.stat().st_size > max_bytes:
+            raise ConfigError(
+                f"{where}: {path.stat().st_size} bytes: expected {what} of at most "
+                f"{max_bytes} bytes"
+            )
+        return tomllib.loads(path.read_bytes()[:max_bytes].decode("utf-8"))
+    except UnicodeDecodeError:
+        raise ConfigError(f"{where}: expected a UTF-8 TOML text file") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{where}: not valid TOML ({exc})") from None
+    except OSError as exc:
+        raise ConfigError(f"{where}: cannot read ({exc.strerror})") from None

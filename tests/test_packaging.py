@@ -1,6 +1,7 @@
 """A non-editable install into a fresh virtual environment can run `simlidar generate`.
 
-The content folders (scenes/, baselines/, benchmark/) must ship inside the wheel. The venv
+The content folders (scenes/, baselines/, benchmark/, profiles/, sensors/) must ship inside
+the wheel. The venv
 reuses the running interpreter's installed dependencies (its site-packages, added by a `.pth`
 file: this works whether pytest runs in a venv or not, unlike `system_site_packages`, which
 reaches the base interpreter), but simlidar itself comes only from the wheel (pip install
@@ -39,7 +40,8 @@ def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
     names = zipfile.ZipFile(wheel).namelist()
     assert "simlidar/_content/scenes/catalog.toml" in names
     assert "simlidar/_content/scenes/layouts/tunnel.toml" in names
-    for folder in ("baselines", "benchmark", "profiles"):  # every recipe, suite and profile
+    # every recipe, suite, profile and sensor
+    for folder in ("baselines", "benchmark", "profiles", "sensors"):
         shipped = {n.split("/")[-1] for n in names if n.startswith(f"simlidar/_content/{folder}/")}
         assert {p.name for p in (ROOT / folder).glob("*.toml")} <= shipped
     assert not [n for n in names if "benchmark/results" in n]
@@ -77,3 +79,7 @@ def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
     )
     assert done.returncode == 0, done.stderr
     assert (work / "data" / "simlidar-32c-noise0.2-paper-v2.0.0" / "train.h5").is_file()
+    listed = subprocess.run(
+        [str(env_dir / "bin" / "simlidar"), "sensors"], cwd=work, capture_output=True, text=True
+    )
+    assert listed.returncode == 0 and "hdl64e: Velodyne HDL-64E S2" in listed.stdout

@@ -10,14 +10,14 @@ from simlidar.generator.pulses import (
     quantise_range,
     shift_delays,
 )
-from simlidar.sensor import VLP16
+from simlidar.sensor import default_sensor
 
 ranges = arrays(np.float64, (4, 16, 16), elements=st.one_of(st.floats(0.0, 150.0), st.just(np.nan)))
 
 
 def test_ranges_are_quantised_to_2_mm_and_limited():
     r = quantise_range(
-        np.array([0.5, 1.0, 10.0009, 10.0011, 99.9979, 99.999, 100.2, np.nan]), VLP16()
+        np.array([0.5, 1.0, 10.0009, 10.0011, 99.9979, 99.999, 100.2, np.nan]), default_sensor()
     )
     np.testing.assert_allclose(r[1:5], [1.0, 10.0, 10.002, 99.998])
     # 99.999 m rounds to the maximum range, which is excluded: a return's delay stays < 1
@@ -27,7 +27,7 @@ def test_ranges_are_quantised_to_2_mm_and_limited():
 @settings(max_examples=40, deadline=None)
 @given(r=ranges, level=st.floats(0.0, 1.0), seed=st.integers(0, 2**32 - 1))
 def test_delays_lie_in_0_1_and_noise_only_delays(r, level, seed):
-    sensor = VLP16()
+    sensor = default_sensor()
     tof, clean = delays_from_range(quantise_range(r, sensor), sensor)
     u = np.random.default_rng(seed).random(r.shape, dtype=np.float32)
     noisy = add_noise(clean, level, u)

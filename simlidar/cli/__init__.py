@@ -12,7 +12,7 @@ import click
 
 from simlidar import __version__
 from simlidar.cli.convert import convert
-from simlidar.cli.generate import generate, profiles, scenes
+from simlidar.cli.generate import generate, profiles, scenes, sensors
 from simlidar.cli.options import Group
 from simlidar.cli.release import card, fetch, info, pack, preview, verify
 from simlidar.cli.training import bench, train
@@ -23,7 +23,7 @@ from simlidar.cli.training import bench, train
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-line errors.")
 @click.pass_context
 def main(ctx: click.Context, debug: bool) -> None:
-    """simlidar: synthetic VLP-16 temporal-pulse datasets (Sim LiDAR) and benchmarks."""
+    """simlidar: synthetic LiDAR temporal-pulse datasets (Sim LiDAR) and benchmarks."""
     ctx.meta["debug"] = debug
     if not debug:  # warnings as one line each, without the source line
         warnings.showwarning = lambda message, *args, **kwargs: click.echo(
@@ -31,6 +31,6 @@ def main(ctx: click.Context, debug: bool) -> None:
         )
 
 
-for command in (generate, profiles, scenes, info, preview, card, verify, pack, fetch, train, bench,
-                convert):  # fmt: skip
+for command in (generate, profiles, sensors, scenes, info, preview, card, verify, pack, fetch,
+                train, bench, convert):  # fmt: skip
     main.add_command(command)

@@ -1,4 +1,4 @@
-"""``simlidar generate``, ``profiles`` and ``scenes``: making datasets."""
+"""``simlidar generate``, ``profiles``, ``sensors`` and ``scenes``: making datasets."""
 
 import json
 import time
@@ -21,6 +21,7 @@ from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.generate import BATCH
 from simlidar.generator.profiles import DEFAULT_PROFILE
+from simlidar.sensor.model import DEFAULT_SENSOR, load_sensor
 from simlidar.sensor.raycast import MAX_BATCH
 from simlidar.settings import help_of
 
@@ -68,6 +69,12 @@ from simlidar.settings import help_of
     help="Folder that receives the dataset directories.",
 )
 @setting_option(GeneratorConfig, "width")
+@click.option(
+    "--sensor",
+    default=None,
+    help="Sensor model: a name in sensors/ (vlp16, hdl64e, hdl32e) or a .toml file; see "
+    f"`simlidar sensors`. Rows of a sample = its beams. [default: {DEFAULT_SENSOR}]",
+)
 @scenes_option
 @click.option(
     "--batch-size",
@@ -106,6 +113,7 @@ def generate(
     variation,
     out,
     width,
+    sensor,
     scenes,
     batch_size,
     workers,
@@ -136,6 +144,10 @@ def generate(
             click.echo(
                 f"Note: {option} {value!r} overrides profile {chosen.name}'s {own!r}", err=True
             )
+    try:
+        chosen_sensor = load_sensor(sensor if sensor is not None else DEFAULT_SENSOR)
+    except ConfigError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--sensor'") from None
     catalog = load_scene_catalog(scenes)
     try:
         class_plan(catalog, classes)
@@ -151,6 +163,7 @@ def generate(
         test_size=test_size,
         seed=seed,
         width=width,
+        sensor=chosen_sensor,
     )
     start = time.perf_counter()
     written = run(
@@ -181,6 +194,37 @@ def generate(
                 f"noise {w.noise:g}) and its preview.png"
             )
         click.echo(f"done in {seconds:.1f} s")
+
+
+@click.command()
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+def sensors(as_json):
+    """List the shipped sensor models (docs/sensor-model.md)."""
+    from dataclasses import asdict
+
+    from simlidar.sensor.model import sensor_names
+
+    shipped = [load_sensor(name) for name in sensor_names()]
+    if as_json:
+        click.echo(
+            json.dumps(
+                {
+                    "default": DEFAULT_SENSOR,
+                    "sensors": [asdict(s) | {"beams": s.beams} for s in shipped],
+                }
+            )
+        )
+        return
+    for s in shipped:
+        default = " (default)" if s.name == DEFAULT_SENSOR else ""
+        low, high = min(s.elevations_deg), max(s.elevations_deg)
+        click.echo(f"{s.name}{default}: {s.model}, {s.beams} beams ({low:+g} to {high:+g} deg)")
+        steps = f" in steps of {s.rpm_step:g}" if s.rpm_step else ""
+        click.echo(
+            f"  cycle {s.cycle_us:g} us, {s.rpm:g} RPM ({s.rpm_min:g} to {s.rpm_max:g}{steps}), "
+            f"range {s.min_range_m:g} to {s.max_range_m:g} m, mounted {s.mount_height_m:g} m up"
+        )
+        click.echo(f"  source: {s.manual}")
 
 
 @click.command()

@@ -41,7 +41,7 @@ from simlidar.dataset.version import SOURCES
 from simlidar.dataset.writer import SplitWriter
 from simlidar.errors import DatasetError
 from simlidar.release.checksums import sha256_file
-from simlidar.sensor.vlp16 import tof_ns
+from simlidar.sensor.model import tof_ns
 
 SOURCE = "kitti"
 

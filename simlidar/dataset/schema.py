@@ -10,20 +10,21 @@ from simlidar.errors import DatasetError
 CHUNK_SAMPLES = 256
 SPLITS = ("train", "test")
 
-# The generator's splits: name -> (dtype, trailing shape given the width W)
+# The generator's splits: name -> (dtype, trailing shape given the rows H and the width W);
+# H is the sensor's number of beams (16 for the VLP-16)
 SCHEMA: dict[str, tuple[str, object]] = {
-    "delays": ("float32", lambda w: (16, w)),
-    "clean_delays": ("float32", lambda w: (16, w)),
-    "tof_ns": ("float32", lambda w: (16, w)),
-    "surface": ("uint8", lambda w: (16, w)),
-    "labels": ("int64", lambda w: ()),
-    "layout": ("uint8", lambda w: ()),
-    "object": ("uint8", lambda w: ()),
-    "object_pose": ("float32", lambda w: (3,)),
-    "object_hits": ("int32", lambda w: ()),
-    "attempts": ("int32", lambda w: ()),
-    "phase": ("float32", lambda w: ()),
-    "shift": ("float32", lambda w: ()),
+    "delays": ("float32", lambda h, w: (h, w)),
+    "clean_delays": ("float32", lambda h, w: (h, w)),
+    "tof_ns": ("float32", lambda h, w: (h, w)),
+    "surface": ("uint8", lambda h, w: (h, w)),
+    "labels": ("int64", lambda h, w: ()),
+    "layout": ("uint8", lambda h, w: ()),
+    "object": ("uint8", lambda h, w: ()),
+    "object_pose": ("float32", lambda h, w: (3,)),
+    "object_hits": ("int32", lambda h, w: ()),
+    "attempts": ("int32", lambda h, w: ()),
+    "phase": ("float32", lambda h, w: ()),
+    "shift": ("float32", lambda h, w: ()),
 }
 # The shuffle filter helps gzip on the noisy delays (random mantissas) and hurts it on the
 # quantised clean delays and times of flight (measured: smaller and faster without it).
@@ -67,9 +68,10 @@ CONVERTED_SCHEMAS: dict[str, dict[str, tuple[str, tuple]]] = {
 }
 
 
-def generated_shapes(width: int) -> dict[str, tuple[str, tuple]]:
-    """name -> (dtype, trailing shape) of a generated split of ``width`` columns."""
-    return {name: (dtype, tail(width)) for name, (dtype, tail) in SCHEMA.items()}
+def generated_shapes(height: int, width: int) -> dict[str, tuple[str, tuple]]:
+    """name -> (dtype, trailing shape) of a generated split of ``height`` rows (the sensor's
+    beams) and ``width`` columns."""
+    return {name: (dtype, tail(height, width)) for name, (dtype, tail) in SCHEMA.items()}
 
 
 def split_source(attrs) -> str:
@@ -81,7 +83,7 @@ def split_source(attrs) -> str:
 def expected_shapes(source: str, n: int, h: int, w: int, e: int = 0) -> dict[str, tuple]:
     """name -> (dtype, full shape) of every dataset a split of ``source`` must hold."""
     if source == GENERATOR:
-        return {name: (dtype, (n, *tail)) for name, (dtype, tail) in generated_shapes(w).items()}
+        return {name: (dtype, (n, *tail)) for name, (dtype, tail) in generated_shapes(h, w).items()}
     if source not in CONVERTED_SCHEMAS:
         known = ", ".join([GENERATOR, *CONVERTED_SCHEMAS])
         raise DatasetError(f"source {source!r}: expected one of {known}")

@@ -4,6 +4,8 @@ The card (``README.md``) and ``croissant.json`` are generated from these and fro
 files' own attributes; nothing in them is typed twice.
 """
 
+import re
+
 NAME = "Sim LiDAR (simlidar)"
 HOMEPAGE = "https://pypi.org/project/simlidar/"
 LICENSE = "cc-by-4.0"  # Hugging Face license id of the generated data
@@ -87,3 +89,16 @@ CITATION = """@article{wang2020temporal,
   journal = {arXiv preprint arXiv:2001.09220},
   year    = {2020}
 }"""
+
+
+def description(sensor) -> str:
+    """:data:`DESCRIPTION` for a dataset of ``sensor`` (a :class:`~simlidar.sensor.Sensor`)."""
+    return DESCRIPTION.replace("16 x W", f"{sensor.beams} x W").replace(
+        "Velodyne VLP-16", sensor.model
+    )
+
+
+def tags(sensor) -> list[str]:
+    """:data:`TAGS` for a dataset of ``sensor``: the sensor's tag names its model."""
+    slug = re.sub(r"[^a-z0-9]+", "-", sensor.model.lower()).strip("-")
+    return [slug if t == "velodyne-vlp-16" else t for t in TAGS]

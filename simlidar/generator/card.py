@@ -13,7 +13,6 @@ from simlidar.generator.about import (
     CITATION,
     CREATOR,
     DELAY_MEANING,
-    DESCRIPTION,
     DISTRIBUTION,
     HOMEPAGE,
     LICENSE,
@@ -23,13 +22,15 @@ from simlidar.generator.about import (
     NAME,
     OUT_OF_SCOPE,
     PREPROCESSING,
-    TAGS,
     USES,
+    description,
+    tags,
 )
 from simlidar.generator.config import GeneratorConfig
 from simlidar.release.card import front_matter_block, hf_feature, hf_front_matter, table
 from simlidar.release.croissant import CONTEXT, field, file_objects
 from simlidar.release.info import dataset_info
+from simlidar.sensor.model import Sensor
 
 _DOCS = {  # one line per dataset of a split file; the full table is docs/dataset-format.md
     "delays": "normalised delays with noise: the network input (1.0 = no return)",
@@ -51,9 +52,9 @@ def generated_front_matter(path: Path) -> dict:
     """The YAML front matter (Hugging Face dataset card metadata) of a dataset directory."""
     splits = dataset_splits(path)
     attrs = splits["train"].attrs
-    width = splits["train"].width
+    height, width = splits["train"].height, splits["train"].width
     features = [
-        hf_feature(name, dtype, tail(width), attrs["class_names"])
+        hf_feature(name, dtype, tail(height, width), attrs["class_names"])
         for name, (dtype, tail) in SCHEMA.items()
     ]
     config = GeneratorConfig.from_dict(attrs["config"])
@@ -73,7 +74,10 @@ def generated_front_matter(path: Path) -> dict:
             f"{title}, delay shift {over['shift_max']!r}",
             f"{config_name}-shift{over['shift_max']!r}",
         )
-    return hf_front_matter(splits, features, LICENSE, title, TAGS, config_name)
+    sensor = Sensor.from_dict(attrs["sensor"])
+    if sensor.name != "vlp16":
+        title, config_name = f"{title}, sensor {sensor.name}", f"{config_name}-{sensor.name}"
+    return hf_front_matter(splits, features, LICENSE, title, tags(sensor), config_name)
 
 
 @cache
@@ -102,6 +106,7 @@ def regenerate_command(
     """The command that writes this dataset again, bit for bit (or the Python equivalent);
     ``shard_samples``: a shard size other than the default (:func:`shard_option`)."""
     from simlidar.generator.profiles import load_profile, profile_names
+    from simlidar.sensor.model import load_sensor, sensor_names
 
     default = GeneratorConfig()
     cli_fields = {
@@ -114,12 +119,15 @@ def regenerate_command(
         "shift_max",
         "variation",
         "profile",
+        "sensor",
     }
     other = {k for k, v in config.to_dict().items() if k not in cli_fields}
     shipped = config.profile is None or (
         config.profile.name in profile_names()
         and load_profile(config.profile.name) == config.profile
     )
+    sensor = config.sensor
+    shipped &= sensor.name in sensor_names() and load_sensor(sensor.name) == sensor
     if not shipped or any(config.to_dict()[k] != default.to_dict()[k] for k in other):
         return (
             "from simlidar.generator.config import GeneratorConfig\n"
@@ -141,6 +149,8 @@ def regenerate_command(
         f"--seed {config.seed}",
         f"--width {config.width}",
     ]
+    if sensor.name != "vlp16":
+        parts.append(f"--sensor {sensor.name}")
     over = config.overrides
     if "shift_max" in over:
         parts.append(f"--shift {config.shift_max!r}")
@@ -211,16 +221,16 @@ def generated_card(path: str | Path) -> str:
     names = attrs["class_names"]
     counts = dataset_info(path)["counts"]  # split -> class name -> count
     catalog = attrs["catalog"]
-    sensor = attrs["sensor"]
+    sensor = Sensor.from_dict(attrs["sensor"])
     version = attrs["dataset_version"]
-    width = splits["train"].width
+    height, width = splits["train"].height, splits["train"].width
     sections = [
         front_matter_block(generated_front_matter(path)),
         f"# {NAME}: {len(names)} classes, noise {attrs['noise']}\n",
         "![one example per class (test split)](preview.png)\n"
         if (path / "preview.png").exists()
         else "",
-        f"{DESCRIPTION}\n",
+        f"{description(sensor)}\n",
         table(
             ["", ""],
             [
@@ -228,7 +238,7 @@ def generated_card(path: str | Path) -> str:
                 ["simlidar version", attrs["simlidar_version"]],
                 ["classes", f"{len(names)} ({attrs['class_mode']})"],
                 ["samples", ", ".join(f"{s} {info.size}" for s, info in splits.items())],
-                ["sample", f"16 x {width} float32 delays in [0, 1]"],
+                ["sample", f"{height} x {width} float32 delays in [0, 1]"],
                 ["profile", f"`{config.profile_name}`: {_profile_line(config)}"],
                 ["noise", f"U(0, {attrs['noise']}) added to {_noised(config)}"],
                 ["seed", attrs["seed"]],
@@ -247,20 +257,20 @@ def generated_card(path: str | Path) -> str:
         table(
             ["dataset", "dtype", "shape", "meaning"],
             [
-                [f"`{name}`", dtype, str(("N", *tail(width))).replace("'", ""), _DOCS[name]]
+                [f"`{name}`", dtype, str(("N", *tail(height, width))).replace("'", ""), _DOCS[name]]
                 for name, (dtype, tail) in SCHEMA.items()
             ],
         )
         + "\n",
         "## Generation process\n",
-        "A simulated Velodyne VLP-16 ray-casts (Embree) into procedurally built road scenes. "
+        f"A simulated {sensor.model} ray-casts (Embree) into procedurally built road scenes. "
         "Each pixel is the centre firing of its azimuth bin; see simlidar's "
         "`docs/sensor-model.md`.\n",
         table(
             ["sensor parameter", "value"],
             [
                 [f"`{k}`", v if not isinstance(v, list) else ", ".join(map(str, v))]
-                for k, v in sensor.items()
+                for k, v in attrs["sensor"].items()
             ],
         )
         + "\n",
@@ -338,7 +348,7 @@ def generated_croissant(path: str | Path, name: str | None = None) -> dict:
                     split,
                     name,
                     SCHEMA[name][0],
-                    ("N", *SCHEMA[name][1](splits[split].width)),
+                    ("N", *SCHEMA[name][1](splits[split].height, splits[split].width)),
                     sharded=splits[split].sharded,
                 )
                 for name in RECORD_FIELDS
@@ -352,7 +362,7 @@ def generated_croissant(path: str | Path, name: str | None = None) -> dict:
         "conformsTo": "http://mlcommons.org/croissant/1.0",
         "name": name or path.name,
         "alternateName": NAME,
-        "description": DESCRIPTION,
+        "description": description(Sensor.from_dict(splits["train"].attrs["sensor"])),
         "license": LICENSE_URL,
         "url": HOMEPAGE,
         "creator": {"@type": "sc:Organization", "name": CREATOR},

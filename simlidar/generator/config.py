@@ -5,7 +5,7 @@ from dataclasses import asdict, dataclass, replace
 
 from simlidar.errors import ConfigError
 from simlidar.generator.profiles import PHYSICAL_RULE, Profile
-from simlidar.sensor.vlp16 import VLP16
+from simlidar.sensor.model import Sensor, default_sensor
 from simlidar.settings import Range, check, setting
 
 MAX_SPLIT_SIZE = 10**9  # samples per split
@@ -53,7 +53,10 @@ class GeneratorConfig:
         "by this factor (1: the recipes as written).",
         Range(0, 1, "a factor", low_open=True, note="(1: the scene catalog's ranges as written)"),
     )
-    sensor: VLP16 = setting(help="The sensor model.", default_factory=VLP16)
+    sensor: Sensor = setting(
+        help="The sensor model (a file of sensors/, simlidar.sensor.load_sensor).",
+        default_factory=default_sensor,
+    )
     # None: the physical rule of dataset version 1.0.0 (stored only when not None, for the
     # same reason as variation). `variation` and `shift_max` above are the values used, which
     # start from the profile's and may be overridden (docs/profiles.md)
@@ -133,7 +136,9 @@ class GeneratorConfig:
     @classmethod
     def from_dict(cls, values: dict) -> "GeneratorConfig":
         values = dict(values)
-        values["sensor"] = VLP16.from_dict(values.get("sensor", {}))
+        values["sensor"] = (
+            Sensor.from_dict(values["sensor"]) if "sensor" in values else default_sensor()
+        )
         if values.get("profile") is not None:
             values["profile"] = Profile(**values["profile"])
         return cls(**values)

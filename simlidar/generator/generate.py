@@ -38,9 +38,9 @@ from simlidar.release.checksums import write_sums
 from simlidar.release.croissant import write_croissant
 from simlidar.release.preview import write_preview
 from simlidar.scene.recipe import Catalog
+from simlidar.sensor.model import row_order
 from simlidar.sensor.raycast import MAX_BATCH
 from simlidar.sensor.rays import column_centres_deg
-from simlidar.sensor.vlp16 import row_order
 
 BATCH = 1024  # samples ray-cast together by default (does not change the data)
 _SHARED: tuple | None = None  # (config, catalog) of the batches the worker processes simulate
@@ -162,7 +162,7 @@ def write_shard(
     from ``batches``, an iterator of its simulated batches in order. Each file is written
     under a hidden name of its own and renamed when complete; on any error the hidden files
     are removed."""
-    shapes = generated_shapes(configs[0].width)
+    shapes = generated_shapes(configs[0].sensor.beams, configs[0].width)
     token = secrets.token_hex(4)  # two runs of one shard (a retried task) never share a file
     writers: list[SplitWriter] = []
     try:
@@ -202,15 +202,16 @@ class Written:
 
 
 def generated_name(config: GeneratorConfig) -> str:
-    """``simlidar-<classes>c-noise<level>-<profile>[-var<v>][-shift<s>]-v<version>``, numbers
-    as Python's repr (0.2, 0.33); ``-var`` and ``-shift`` name values that differ from the
-    profile's own."""
+    """``simlidar-<classes>c-noise<level>-<profile>[-<sensor>][-var<v>][-shift<s>]-v<version>``,
+    numbers as Python's repr (0.2, 0.33); ``-<sensor>`` names a sensor other than the VLP-16,
+    ``-var`` and ``-shift`` values that differ from the profile's own."""
     over = config.overrides
+    sensor = f"-{config.sensor.name}" if config.sensor.name != "vlp16" else ""
     variation = f"-var{float(over['variation'])!r}" if "variation" in over else ""
     shift = f"-shift{float(over['shift_max'])!r}" if "shift_max" in over else ""
     return (
         f"simlidar-{config.classes}c-noise{float(config.noise)!r}-{config.profile_name}"
-        f"{variation}{shift}-v{dataset_version(config)}"
+        f"{sensor}{variation}{shift}-v{dataset_version(config)}"
     )
 
 

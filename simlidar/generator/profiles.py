@@ -14,12 +14,10 @@ the listening window.
 """
 
 import math
-import re
-import tomllib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from simlidar.content import content_dir
+from simlidar.content import content_dir, read_named_toml
 from simlidar.errors import ConfigError
 
 DEFAULT_PROFILE = "paper"
@@ -27,7 +25,6 @@ MAX_PROFILE_BYTES = 64 * 1024  # a profile is a few lines; anything larger is no
 WHERE = ("all", "returns")  # noise_on / spikes: every pixel, or only the pixels with a return
 MISSING = (0.0, 1.0)  # the start or the end of the listening window
 KEYS = {"description", "variation", "shift", "missing_delay", "noise_on", "spikes"}
-_NAME = re.compile(r"^[a-z0-9][a-z0-9_.-]{0,63}$")
 
 
 @dataclass(frozen=True)
@@ -85,26 +82,7 @@ def load_profile(name_or_path: str | Path) -> Profile:
                 f"profile {text!r}: expected one of {profile_names()} or a .toml file"
             )
     where = f"profile {path}"
-    if not _NAME.match(path.stem):
-        raise ConfigError(
-            f"{where}: file name {path.stem!r}: expected lower-case letters, "
-            "digits, '_', '-' or '.' (it becomes part of dataset names)"
-        )
-    try:
-        if not path.is_file():
-            raise ConfigError(f"{where}: file not found")
-        if path.stat().st_size > MAX_PROFILE_BYTES:
-            raise ConfigError(
-                f"{where}: {path.stat().st_size} bytes: expected a profile of at "
-                f"most {MAX_PROFILE_BYTES} bytes"
-            )
-        data = tomllib.loads(path.read_bytes()[:MAX_PROFILE_BYTES].decode("utf-8"))
-    except UnicodeDecodeError:
-        raise ConfigError(f"{where}: expected a UTF-8 TOML text file") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{where}: not valid TOML ({exc})") from None
-    except OSError as exc:
-        raise ConfigError(f"{where}: cannot read ({exc.strerror})") from None
+    data = read_named_toml(path, where, "a profile", MAX_PROFILE_BYTES)
     for key in data:
         if key not in KEYS:
             raise _fail(where, key, f"one of {sorted(KEYS)}", key)

@@ -21,19 +21,19 @@ Conventions (``docs/sensor-model.md`` explains them):
 import numpy as np
 
 from simlidar.dataset.schema import SCHEMA
-from simlidar.sensor.vlp16 import VLP16, tof_ns
+from simlidar.sensor.model import Sensor, tof_ns
 
 NO_RETURN = 1.0
 
 
-def quantise_range(range_m: np.ndarray, sensor: VLP16) -> np.ndarray:
+def quantise_range(range_m: np.ndarray, sensor: Sensor) -> np.ndarray:
     """Round ranges to the sensor's resolution; NaN (no return) outside [min, max)."""
     r = np.round(range_m / sensor.range_resolution_m) * sensor.range_resolution_m
     inside = (r >= sensor.min_range_m) & (r < sensor.max_range_m)  # NaN compares False
     return np.where(inside, r, np.nan)
 
 
-def delays_from_range(range_m: np.ndarray, sensor: VLP16):
+def delays_from_range(range_m: np.ndarray, sensor: Sensor):
     """Quantised range -> (tof_ns float64 with NaN for no return, clean delay float32)."""
     tof = tof_ns(range_m)
     delay = np.where(np.isnan(tof), NO_RETURN, tof / sensor.tof_max_ns)
@@ -62,7 +62,7 @@ def profile_pulses(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Clean delays (missing return = 1.0) -> (clean, noisy) delays under a profile's rule.
 
-    clean : (..., 16, W) float32, returns in (0, 1), missing returns at NO_RETURN
+    clean : (..., H, W) float32, returns in (0, 1), missing returns at NO_RETURN
     missing_delay : 0.0 or 1.0, what a missing return is written as
     noise_on : "returns" (noise delays returns only) or "all" (every pixel)
     returns : clean delays with missing returns at ``missing_delay``, and those with

@@ -2,8 +2,9 @@
 
 Randomness: every sample has its own stream, ``SeedSequence(seed, spawn_key=(split, index))``,
 read in a fixed order: 2 variates for the class factor not fixed by the label, the noise
-variates (16 x W), then one block of parameters per attempt. A sample's content therefore
-depends on (seed, split, index, config, catalog) only, never on the batch it was made in.
+variates (H x W, H the sensor's beams), then one block of parameters per attempt. A sample's
+content therefore depends on (seed, split, index, config, catalog) only, never on the batch
+it was made in.
 """
 
 from dataclasses import dataclass
@@ -71,10 +72,10 @@ def factors(plan: ClassPlan, labels: np.ndarray, free: np.ndarray, n_layouts: in
 class Samples:
     """A block of consecutive samples of one split (n samples, W columns)."""
 
-    clean_delays: np.ndarray  # (n, 16, W) float32, after delay shift, before noise
-    noise_u: np.ndarray  # (n, 16, W) float32 in [0, 1): noise = level * noise_u
-    tof_ns: np.ndarray  # (n, 16, W) float32, NaN for no return (unshifted physics)
-    surface: np.ndarray  # (n, 16, W) uint8
+    clean_delays: np.ndarray  # (n, H, W) float32, after delay shift, before noise
+    noise_u: np.ndarray  # (n, H, W) float32 in [0, 1): noise = level * noise_u
+    tof_ns: np.ndarray  # (n, H, W) float32, NaN for no return (unshifted physics)
+    surface: np.ndarray  # (n, H, W) uint8
     labels: np.ndarray  # (n,) int64
     layout: np.ndarray  # (n,) uint8
     object: np.ndarray  # (n,) uint8
@@ -132,14 +133,14 @@ def simulate(
     labels = index % plan.classes
     streams = [_stream(config.seed, split, i) for i in index]
     free = np.stack([g.random(2) for g in streams])
-    noise_u = np.stack([g.random((16, width), dtype=np.float32) for g in streams])
+    noise_u = np.stack([g.random((sensor.beams, width), dtype=np.float32) for g in streams])
     layout, obj = factors(plan, labels, free, len(catalog.layouts), len(catalog.objects))
 
     lc, oc = catalog.layout_columns, catalog.object_columns
     azimuth = column_centres_deg(width, config.fov_deg)  # negative: left half of the window
     columns = _FIXED_COLUMNS + lc + oc
-    range_m = np.full((n, 16, width), np.nan)
-    surface = np.zeros((n, 16, width), np.uint8)
+    range_m = np.full((n, sensor.beams, width), np.nan)
+    surface = np.zeros((n, sensor.beams, width), np.uint8)
     pose = np.full((n, 3), np.nan)
     hits_out = np.zeros(n, np.int32)
     attempts = np.zeros(n, np.int32)
@@ -186,13 +187,15 @@ def simulate(
         if len(pending) and attempts[pending].max() >= config.max_attempts:
             k = pending[0]
             step = config.fov_deg / width
+            low, high = min(sensor.elevations_deg), max(sensor.elevations_deg)
             raise SimlidarError(
                 f"{split} sample {index[k]} ({plan.names[labels[k]]}): no draw in "
                 f"{config.max_attempts} showed the object (min_object_hits="
                 f"{config.min_object_hits}) and the layout's `visible` surface with width "
-                f"{width} ({step:.3g} deg between columns); expected a width whose columns are "
-                "close enough to hit the object (the shipped scenes need about 8 or more at "
-                "36 deg) and recipes whose object and layout the sensor can see"
+                f"{width} ({step:.3g} deg between columns) and sensor {sensor.name} "
+                f"({low:+g} to {high:+g} deg); expected a width whose columns are close enough "
+                "to hit the object (the shipped scenes need about 8 or more at 36 deg) and "
+                "recipes whose object and layout the sensor can see (docs/sensor-model.md)"
             )
     tof, clean = delays_from_range(range_m, sensor)
     if config.shift_max > 0:

@@ -22,7 +22,7 @@ def dataset_info(path: str | Path) -> dict:
     for split, info in splits.items():
         labels = _checked_labels(info, len(names))
         counts[split] = dict(zip(names, np.bincount(labels, minlength=len(names)).tolist()))
-    return {
+    summary = {
         "path": str(Path(path)),
         "dataset_version": first["dataset_version"],
         "release_notes": notes.get(first["dataset_version"], "unknown to this build"),
@@ -38,6 +38,17 @@ def dataset_info(path: str | Path) -> dict:
         "counts": counts,
         "config": first["config"],
     }
+    if source == GENERATOR:
+        from simlidar.sensor.model import Sensor
+
+        sensor = Sensor.from_dict(first["sensor"])
+        summary["sensor"] = {
+            "name": sensor.name,
+            "model": sensor.model,
+            "beams": sensor.beams,
+            "rpm": sensor.rpm,
+        }
+    return summary
 
 
 def _checked_labels(info: SplitInfo, classes: int) -> np.ndarray:
@@ -67,6 +78,12 @@ def format_info(summary: dict) -> str:
         f"  {summary['classes']} classes ({summary['class_mode']}), noise {summary['noise']:g}, "
         f"seed {summary['seed']}, {summary.get('height', 16)} x {summary['width']} pulses",
     ]
+    if "sensor" in summary:
+        sensor = summary["sensor"]
+        lines.append(
+            f"  sensor {sensor['name']} ({sensor['model']}), {sensor['beams']} beams, "
+            f"{sensor['rpm']:g} RPM"
+        )
     for split, size in summary["splits"].items():
         counts = summary["counts"][split].values()
         lines.append(f"  {split}: {size} samples, {min(counts)}..{max(counts)} per class")

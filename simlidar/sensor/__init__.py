@@ -1,23 +1,27 @@
-"""The VLP-16 sensor model and the batched ray caster."""
+"""Sensor models (declarative files in ``sensors/``) and the batched ray caster."""
 
-from simlidar.sensor.rays import column_centres_deg, firing_azimuths_deg, window_rays
-from simlidar.sensor.vlp16 import (
-    ELEVATIONS_DEG,
+from simlidar.sensor.model import (
+    DEFAULT_SENSOR,
     SPEED_OF_LIGHT_M_PER_S,
-    VERTICAL_OFFSETS_MM,
-    VLP16,
+    Sensor,
+    default_sensor,
+    load_sensor,
     row_order,
+    sensor_names,
     tof_ns,
 )
+from simlidar.sensor.rays import column_centres_deg, firing_azimuths_deg, window_rays
 
 __all__ = [
-    "ELEVATIONS_DEG",
+    "DEFAULT_SENSOR",
     "SPEED_OF_LIGHT_M_PER_S",
-    "VERTICAL_OFFSETS_MM",
-    "VLP16",
+    "Sensor",
     "column_centres_deg",
+    "default_sensor",
     "firing_azimuths_deg",
+    "load_sensor",
     "row_order",
+    "sensor_names",
     "tof_ns",
     "window_rays",
 ]

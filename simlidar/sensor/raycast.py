@@ -34,9 +34,9 @@ MAX_BATCH = GRID_CELLS**3
 class Hits:
     """What each pulse of B windows hits first."""
 
-    range_m: np.ndarray  # (B, 16, W) float64, NaN where nothing is hit
-    surface: np.ndarray  # (B, 16, W) uint8, 0 where nothing is hit
-    on_object: np.ndarray  # (B, 16, W) bool, the hit belongs to the labelled object
+    range_m: np.ndarray  # (B, H, W) float64, NaN where nothing is hit
+    surface: np.ndarray  # (B, H, W) uint8, 0 where nothing is hit
+    on_object: np.ndarray  # (B, H, W) bool, the hit belongs to the labelled object
 
 
 def cell_offsets(slots: np.ndarray) -> np.ndarray:
@@ -89,7 +89,7 @@ def cast(
 ) -> Hits:
     """First hit of every pulse.
 
-    origins, directions : (B, 16, W, 3) float64 in each sample's local frame, unit directions
+    origins, directions : (B, H, W, 3) float64 in each sample's local frame, unit directions
     slots : (B,) int, distinct grid cells (use the sample index in its split mod MAX_BATCH)
     cull : drop triangles no ray can hit first (exact; off only to test that it is)
     shared : hand the triangles to Embree in place (:mod:`simlidar.sensor.embree`; off only to

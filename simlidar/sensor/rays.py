@@ -1,17 +1,19 @@
 """Ray origins and directions of a sample window.
 
-A sample is a window of 16 lasers (rows, highest elevation first) x ``width`` azimuth columns
-spread evenly over ``fov_deg`` degrees centred straight ahead. Column ``c`` covers the azimuth
-bin ``[-fov/2 + c * fov/W, -fov/2 + (c + 1) * fov/W)`` and takes the *centre firing*: the
-firing cycle whose start azimuth lies nearest the bin centre, each laser at its own firing time
-inside that cycle (laser id ``j`` fires ``j * 2.304 us`` after the cycle starts). The head's
+A sample is a window of the sensor's H lasers (rows, highest elevation first) x ``width``
+azimuth columns spread evenly over ``fov_deg`` degrees centred straight ahead. Column ``c``
+covers the azimuth bin ``[-fov/2 + c * fov/W, -fov/2 + (c + 1) * fov/W)`` and takes the *centre
+firing*: the firing cycle whose start azimuth lies nearest the bin centre, each laser at its own
+firing time inside that cycle (a laser in firing slot ``k`` fires ``k * firing_interval_us``
+after the cycle starts; a VLP-16's laser id ``j`` is slot ``j``, 2.304 us apart), turned by its
+rotational correction where the sensor file gives one. The head's
 rotation phase relative to the scene is a per-sample number ``phase`` in [0, 1) (a fraction of
 one cycle's azimuth step). See ``docs/sensor-model.md`` for why.
 """
 
 import numpy as np
 
-from simlidar.sensor.vlp16 import VLP16, row_order
+from simlidar.sensor.model import Sensor, row_order
 
 
 def column_centres_deg(width: int, fov_deg: float) -> np.ndarray:
@@ -20,22 +22,26 @@ def column_centres_deg(width: int, fov_deg: float) -> np.ndarray:
     return -fov_deg / 2.0 + (np.arange(width) + 0.5) * bin_deg
 
 
-def _azimuth_parts(sensor: VLP16, width: int, fov_deg: float, phase):
-    """Cycle start of each column (B, 1, W) and firing offset of each row (1, 16, 1), degrees."""
+def _azimuth_parts(sensor: Sensor, width: int, fov_deg: float, phase):
+    """Cycle start of each column (B, 1, W) and firing offset of each row (1, H, 1), degrees."""
     phase = np.asarray(phase, dtype=np.float64)
     step = sensor.azimuth_step_deg
     centres = column_centres_deg(width, fov_deg)  # (W,)
     cycle = np.round(centres[None, :] / step - phase[:, None])  # (B, W) nearest cycle index
     cycle_start = ((cycle + phase[:, None]) * step)[:, None, :]
-    firing = np.asarray(row_order(sensor), dtype=np.float64) * sensor.firing_step_deg
+    lasers = row_order(sensor)
+    firing = np.asarray([sensor.slots[k] for k in lasers], dtype=np.float64)
+    firing = firing * sensor.firing_step_deg
+    if sensor.rot_corrections_deg:  # beam azimuth = head azimuth - rotational correction
+        firing = firing - np.asarray([sensor.rot_corrections_deg[k] for k in lasers])
     return cycle_start, firing[None, :, None]
 
 
-def firing_azimuths_deg(sensor: VLP16, width: int, fov_deg: float, phase) -> np.ndarray:
+def firing_azimuths_deg(sensor: Sensor, width: int, fov_deg: float, phase) -> np.ndarray:
     """Azimuth of each pulse of a window.
 
     phase : (B,) float, in [0, 1)
-    returns : (B, 16, W) float64, rows in :func:`row_order`
+    returns : (B, H, W) float64, rows in :func:`row_order`
     """
     cycle_start, firing = _azimuth_parts(sensor, width, fov_deg, phase)
     return cycle_start + firing
@@ -48,25 +54,25 @@ def _pitch(vectors: np.ndarray, pitch_deg: float) -> np.ndarray:
     return np.stack([x * np.cos(t) + z * np.sin(t), y, z * np.cos(t) - x * np.sin(t)], axis=-1)
 
 
-def window_rays(sensor: VLP16, width: int, fov_deg: float, phase):
+def window_rays(sensor: Sensor, width: int, fov_deg: float, phase):
     """Origins and unit directions of every pulse of B sample windows.
 
     phase : (B,) float in [0, 1)
-    returns : origins (B, 16, W, 3) float64, directions (B, 16, W, 3) float64, in the sample's
+    returns : origins (B, H, W, 3) float64, directions (B, H, W, 3) float64, in the sample's
         local frame (road at z = 0, rotation axis at x = y = 0).
     """
     cycle_start, firing = (np.deg2rad(a) for a in _azimuth_parts(sensor, width, fov_deg, phase))
     lasers = row_order(sensor)
     elevation = np.deg2rad(np.asarray(sensor.elevations_deg)[lasers])[None, :, None]
-    # azimuth = cycle start + firing offset; expand cos/sin of the sum instead of (B, 16, W) trig
+    # azimuth = cycle start + firing offset; expand cos/sin of the sum instead of (B, H, W) trig
     cos_a = np.cos(cycle_start) * np.cos(firing) - np.sin(cycle_start) * np.sin(firing)
     sin_a = np.sin(cycle_start) * np.cos(firing) + np.cos(cycle_start) * np.sin(firing)
     directions = np.empty(cos_a.shape + (3,))
     directions[..., 0] = np.cos(elevation) * cos_a
     directions[..., 1] = -np.cos(elevation) * sin_a  # clockwise azimuth: positive looks right
     directions[..., 2] = np.sin(elevation)
-    # every window has the same 16 origins: the emitters on the axis, tilted with the sensor
-    row_origins = np.zeros((16, 3))
+    # every window has the same H origins: the emitters on the axis, tilted with the sensor
+    row_origins = np.zeros((sensor.beams, 3))
     row_origins[:, 2] = np.asarray(sensor.vertical_offsets_mm)[lasers] * 1e-3
     row_origins = _pitch(row_origins, sensor.pitch_deg)
     row_origins[:, 2] += sensor.mount_height_m

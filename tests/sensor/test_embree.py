@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from simlidar.scene.build import build_batch
-from simlidar.sensor import VLP16, embree, window_rays
+from simlidar.sensor import default_sensor, embree, window_rays
 from simlidar.sensor.raycast import cast
 
 
@@ -20,7 +20,7 @@ def _batch(catalog, n, seed):
         rng.random((n, catalog.layout_columns)),
         rng.random((n, catalog.object_columns)),
     )
-    origins, directions = window_rays(VLP16(), 16, 36.0, rng.random(n))
+    origins, directions = window_rays(default_sensor(), 16, 36.0, rng.random(n))
     return scene, origins, directions
 
 

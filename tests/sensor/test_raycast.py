@@ -1,6 +1,7 @@
 """The batched caster against numbers derived by hand and against trimesh's own ray code."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -10,7 +11,7 @@ from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.pulses import delays_from_range, quantise_range
 from simlidar.scene.build import SceneBatch, build_batch
 from simlidar.scene.primitives import box
-from simlidar.sensor import VLP16, row_order, window_rays
+from simlidar.sensor import default_sensor, row_order, window_rays
 from simlidar.sensor.raycast import cast
 
 WALL, ROAD = 3, 1
@@ -40,8 +41,8 @@ def test_a_wall_ten_metres_ahead_returns_after_66_71_ns():
     origins = np.array([0.0, 0.0, 1.8]).reshape(1, 1, 1, 3)
     directions = np.array([1.0, 0.0, 0.0]).reshape(1, 1, 1, 3)
     hits = cast(scene, origins, directions, np.array([0]), 100.0)
-    r = quantise_range(hits.range_m, VLP16())
-    tof, delay = delays_from_range(r, VLP16())
+    r = quantise_range(hits.range_m, default_sensor())
+    tof, delay = delays_from_range(r, default_sensor())
     assert r[0, 0, 0] == pytest.approx(10.0, abs=1e-9)
     assert tof[0, 0, 0] == pytest.approx(66.71, abs=0.005)
     assert delay[0, 0, 0] == pytest.approx(0.1, abs=1e-6)  # 10 m of a 100 m window
@@ -49,7 +50,7 @@ def test_a_wall_ten_metres_ahead_returns_after_66_71_ns():
 
 
 def test_every_pulse_of_a_window_against_a_wall():
-    sensor = VLP16()
+    sensor = default_sensor()
     scene = boxes((0, (10.5, 0, -5), (1, 100, 25), WALL))
     origins, directions = window_rays(sensor, 16, 48.0, np.array([0.37]))
     hits = cast(scene, origins, directions, np.array([0]), sensor.max_range_m)
@@ -60,7 +61,7 @@ def test_every_pulse_of_a_window_against_a_wall():
 
 
 def test_the_minus_15_degree_laser_meets_a_flat_road_at_h_over_sin_15():
-    sensor = VLP16(mount_height_m=1.8)
+    sensor = replace(default_sensor(), mount_height_m=1.8)
     scene = boxes((0, (50, 0, -1), (200, 200, 1), ROAD))
     origins, directions = window_rays(sensor, 16, 48.0, np.array([0.5]))
     r = quantise_range(cast(scene, origins, directions, np.array([0]), 100.0).range_m, sensor)
@@ -71,7 +72,7 @@ def test_the_minus_15_degree_laser_meets_a_flat_road_at_h_over_sin_15():
 
 
 def test_nothing_beyond_the_range_limits():
-    sensor = VLP16()
+    sensor = default_sensor()
     near = boxes((0, (0.8, 0, 1.0), (0.2, 4, 2), WALL))  # 0.7 m ahead: too near
     far = boxes((0, (120.5, 0, -5), (1, 400, 100), WALL))  # 120 m ahead: too far
     origins = np.array([0.0, 0.0, 1.8]).reshape(1, 1, 1, 3)
@@ -91,7 +92,7 @@ def _real_batch(catalog, n=48, seed=3):
         rng.random((n, catalog.layout_columns)),
         rng.random((n, catalog.object_columns)),
     )
-    origins, directions = window_rays(VLP16(), 16, 48.0, rng.random(n))
+    origins, directions = window_rays(default_sensor(), 16, 48.0, rng.random(n))
     return scene, origins, directions
 
 

@@ -1,8 +1,16 @@
+from dataclasses import replace
+
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from simlidar.sensor import VLP16, column_centres_deg, firing_azimuths_deg, row_order, window_rays
+from simlidar.sensor import (
+    column_centres_deg,
+    default_sensor,
+    firing_azimuths_deg,
+    row_order,
+    window_rays,
+)
 
 
 @settings(max_examples=30, deadline=None)
@@ -14,7 +22,7 @@ from simlidar.sensor import VLP16, column_centres_deg, firing_azimuths_deg, row_
     phase=st.floats(0.0, 0.999),
 )
 def test_ray_directions_are_unit_vectors(rpm, pitch, width, fov, phase):
-    sensor = VLP16(rpm=rpm, pitch_deg=pitch)
+    sensor = replace(default_sensor(), rpm=rpm, pitch_deg=pitch)
     origins, directions = window_rays(sensor, width, fov, np.array([phase]))
     assert directions.shape == (1, 16, width, 3)
     np.testing.assert_allclose(np.linalg.norm(directions, axis=-1), 1.0, atol=1e-12)
@@ -22,7 +30,7 @@ def test_ray_directions_are_unit_vectors(rpm, pitch, width, fov, phase):
 
 
 def test_elevations_and_origins_without_pitch():
-    sensor = VLP16(mount_height_m=1.5)
+    sensor = replace(default_sensor(), mount_height_m=1.5)
     origins, directions = window_rays(sensor, 16, 48.0, np.array([0.3]))
     rows = row_order(sensor)
     expected = np.deg2rad([sensor.elevations_deg[k] for k in rows])
@@ -33,8 +41,8 @@ def test_elevations_and_origins_without_pitch():
 
 
 def test_pitch_tilts_the_beams_down():
-    level = window_rays(VLP16(), 16, 48.0, np.array([0.0]))[1]
-    tilted = window_rays(VLP16(pitch_deg=5.0), 16, 48.0, np.array([0.0]))[1]
+    level = window_rays(default_sensor(), 16, 48.0, np.array([0.0]))[1]
+    tilted = window_rays(replace(default_sensor(), pitch_deg=5.0), 16, 48.0, np.array([0.0]))[1]
     # straight ahead, a beam at elevation e now points at e - 5 degrees
     centre = 8
     e0 = np.rad2deg(np.arcsin(level[0, :, centre, 2]))
@@ -43,7 +51,7 @@ def test_pitch_tilts_the_beams_down():
 
 
 def test_centre_firing_lies_within_half_a_step_of_the_bin_centre():
-    sensor = VLP16(rpm=600)
+    sensor = replace(default_sensor(), rpm=600)
     phase = np.linspace(0, 0.99, 7)
     azimuth = firing_azimuths_deg(sensor, 16, 48.0, phase)  # (7, 16, 16)
     centres = column_centres_deg(16, 48.0)
@@ -59,7 +67,7 @@ def test_centre_firing_lies_within_half_a_step_of_the_bin_centre():
 
 def test_window_rays_follow_the_firing_azimuths():
     # the pulses' directions point where firing_azimuths_deg says: clockwise, positive = right
-    sensor = VLP16(rpm=1200)
+    sensor = replace(default_sensor(), rpm=1200)
     phase = np.array([0.1, 0.8])
     _, directions = window_rays(sensor, 16, 36.0, phase)
     azimuth = np.rad2deg(np.arctan2(-directions[..., 1], directions[..., 0]))
@@ -69,7 +77,7 @@ def test_window_rays_follow_the_firing_azimuths():
 
 
 def test_lasers_fire_in_id_order_inside_a_cycle():
-    sensor = VLP16(rpm=1200)
+    sensor = replace(default_sensor(), rpm=1200)
     azimuth = firing_azimuths_deg(sensor, 4, 36.0, np.array([0.25]))[0]  # (16, 4)
     by_laser = np.empty_like(azimuth)
     by_laser[row_order(sensor)] = azimuth  # rows -> laser ids 0..15
@@ -79,8 +87,10 @@ def test_lasers_fire_in_id_order_inside_a_cycle():
 
 def test_pitch_moves_the_upper_emitters_forward():
     # pitched down, an emitter above the reference point moves forward (+x), one below back
-    origins = window_rays(VLP16(pitch_deg=10.0), 4, 36.0, np.array([0.0]))[0][0, :, 0]
-    rows = row_order(VLP16())
-    offsets = np.array([VLP16().vertical_offsets_mm[k] for k in rows]) * 1e-3
+    origins = window_rays(replace(default_sensor(), pitch_deg=10.0), 4, 36.0, np.array([0.0]))[0][
+        0, :, 0
+    ]
+    rows = row_order(default_sensor())
+    offsets = np.array([default_sensor().vertical_offsets_mm[k] for k in rows]) * 1e-3
     np.testing.assert_allclose(origins[:, 0], offsets * np.sin(np.deg2rad(10.0)), atol=1e-12)
     np.testing.assert_allclose(origins[:, 2], 1.8 + offsets * np.cos(np.deg2rad(10.0)))
