@@ -5,6 +5,7 @@ In a wheel they are packaged as ``simlidar/_content/<name>``; in a source checko
 editable install) they are the top-level folders beside the package.
 """
 
+import math
 import re
 import tomllib
 from pathlib import Path
@@ -49,3 +50,13 @@ def read_named_toml(path: Path, where: str, what: str, max_bytes: int) -> dict:
         raise ConfigError(f"{where}: not valid TOML ({exc})") from None
     except OSError as exc:
         raise ConfigError(f"{where}: cannot read ({exc.strerror})") from None
+
+
+def key_error(where: str, key: str, expected: str, got) -> ConfigError:
+    """The one-line error for a bad ``key`` of a content file: what was expected, what came."""
+    return ConfigError(f"{where}: key '{key}': expected {expected}, got {got!r}")
+
+
+def finite_number(value) -> bool:
+    """A TOML int or float that is finite (booleans are not numbers here)."""
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)

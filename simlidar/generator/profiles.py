@@ -13,11 +13,10 @@ Delays always stay in [0, 1] (the split schema's contract): noise is clipped at 
 the listening window.
 """
 
-import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from simlidar.content import content_dir, read_named_toml
+from simlidar.content import content_dir, finite_number, key_error, read_named_toml
 from simlidar.errors import ConfigError
 
 DEFAULT_PROFILE = "paper"
@@ -60,14 +59,6 @@ def profile_names() -> list[str]:
     return sorted(p.stem for p in content_dir("profiles").glob("*.toml"))
 
 
-def _fail(where: str, key: str, expected: str, got) -> ConfigError:
-    return ConfigError(f"{where}: key '{key}': expected {expected}, got {got!r}")
-
-
-def _number(value) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-
-
 def load_profile(name_or_path: str | Path) -> Profile:
     """A shipped profile by name, or a profile file by path; every key checked.
 
@@ -85,17 +76,17 @@ def load_profile(name_or_path: str | Path) -> Profile:
     data = read_named_toml(path, where, "a profile", MAX_PROFILE_BYTES)
     for key in data:
         if key not in KEYS:
-            raise _fail(where, key, f"one of {sorted(KEYS)}", key)
+            raise key_error(where, key, f"one of {sorted(KEYS)}", key)
     for key in sorted(KEYS - set(data)):
         raise ConfigError(f"{where}: key '{key}' is missing")
     if not isinstance(data["description"], str):
-        raise _fail(where, "description", "a string", data["description"])
-    if not (_number(data["variation"]) and 0.0 < data["variation"] <= 1.0):
-        raise _fail(where, "variation", "a factor in (0, 1]", data["variation"])
-    if not (_number(data["shift"]) and 0.0 <= data["shift"] < 1.0):
-        raise _fail(where, "shift", "a value in [0, 1)", data["shift"])
-    if not (_number(data["missing_delay"]) and data["missing_delay"] in MISSING):
-        raise _fail(
+        raise key_error(where, "description", "a string", data["description"])
+    if not (finite_number(data["variation"]) and 0.0 < data["variation"] <= 1.0):
+        raise key_error(where, "variation", "a factor in (0, 1]", data["variation"])
+    if not (finite_number(data["shift"]) and 0.0 <= data["shift"] < 1.0):
+        raise key_error(where, "shift", "a value in [0, 1)", data["shift"])
+    if not (finite_number(data["missing_delay"]) and data["missing_delay"] in MISSING):
+        raise key_error(
             where,
             "missing_delay",
             "0.0 (start of the window) or 1.0 (its end)",
@@ -103,9 +94,9 @@ def load_profile(name_or_path: str | Path) -> Profile:
         )
     for key in ("noise_on", "spikes"):
         if data[key] not in WHERE:
-            raise _fail(where, key, f"one of {list(WHERE)}", data[key])
+            raise key_error(where, key, f"one of {list(WHERE)}", data[key])
     if data["spikes"] == "returns" and data["missing_delay"] != 1.0:
-        raise _fail(
+        raise key_error(
             where,
             "spikes",
             "'all' when missing_delay is 0.0 ('returns' reads pixels "

@@ -17,7 +17,7 @@ from dataclasses import dataclass, fields, replace
 from functools import lru_cache
 from pathlib import Path
 
-from simlidar.content import content_dir, read_named_toml
+from simlidar.content import content_dir, finite_number, key_error, read_named_toml
 from simlidar.errors import ConfigError
 
 SPEED_OF_LIGHT_M_PER_S = 299_792_458.0
@@ -220,14 +220,6 @@ def sensor_names() -> list[str]:
     return sorted(p.stem for p in content_dir("sensors").glob("*.toml"))
 
 
-def _fail(where: str, key: str, expected: str, got) -> ConfigError:
-    return ConfigError(f"{where}: key '{key}': expected {expected}, got {got!r}")
-
-
-def _number(value) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-
-
 _FILE_KEYS = [f.name for f in fields(Sensor) if f.name != "name"]
 _OPTIONAL = {"pitch_deg", "rot_corrections_deg", "firing_slots"}
 
@@ -236,7 +228,7 @@ def _checked(where: str, data: dict) -> dict:
     """The file's values with their types checked and numbers made floats (slots ints)."""
     for key in data:
         if key not in _FILE_KEYS:
-            raise _fail(where, key, f"one of {sorted(_FILE_KEYS)}", key)
+            raise key_error(where, key, f"one of {sorted(_FILE_KEYS)}", key)
     for key in _FILE_KEYS:
         if key not in data and key not in _OPTIONAL:
             raise ConfigError(f"{where}: key '{key}' is missing")
@@ -244,21 +236,21 @@ def _checked(where: str, data: dict) -> dict:
     for key, value in data.items():
         if key in _STRINGS:
             if not isinstance(value, str) or not value.strip():
-                raise _fail(where, key, "a non-empty string", value)
+                raise key_error(where, key, "a non-empty string", value)
             values[key] = value
         elif key == "firing_slots":
             if not isinstance(value, list) or not all(
                 isinstance(v, int) and not isinstance(v, bool) for v in value
             ):
-                raise _fail(where, key, "a list of integers", value)
+                raise key_error(where, key, "a list of integers", value)
             values[key] = tuple(value)
         elif key in _TUPLES:
-            if not isinstance(value, list) or not all(_number(v) for v in value):
-                raise _fail(where, key, "a list of finite numbers", value)
+            if not isinstance(value, list) or not all(finite_number(v) for v in value):
+                raise key_error(where, key, "a list of finite numbers", value)
             values[key] = tuple(float(v) for v in value)
         else:
-            if not _number(value):
-                raise _fail(where, key, "a finite number", value)
+            if not finite_number(value):
+                raise key_error(where, key, "a finite number", value)
             values[key] = float(value)
     return values
 
