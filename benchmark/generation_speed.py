@@ -160,7 +160,7 @@ def run_one_at_a_time(config, catalog, count, out: Path, backend):
     blocks = []
     for i in range(count):
         samples = simulate(config, catalog, "train", i, i + 1, backend=backend)
-        writer.append(split_rows(samples, config.noise, config.pulse_rule))
+        writer.append(split_rows(samples, config))
         blocks.append(samples.clean_delays)
     writer.close()
     return np.concatenate(blocks)

@@ -75,6 +75,7 @@ def _cell(
         "history": result.history,
         "early": {k: v for k, v in early.items() if k != "per_sample"},
         "input_spikes": early["per_sample"]["input_spikes"],
+        "decision_time_ns": early["per_sample"]["decision_time_ns"],
     }
     tmp = Path(path).with_suffix(".partial")
     tmp.write_text(json.dumps(record))

@@ -9,6 +9,7 @@ imports torch on first use, so importing this module does not. Examples: ``docs/
 
 from simlidar.dataset.loaders import (
     EVENT_DTYPE,
+    delay_unit_ns,
     load_split,
     sensor_size,
     spike_threshold,
@@ -19,6 +20,7 @@ from simlidar.dataset.loaders import (
 
 __all__ = [  # and PulseDataset, made on first use (below)
     "EVENT_DTYPE",
+    "delay_unit_ns",
     "load_split",
     "sensor_size",
     "spike_threshold",

@@ -37,7 +37,7 @@ def test_events_by_hand():
     delays = np.ones((16, 4), np.float32)
     delays[2, 1] = 0.5  # row 2, column 1, half the window
     delays[0, 3] = 0.1
-    events = to_events(delays, tof_max_ns=600.0)
+    events = to_events(delays, unit_ns=600.0)
     assert events.dtype == EVENT_DTYPE
     assert events.tolist() == [(3, 0, 60_000, 1), (1, 2, 300_000, 1)]  # ps, sorted by time
 

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from simlidar.dataset.loaders import load_split, spike_threshold, split_info
+from simlidar.dataset.loaders import delay_unit_ns, load_split, spike_threshold, split_info
 from simlidar.models import ttfs
 from simlidar.models.decisions import ALPHAS_PJ, decide_all
 
@@ -17,18 +17,19 @@ def decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test"):
     the event-driven run's, from the exact spike times), ``BATCH`` samples at a time.
 
     The model must be a ``SpikingNet`` (dense layers and convolutions).
-    returns : list of Decision, labels (N,), time of flight at delay 1 in ns (None if the
-        dataset is not a time-of-flight one)
+    returns : list of Decision, labels (N,), nanoseconds of a delay of 1.0
+        (:func:`~simlidar.dataset.loaders.delay_unit_ns`; None if the dataset is not a LiDAR
+        one), each sample's last input spike as a delay (N,) (0 for a sample without any)
     """
     x, y = load_split(dataset, split)
     attrs = split_info(dataset, split).attrs  # one read of the attributes
-    tof_max_ns = float(attrs["tof_max_ns"]) if "tof_max_ns" in attrs else None
     silent_from = spike_threshold(attrs)
     z = ttfs.encode(torch.from_numpy(x.astype(np.float64))[:, None], model.scale, silent_from)
     runs = []
     for start in range(0, len(z), BATCH):
         runs += decide_all(model, z[start : start + BATCH])
-    return runs, y, tof_max_ns
+    last = np.where(x < silent_from, x, 0.0).reshape(len(x), -1).max(axis=1, initial=0.0)
+    return runs, y, delay_unit_ns(attrs), last
 
 
 def early_decisions(
@@ -36,20 +37,27 @@ def early_decisions(
 ) -> dict:
     """Summarise :func:`decisions` over a split (means over samples, ``accumulates_mean`` being
     NeuroBench's effective synaptic operations per sample); with ``per_sample``, also the
-    decision time (ns, None if undecided) and input spikes consumed of each sample."""
-    runs, y, tof_max_ns = decisions(model, dataset, split)
+    decision time (ns, None if undecided) and input spikes consumed of each sample.
+
+    Times are sensor time: ns after the pulses' time zero, which is the flash under flash
+    timing and the window's first firing under scan timing. ``last_input_ns_mean`` is when a
+    sample's last input spike comes (what a network that needs every input waits for) and
+    ``wait_saved_mean`` the mean fraction of that wait a decided sample did not need,
+    ``1 - decision / last input``."""
+    runs, y, unit_ns, last = decisions(model, dataset, split)
     decided = [d for d in runs if d.label >= 0]
     spikes = np.array([d.spikes for d in runs])
-    times_ns = [
-        d.time_ns(model.scale, tof_max_ns) if d.label >= 0 and tof_max_ns else None for d in runs
-    ]
+    times_ns = [d.time_ns(model.scale, unit_ns) if d.label >= 0 and unit_ns else None for d in runs]
     known = [t for t in times_ns if t is not None]
+    saved = [1.0 - t / (w * unit_ns) for t, w in zip(times_ns, last) if t is not None and w > 0.0]
     summary = {
         "samples": len(runs),
         "accuracy": float(np.mean([d.label == t for d, t in zip(runs, y)])),
         "no_decision": len(runs) - len(decided),
         "decision_time_mean": float(np.mean([d.time for d in decided])) if decided else None,
         "decision_time_ns_mean": float(np.mean(known)) if known else None,
+        "last_input_ns_mean": float(np.mean(last) * unit_ns) if unit_ns else None,
+        "wait_saved_mean": float(np.mean(saved)) if saved else None,
         "input_spikes_mean": float(np.mean([d.input_spikes for d in runs])),
         "input_spikes_total_mean": float(np.mean([d.input_total for d in runs])),
         "data_ratio_mean": float(np.mean([d.data_ratio for d in runs])),
@@ -67,7 +75,12 @@ def early_decisions(
 
 def format_early(e: dict) -> str:
     """One line on how early a network decides (what ``simlidar train`` prints)."""
-    when = f"{e['decision_time_ns_mean']:.0f} ns" if e["decision_time_ns_mean"] else "never"
+    when = _duration(e["decision_time_ns_mean"]) if e["decision_time_ns_mean"] else "never"
+    if e.get("wait_saved_mean") is not None:
+        when += (
+            f" (last input at {_duration(e['last_input_ns_mean'])}: "
+            f"{e['wait_saved_mean']:.1%} of the wait saved)"
+        )
     return (
         f"  event-driven: accuracy {e['accuracy']:.4f}, {e['input_spikes_mean']:.1f} of "
         f"{e['input_spikes_total_mean']:.1f} input spikes consumed (R_data "
@@ -75,3 +88,10 @@ def format_early(e: dict) -> str:
         f"after {when} on average, energy {e['energy_pj_mean']['0.37']:.1f} pJ at 0.37 "
         f"pJ/spike, {e['energy_pj_mean']['45.0']:.0f} pJ at 45 pJ/spike"
     )
+
+
+def _duration(ns: float) -> str:
+    """A sensor time as people read it: 412 ns, 5.31 us, 7.42 ms."""
+    if ns < 1e3:
+        return f"{ns:.0f} ns"
+    return f"{ns / 1e3:.3g} us" if ns < 1e6 else f"{ns / 1e6:.3g} ms"

@@ -75,6 +75,7 @@ from simlidar.settings import help_of
     help="Sensor model: a name in sensors/ (vlp16, hdl64e, hdl32e) or a .toml file; see "
     f"`simlidar sensors`. Rows of a sample = its beams. [default: {DEFAULT_SENSOR}]",
 )
+@setting_option(GeneratorConfig, "timing")
 @scenes_option
 @click.option(
     "--batch-size",
@@ -114,6 +115,7 @@ def generate(
     out,
     width,
     sensor,
+    timing,
     scenes,
     batch_size,
     workers,
@@ -164,6 +166,7 @@ def generate(
         seed=seed,
         width=width,
         sensor=chosen_sensor,
+        timing=timing,
     )
     start = time.perf_counter()
     written = run(

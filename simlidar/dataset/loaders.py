@@ -129,25 +129,38 @@ def spike_threshold(attrs: dict) -> float:
     return float(attrs.get("no_return_delay", 1.0))
 
 
+def delay_unit_ns(attrs: dict) -> float | None:
+    """Nanoseconds of a delay of 1.0, by a split's attributes: ``delay_unit_ns`` for scan-timed
+    pulses (the sweep window, about 10.1 ms for a 36-degree VLP-16 window), ``tof_max_ns`` for
+    flash pulses and converted KITTI crops (667.13 ns at 100 m); None for data that are not
+    LiDAR times (a DVS split's unit is its ``time_window_us``)."""
+    for key in ("delay_unit_ns", "tof_max_ns"):
+        if key in attrs:
+            return float(attrs[key])
+    return None
+
+
 def sensor_size(width: int, height: int = 16) -> tuple[int, int, int]:
     """Tonic's ``sensor_size`` of a sample: (W columns, H rows, 1 polarity)."""
     return (width, height, 1)
 
 
-def to_events(delays: np.ndarray, tof_max_ns: float, no_return: float = 1.0) -> np.ndarray:
+def to_events(delays: np.ndarray, unit_ns: float, no_return: float = 1.0) -> np.ndarray:
     """One sample as spike events in the Tonic convention, sorted by time.
 
     delays : (H, W) normalised delays of one sample
-    tof_max_ns : the split's ``tof_max_ns`` attribute (667.13 ns for 100 m)
+    unit_ns : nanoseconds of a delay of 1.0: :func:`delay_unit_ns` of the split's attributes
+        (``tof_max_ns``, 667.13 ns for 100 m, under flash timing; the sweep window under scan
+        timing)
     no_return : delays at or above it are no event; pass :func:`spike_threshold` of the split's
         attributes (inf for the paper profile, where every pixel is a pulse)
     returns : structured array with fields x (column), y (row), t (arrival time in
-        picoseconds, so the 2 mm range step of 13 ps survives), p (always 1: a pulse).
-        A pulse at the no-return value (the end of the window) is no event.
+        picoseconds, so the 2 mm range step of 13 ps survives a flash sample), p (always 1: a
+        pulse). A pulse at the no-return value (the end of the window) is no event.
     """
     delays = np.asarray(delays)
     rows, cols = np.nonzero(delays < no_return)
-    t = np.round(delays[rows, cols].astype(np.float64) * tof_max_ns * 1000.0).astype(np.int64)
+    t = np.round(delays[rows, cols].astype(np.float64) * unit_ns * 1000.0).astype(np.int64)
     order = np.argsort(t, kind="stable")
     events = np.empty(len(t), EVENT_DTYPE)
     events["x"], events["y"], events["t"] = cols[order], rows[order], t[order]

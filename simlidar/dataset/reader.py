@@ -10,7 +10,7 @@ import numpy as np
 
 from simlidar.dataset.schema import REQUIRED_ATTRS, SPLITS, split_source
 from simlidar.dataset.shards import find_split_files, shard_of
-from simlidar.dataset.version import GENERATOR, PHYSICAL_VERSION, SOURCES, major
+from simlidar.dataset.version import GENERATOR, PHYSICAL_VERSION, SCAN_VERSION, SOURCES, major
 from simlidar.errors import DatasetError
 
 
@@ -84,10 +84,13 @@ def read_split_info(path: Path) -> SplitInfo:
 
 def written_version(attrs) -> str | None:
     """The version this simlidar writes for a split like this one, when it is not its source's
-    current version: a generated split without a profile follows the physical rule, still
-    written as PHYSICAL_VERSION (1.0.0)."""
-    physical = split_source(attrs) == GENERATOR and "profile" not in attrs
-    return PHYSICAL_VERSION if physical else None
+    current version: a scan-timed split is SCAN_VERSION (2.1.0); a generated split without a
+    profile follows the physical rule, still written as PHYSICAL_VERSION (1.0.0)."""
+    if split_source(attrs) != GENERATOR:
+        return None
+    if _decode(attrs.get("timing", "flash")) == "scan":
+        return SCAN_VERSION
+    return PHYSICAL_VERSION if "profile" not in attrs else None
 
 
 _warned: set[tuple[str, str]] = set()

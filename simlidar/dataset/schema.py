@@ -26,6 +26,11 @@ SCHEMA: dict[str, tuple[str, object]] = {
     "phase": ("float32", lambda h, w: ()),
     "shift": ("float32", lambda h, w: ()),
 }
+# Stored besides SCHEMA by scan-timed datasets (attribute timing = "scan") only, so that the
+# files of flash datasets keep their bytes
+SCAN_SCHEMA: dict[str, tuple[str, object]] = {
+    "emission_ns": ("float64", lambda h, w: (h, w)),
+}
 # The shuffle filter helps gzip on the noisy delays (random mantissas) and hurts it on the
 # quantised clean delays and times of flight (measured: smaller and faster without it).
 SHUFFLED = {"delays", "phase", "shift", "object_pose"}
@@ -68,10 +73,20 @@ CONVERTED_SCHEMAS: dict[str, dict[str, tuple[str, tuple]]] = {
 }
 
 
-def generated_shapes(height: int, width: int) -> dict[str, tuple[str, tuple]]:
+def generated_schema(timing: str = "flash") -> dict[str, tuple[str, object]]:
+    """:data:`SCHEMA`, and :data:`SCAN_SCHEMA` under scan timing."""
+    return SCHEMA | SCAN_SCHEMA if timing == "scan" else SCHEMA
+
+
+def generated_shapes(
+    height: int, width: int, timing: str = "flash"
+) -> dict[str, tuple[str, tuple]]:
     """name -> (dtype, trailing shape) of a generated split of ``height`` rows (the sensor's
-    beams) and ``width`` columns."""
-    return {name: (dtype, tail(height, width)) for name, (dtype, tail) in SCHEMA.items()}
+    beams) and ``width`` columns, of ``timing`` "flash" or "scan"."""
+    return {
+        name: (dtype, tail(height, width))
+        for name, (dtype, tail) in generated_schema(timing).items()
+    }
 
 
 def split_source(attrs) -> str:
@@ -80,10 +95,14 @@ def split_source(attrs) -> str:
     return value.decode() if isinstance(value, bytes) else value
 
 
-def expected_shapes(source: str, n: int, h: int, w: int, e: int = 0) -> dict[str, tuple]:
-    """name -> (dtype, full shape) of every dataset a split of ``source`` must hold."""
+def expected_shapes(
+    source: str, n: int, h: int, w: int, e: int = 0, timing: str = "flash"
+) -> dict[str, tuple]:
+    """name -> (dtype, full shape) of every dataset a split of ``source`` must hold
+    (``timing``: a generated split's ``timing`` attribute, "flash" where it has none)."""
     if source == GENERATOR:
-        return {name: (dtype, (n, *tail)) for name, (dtype, tail) in generated_shapes(h, w).items()}
+        shapes = generated_shapes(h, w, timing)
+        return {name: (dtype, (n, *tail)) for name, (dtype, tail) in shapes.items()}
     if source not in CONVERTED_SCHEMAS:
         known = ", ".join([GENERATOR, *CONVERTED_SCHEMAS])
         raise DatasetError(f"source {source!r}: expected one of {known}")

@@ -6,7 +6,7 @@ from functools import cache
 from pathlib import Path
 
 from simlidar.dataset.reader import dataset_splits
-from simlidar.dataset.schema import SCHEMA, SPLITS
+from simlidar.dataset.schema import SCHEMA, SPLITS, generated_schema
 from simlidar.dataset.shards import SHARD_SAMPLES
 from simlidar.dataset.version import RELEASE_DATES, RELEASE_NOTES
 from simlidar.generator.about import (
@@ -45,6 +45,7 @@ _DOCS = {  # one line per dataset of a split file; the full table is docs/datase
     "attempts": "scene draws until the object and layout were seen",
     "phase": "head rotation phase, in azimuth steps",
     "shift": "delay shift applied to the sample's returns",
+    "emission_ns": "when each pulse left the sensor, ns from the window's first firing",
 }
 
 
@@ -53,11 +54,11 @@ def generated_front_matter(path: Path) -> dict:
     splits = dataset_splits(path)
     attrs = splits["train"].attrs
     height, width = splits["train"].height, splits["train"].width
+    config = GeneratorConfig.from_dict(attrs["config"])
     features = [
         hf_feature(name, dtype, tail(height, width), attrs["class_names"])
-        for name, (dtype, tail) in SCHEMA.items()
+        for name, (dtype, tail) in generated_schema(config.timing).items()
     ]
-    config = GeneratorConfig.from_dict(attrs["config"])
     title = f"{NAME}, {attrs['classes']} classes, noise {attrs['noise']}"
     config_name = f"noise{float(attrs['noise'])!r}"
     if config.profile is not None:  # the physical profile's card keeps the 1.0.0 names
@@ -77,6 +78,8 @@ def generated_front_matter(path: Path) -> dict:
     sensor = Sensor.from_dict(attrs["sensor"])
     if sensor.name != "vlp16":
         title, config_name = f"{title}, sensor {sensor.name}", f"{config_name}-{sensor.name}"
+    if config.timing == "scan":
+        title, config_name = f"{title}, scan timing", f"{config_name}-scan"
     return hf_front_matter(splits, features, LICENSE, title, tags(sensor), config_name)
 
 
@@ -120,6 +123,7 @@ def regenerate_command(
         "variation",
         "profile",
         "sensor",
+        "timing",
     }
     other = {k for k, v in config.to_dict().items() if k not in cli_fields}
     shipped = config.profile is None or (
@@ -151,6 +155,8 @@ def regenerate_command(
     ]
     if sensor.name != "vlp16":
         parts.append(f"--sensor {sensor.name}")
+    if config.timing != "flash":
+        parts.append(f"--timing {config.timing}")
     over = config.overrides
     if "shift_max" in over:
         parts.append(f"--shift {config.shift_max!r}")
@@ -203,13 +209,27 @@ def _noise_details(config: GeneratorConfig) -> str:
     )
 
 
+_TIMING_LINE = {
+    "flash": "`flash`: a delay is the pulse's time of flight (the paper's)",
+    "scan": "`scan`: a delay is the pulse's arrival time in the sweep (emission + time of flight)",
+}
+
+
 def _missing_meaning(config: GeneratorConfig) -> str:
-    if config.pulse_rule["missing_delay"] == 1.0:
-        return ""
-    return (
-        " Under this dataset's profile a missing return is written as 0.0 (before noise), "
-        "not 1.0, and every pixel is an input spike (the paper's protocol)."
-    )
+    text = ""
+    if config.pulse_rule["missing_delay"] != 1.0:
+        text = (
+            " Under this dataset's profile a missing return is written as 0.0 (before noise), "
+            "not 1.0, and every pixel is an input spike (the paper's protocol)."
+        )
+    if config.timing == "scan":
+        text += (
+            f" Scan timing: each value is then made the pulse's arrival time in the sweep, "
+            f"its emission time (`emission_ns`: firing order, cycle, column) plus that time of "
+            f"flight, divided by the attribute `delay_unit_ns` ({config.scan_window_ns / 1e6:.4f} "
+            "ms); 1.0 stays 1.0."
+        )
+    return text
 
 
 def generated_card(path: str | Path) -> str:
@@ -240,6 +260,7 @@ def generated_card(path: str | Path) -> str:
                 ["samples", ", ".join(f"{s} {info.size}" for s, info in splits.items())],
                 ["sample", f"{height} x {width} float32 delays in [0, 1]"],
                 ["profile", f"`{config.profile_name}`: {_profile_line(config)}"],
+                ["timing", _TIMING_LINE[config.timing]],
                 ["noise", f"U(0, {attrs['noise']}) added to {_noised(config)}"],
                 ["seed", attrs["seed"]],
             ],
@@ -258,7 +279,7 @@ def generated_card(path: str | Path) -> str:
             ["dataset", "dtype", "shape", "meaning"],
             [
                 [f"`{name}`", dtype, str(("N", *tail(height, width))).replace("'", ""), _DOCS[name]]
-                for name, (dtype, tail) in SCHEMA.items()
+                for name, (dtype, tail) in generated_schema(config.timing).items()
             ],
         )
         + "\n",

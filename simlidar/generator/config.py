@@ -6,9 +6,11 @@ from dataclasses import asdict, dataclass, replace
 from simlidar.errors import ConfigError
 from simlidar.generator.profiles import PHYSICAL_RULE, Profile
 from simlidar.sensor.model import Sensor, default_sensor
-from simlidar.settings import Range, check, setting
+from simlidar.sensor.rays import scan_window_ns
+from simlidar.settings import Choice, Range, check, setting
 
 MAX_SPLIT_SIZE = 10**9  # samples per split
+TIMINGS = ("flash", "scan")
 SIZE = Range(1, MAX_SPLIT_SIZE, "an integer")
 
 
@@ -56,6 +58,14 @@ class GeneratorConfig:
     sensor: Sensor = setting(
         help="The sensor model (a file of sensors/, simlidar.sensor.load_sensor).",
         default_factory=default_sensor,
+    )
+    # stored only when "scan", so that flash datasets keep their bytes (as variation above)
+    timing: str = setting(
+        "flash",
+        "What a pulse's delay measures: flash, its time of flight (every pulse of a window "
+        "leaves at once: the paper's); scan, its arrival time in the sweep, emission (firing "
+        "order, cycle, column) plus time of flight (docs/sensor-model.md).",
+        Choice(TIMINGS),
     )
     # None: the physical rule of dataset version 1.0.0 (stored only when not None, for the
     # same reason as variation). `variation` and `shift_max` above are the values used, which
@@ -115,6 +125,14 @@ class GeneratorConfig:
         return {k: v for (k, v), mine in zip(used.items(), own) if v != mine}
 
     @property
+    def scan_window_ns(self) -> float | None:
+        """The delay unit of scan-timed pulses (:func:`simlidar.sensor.rays.scan_window_ns`);
+        None for flash timing."""
+        if self.timing != "scan":
+            return None
+        return scan_window_ns(self.sensor, self.width, self.fov_deg)
+
+    @property
     def split_sizes(self) -> dict[str, int]:
         return {"train": self.train_size, "test": self.test_size}
 
@@ -128,6 +146,8 @@ class GeneratorConfig:
             del values["variation"]  # absent means 1 (and keeps older datasets' bytes)
         if values["profile"] is None:
             del values["profile"]  # absent means the physical rule of 1.0.0 (same reason)
+        if values["timing"] == "flash":
+            del values["timing"]  # absent means flash (same reason)
         return values
 
     def to_json(self) -> str:

@@ -96,6 +96,8 @@ class Batches:
             raise StopIteration
         job, future = self.pending.popleft()
         try:
+            if future is None:  # the pool was already broken when this job was submitted
+                raise BrokenProcessPool(job)
             samples = future.result()
         except BrokenProcessPool:
             split, start, stop = job
@@ -105,7 +107,11 @@ class Batches:
             ) from None
         following = next(self.todo, None)
         if following is not None:
-            self.pending.append((following, self.pool.submit(_simulate_job, following)))
+            try:
+                future = self.pool.submit(_simulate_job, following)
+            except BrokenProcessPool:  # a worker died after this result: the next call says so
+                future = None
+            self.pending.append((following, future))
         return samples
 
     def close(self) -> None:
@@ -162,7 +168,7 @@ def write_shard(
     from ``batches``, an iterator of its simulated batches in order. Each file is written
     under a hidden name of its own and renamed when complete; on any error the hidden files
     are removed."""
-    shapes = generated_shapes(configs[0].sensor.beams, configs[0].width)
+    shapes = generated_shapes(configs[0].sensor.beams, configs[0].width, configs[0].timing)
     token = secrets.token_hex(4)  # two runs of one shard (a retried task) never share a file
     writers: list[SplitWriter] = []
     try:
@@ -175,7 +181,7 @@ def write_shard(
         for _, start, stop in shard.batches(batch_size):
             samples = next(batches)
             for cfg, writer in zip(configs, writers):
-                writer.append(split_rows(samples, cfg.noise, cfg.pulse_rule))
+                writer.append(split_rows(samples, cfg))
             on_rows(stop - start)
         for writer, temp in zip(writers, temps):
             writer.close()
@@ -202,11 +208,13 @@ class Written:
 
 
 def generated_name(config: GeneratorConfig) -> str:
-    """``simlidar-<classes>c-noise<level>-<profile>[-<sensor>][-var<v>][-shift<s>]-v<version>``,
+    """``simlidar-<classes>c-noise<level>-<profile>[-<sensor>][-scan][-var<v>][-shift<s>]-v<version>``,
     numbers as Python's repr (0.2, 0.33); ``-<sensor>`` names a sensor other than the VLP-16,
-    ``-var`` and ``-shift`` values that differ from the profile's own."""
+    ``-scan`` scan timing, ``-var`` and ``-shift`` values that differ from the profile's
+    own."""
     over = config.overrides
     sensor = f"-{config.sensor.name}" if config.sensor.name != "vlp16" else ""
+    sensor += "-scan" if config.timing == "scan" else ""
     variation = f"-var{float(over['variation'])!r}" if "variation" in over else ""
     shift = f"-shift{float(over['shift_max'])!r}" if "shift_max" in over else ""
     return (
@@ -250,6 +258,9 @@ def generated_split_attrs(config: GeneratorConfig, catalog: Catalog, split: str)
         attrs["no_return_delay"] = rule["missing_delay"]
         attrs["noise_on"] = rule["noise_on"]
         attrs["input_spikes"] = rule["spikes"]
+    if config.timing == "scan":  # absent: flash (and the bytes of flash datasets)
+        attrs["timing"] = "scan"
+        attrs["delay_unit_ns"] = config.scan_window_ns
     return attrs
 
 

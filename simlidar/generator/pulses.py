@@ -16,6 +16,9 @@ Conventions (``docs/sensor-model.md`` explains them):
 * A dataset profile (``simlidar.generator.profiles``) may write a missing return as 0.0
   instead and put the noise on every pixel (:func:`profile_pulses`); the physical profile is
   the rule above.
+* Scan timing (``--timing scan``, :func:`scan_delays`): the delays above (noise included)
+  become arrival times in the sweep, ``(emission_ns + d * tof_max_ns) / window_ns``; a pixel
+  at 1.0 stays 1.0. Noise is timing jitter of the time of flight, so it keeps its size in ns.
 """
 
 import numpy as np
@@ -90,14 +93,41 @@ def noisy_delays(
     return noisy
 
 
-def split_rows(samples, level: float, rule: dict) -> dict[str, np.ndarray]:
-    """The rows of a generated split (:data:`simlidar.dataset.schema.SCHEMA`) from a block of
-    simulated :class:`~simlidar.generator.simulate.Samples`: the profile's ``rule``
-    (``GeneratorConfig.pulse_rule``) and ``U(0, level)`` noise applied to the clean delays
-    (:func:`profile_pulses`; ``clean_delays`` are written under the rule too, before noise),
-    every other field as simulated."""
+def scan_delays(
+    delays: np.ndarray, emission_ns: np.ndarray, tof_max_ns: float, window_ns: float
+) -> np.ndarray:
+    """Flash delays -> scan-timed delays: each pulse's arrival time in the sweep, emission plus
+    ``delay * tof_max_ns``, divided by ``window_ns`` (the bound of
+    :func:`simlidar.sensor.rays.scan_window_ns`, so a return stays inside (0, 1)). A delay of
+    1.0 (no return under the physical rule, or noise pushed past the window) stays 1.0; under
+    the paper profile a missing return (0.0 plus noise) arrives with its emission.
+
+    delays : (B, H, W) float32; emission_ns : (B, H, W) float64
+    returns : (B, H, W) float32
+    """
+    arrival = (emission_ns + delays.astype(np.float64) * tof_max_ns) / window_ns
+    return np.where(delays < NO_RETURN, arrival, NO_RETURN).astype(np.float32)
+
+
+def split_rows(samples, config) -> dict[str, np.ndarray]:
+    """The rows of a generated split (:func:`simlidar.dataset.schema.generated_shapes`) from a
+    block of simulated :class:`~simlidar.generator.simulate.Samples` and the dataset's
+    :class:`~simlidar.generator.config.GeneratorConfig`: the profile's pulse rule and
+    ``U(0, noise)`` noise applied to the clean delays (:func:`profile_pulses`;
+    ``clean_delays`` are written under the rule too, before noise), under scan timing both
+    made arrival times (:func:`scan_delays`) and the emission times stored; every other field
+    as simulated."""
+    rule = config.pulse_rule
     clean, noisy = profile_pulses(
-        samples.clean_delays, level, samples.noise_u, rule["missing_delay"], rule["noise_on"]
+        samples.clean_delays,
+        config.noise,
+        samples.noise_u,
+        rule["missing_delay"],
+        rule["noise_on"],
     )
     rows = {"delays": noisy, "clean_delays": clean}
+    if config.timing == "scan":
+        window, tof_max = config.scan_window_ns, config.sensor.tof_max_ns
+        rows = {n: scan_delays(d, samples.emission_ns, tof_max, window) for n, d in rows.items()}
+        rows["emission_ns"] = samples.emission_ns
     return rows | {name: getattr(samples, name) for name in SCHEMA if name not in rows}

@@ -17,7 +17,7 @@ from simlidar.generator.pulses import delays_from_range, quantise_range, shift_d
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.raycast import MAX_BATCH, cast
-from simlidar.sensor.rays import column_centres_deg, window_rays
+from simlidar.sensor.rays import column_centres_deg, emission_times_ns, window_rays
 
 SPLIT_IDS = {"train": 0, "test": 1}
 _FIXED_COLUMNS = 2  # per attempt: rotation phase, delay shift
@@ -84,6 +84,9 @@ class Samples:
     attempts: np.ndarray  # (n,) int32, draws until the object and the layout were seen
     phase: np.ndarray  # (n,) float32, head rotation phase in azimuth steps
     shift: np.ndarray  # (n,) float32, delay shift applied
+    # (n, H, W) float64, when each pulse left the sensor, ns from the window's first firing
+    # (from the phase of the draw, before it is stored as float32)
+    emission_ns: np.ndarray
 
 
 def _stream(seed: int, split: str, index: int) -> np.random.Generator:
@@ -146,6 +149,7 @@ def simulate(
     attempts = np.zeros(n, np.int32)
     phase = np.zeros(n)
     shift = np.zeros(n)
+    emission = np.zeros((n, sensor.beams, width))
     pending = np.arange(n)
     while len(pending):
         attempts[pending] += 1
@@ -181,6 +185,7 @@ def simulate(
         pose[done] = object_pose[ok]
         hits_out[done] = on_object[ok]
         phase[done] = u[ok, 0]
+        emission[done] = emission_times_ns(sensor, width, config.fov_deg, u[ok, 0])
         if config.shift_max > 0:
             shift[done] = (2.0 * u[ok, 1] - 1.0) * config.shift_max
         pending = pending[~ok]
@@ -213,4 +218,5 @@ def simulate(
         attempts=attempts,
         phase=phase.astype(np.float32),
         shift=shift.astype(np.float32),
+        emission_ns=emission,
     )

@@ -54,10 +54,11 @@ class Decision:
         """Every spike of the run: inputs consumed, hidden spikes and the output spike."""
         return self.input_spikes + self.hidden_spikes + (self.label >= 0)
 
-    def time_ns(self, scale: float, tof_max_ns: float) -> float:
-        """Decision time in sensor nanoseconds: network time t = scale * delay, delay =
-        tof / tof_max."""
-        return self.time / scale * tof_max_ns
+    def time_ns(self, scale: float, unit_ns: float) -> float:
+        """Decision time in sensor nanoseconds: network time t = scale * delay, a delay of 1.0
+        being ``unit_ns`` (``tof_max_ns`` for flash pulses, the sweep window for scan-timed
+        ones: :func:`simlidar.dataset.loaders.delay_unit_ns`)."""
+        return self.time / scale * unit_ns
 
     def energy_pj(self, alpha_pj: float) -> float:
         return self.spikes * alpha_pj

@@ -48,6 +48,7 @@ def dataset_info(path: str | Path) -> dict:
             "beams": sensor.beams,
             "rpm": sensor.rpm,
         }
+        summary["timing"] = first.get("timing", "flash")
     return summary
 
 
@@ -82,7 +83,7 @@ def format_info(summary: dict) -> str:
         sensor = summary["sensor"]
         lines.append(
             f"  sensor {sensor['name']} ({sensor['model']}), {sensor['beams']} beams, "
-            f"{sensor['rpm']:g} RPM"
+            f"{sensor['rpm']:g} RPM, {summary['timing']} timing"
         )
     for split, size in summary["splits"].items():
         counts = summary["counts"][split].values()

@@ -43,7 +43,8 @@ def _check_split(
                 problems.append(str(exc))
         events = f["event_t_us"].shape[0] if "event_t_us" in f else 0
         try:
-            shapes = expected_shapes(source, size, height, width, events)
+            timing = _decode(f.attrs.get("timing", "flash"))
+            shapes = expected_shapes(source, size, height, width, events, timing)
         except DatasetError as exc:  # an unknown source
             return problems + [f"{path}: {exc}"], None
         for name, (dtype, shape) in shapes.items():

@@ -1,0 +1,195 @@
+"""Scan-timed pulses (`generate --timing scan`): emission times that agree with the firing
+geometry, arrival times in the delays, flash twins untouched, events and early decisions in
+sensor time."""
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from simlidar.cli import main
+from simlidar.data import delay_unit_ns, spike_threshold, to_events
+from simlidar.dataset.reader import read_split_info
+from simlidar.errors import ConfigError
+from simlidar.generator.config import GeneratorConfig
+from simlidar.sensor import default_sensor, firing_azimuths_deg, load_sensor, row_order
+from simlidar.sensor.rays import emission_times_ns, scan_window_ns
+
+SMALL = ["--train-size", "64", "--test-size", "32", "--profile", "physical"]
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def twins(tmp_path_factory):
+    """A flash and a scan dataset of the same seed and options."""
+    out = tmp_path_factory.mktemp("twins")
+    paths = {}
+    for timing in ("flash", "scan"):
+        result = run("generate", *SMALL, "--timing", timing, "--out", out, "--json")
+        assert result.exit_code == 0, result.output
+        paths[timing] = Path(json.loads(result.stdout)["datasets"][0]["path"])
+    return paths
+
+
+def test_a_vlp16_window_fires_laser_by_laser_and_column_by_column():
+    sensor = default_sensor()
+    t = emission_times_ns(sensor, 16, 36.0, np.array([0.0, 0.37, 0.99]))
+    assert t.shape == (3, 16, 16)
+    lasers = row_order(sensor)
+    # inside a column, laser id j fires j x 2.304 us after the column's cycle starts
+    for row, laser in enumerate(lasers):
+        assert np.allclose(t[:, row, :] - t[:, lasers.index(0), :], laser * 2304.0)
+    assert (t[:, lasers.index(0), 0] == 0.0).all()  # the window's first firing
+    starts = t[:, lasers.index(0), :]
+    steps = np.diff(starts, axis=1) / 55296.0  # whole cycles between columns, left to right
+    assert np.allclose(steps, np.round(steps)) and (steps >= 11).all() and (steps <= 12).all()
+    # 36 degrees at 600 RPM: the head needs 10 ms, the columns' centres lie 15/16 of it apart
+    assert 9.3e6 < t.max() < 9.5e6
+
+
+@pytest.mark.parametrize("name", ["vlp16", "hdl64e", "hdl32e"])
+def test_emission_times_are_the_firing_azimuths_turned_into_time(name):
+    """The clock and the geometry agree: the head turns degrees_per_us, so a pulse's azimuth
+    (its rotational correction added back) lies emission x rate past the first firing's."""
+    sensor = load_sensor(name)
+    phase = np.random.default_rng(1).random(5)
+    azimuth = firing_azimuths_deg(sensor, 24, 40.0, phase)
+    head = azimuth + np.asarray(sensor.rotations)[row_order(sensor)][None, :, None]
+    t = emission_times_ns(sensor, 24, 40.0, phase)
+    first = row_order(sensor).index(0)  # laser 0 fires in slot 0
+    turned = (head - head[:, first : first + 1, :1]) / sensor.degrees_per_us * 1000.0
+    assert np.allclose(turned, t, atol=1e-3)
+
+
+@pytest.mark.parametrize("width, fov", [(1, 36.0), (16, 36.0), (118, 90.0), (1024, 179.0)])
+@pytest.mark.parametrize("name", ["vlp16", "hdl64e"])
+def test_every_arrival_lies_inside_the_scan_window(name, width, fov):
+    sensor = load_sensor(name)
+    phase = np.random.default_rng(2).random(64)
+    latest = emission_times_ns(sensor, width, fov, phase).max() + sensor.tof_max_ns
+    window = scan_window_ns(sensor, width, fov)
+    assert latest < window < latest + 3 * sensor.cycle_us * 1000.0
+
+
+def test_scan_delays_are_arrival_times_of_the_flash_twin(twins):
+    flash, scan = twins["flash"], twins["scan"]
+    assert flash.name == "simlidar-32c-noise0.2-physical-v1.0.0"
+    assert scan.name == "simlidar-32c-noise0.2-physical-scan-v2.1.0"
+    with h5py.File(flash / "train.h5") as f, h5py.File(scan / "train.h5") as g:
+        assert set(g) - set(f) == {"emission_ns"} and set(f) <= set(g)
+        for name in f:  # same scenes, phases and noise: only the clock differs
+            if name not in ("delays", "clean_delays"):
+                assert np.array_equal(f[name][:], g[name][:], equal_nan=True), name
+        assert g.attrs["timing"] == "scan" and "timing" not in f.attrs
+        unit, tof_max = g.attrs["delay_unit_ns"], g.attrs["tof_max_ns"]
+        assert unit == scan_window_ns(default_sensor(), 16, 36.0)
+        emission = g["emission_ns"][:]
+        assert emission.dtype == np.float64
+        for name in ("delays", "clean_delays"):
+            d_flash, d_scan = f[name][:], g[name][:]
+            back = d_flash < 1.0
+            assert np.array_equal(d_scan >= 1.0, ~back)  # no return stays 1.0, nothing else is
+            arrival = emission + d_flash.astype(np.float64) * tof_max
+            # float32 delays of a 10 ms unit: about 0.6 ns apart
+            assert np.abs(d_scan[back] * unit - arrival[back]).max() < 1.0
+        # the stored emission times are the window's, from the stored phase
+        assert np.allclose(
+            emission, emission_times_ns(default_sensor(), 16, 36.0, g["phase"][:].astype(float))
+        )
+    assert delay_unit_ns(read_split_info(scan / "train.h5").attrs) == unit
+    assert delay_unit_ns(read_split_info(flash / "train.h5").attrs) == tof_max
+
+
+def test_a_scan_dataset_says_so_everywhere(twins):
+    scan = twins["scan"]
+    assert run("verify", scan).exit_code == 0
+    info = run("info", scan)
+    assert "600 RPM, scan timing" in info.stdout and "dataset version 2.1.0" in info.stdout
+    card = (scan / "README.md").read_text()
+    assert "| timing | `scan`: a delay is the pulse's arrival time" in card
+    assert "`emission_ns` | float64 | (N, 16, 16)" in card
+    assert "--timing scan" in card
+    flash_card = (twins["flash"] / "README.md").read_text()
+    assert "| timing | `flash`" in flash_card and "emission_ns" not in flash_card.split("## Gen")[0]
+
+
+def test_the_card_command_makes_the_scan_dataset_again(twins, tmp_path):
+    scan = twins["scan"]
+    card = (scan / "README.md").read_text()
+    command = card.split("## Regenerate")[1].split("```\n")[1].strip().split()
+    again = run(*command[1:], "--out", tmp_path)
+    assert again.exit_code == 0, again.output
+    for name in ("train.h5", "test.h5"):
+        assert (tmp_path / scan.name / name).read_bytes() == (scan / name).read_bytes()
+
+
+def test_a_scan_file_without_emission_times_fails_verify(twins, tmp_path):
+    import shutil
+
+    copy = tmp_path / twins["scan"].name
+    shutil.copytree(twins["scan"], copy)
+    with h5py.File(copy / "test.h5", "a") as f:
+        del f["emission_ns"]
+    result = run("verify", copy)
+    assert result.exit_code != 0 and "dataset 'emission_ns' missing" in result.output
+
+
+def test_events_of_a_scan_sample_come_in_sweep_order(twins):
+    with h5py.File(twins["scan"] / "test.h5") as f:
+        sample, emission, attrs = f["delays"][3], f["emission_ns"][3], dict(f.attrs)
+    events = to_events(sample, delay_unit_ns(attrs), spike_threshold(attrs))
+    assert len(events) == int((sample < 1.0).sum())
+    assert (np.diff(events["t"]) >= 0).all()
+    # picoseconds: each event after its pulse left, within one time of flight at max range
+    left = emission[events["y"], events["x"]] * 1000.0
+    assert (events["t"] >= left - 1000).all()
+    assert (events["t"] <= left + attrs["tof_max_ns"] * 1000.0 + 1000).all()
+    # the sweep runs left to right: the mean column grows along the event stream
+    half = len(events) // 2
+    assert events["x"][:half].mean() < events["x"][half:].mean()
+
+
+def test_early_decisions_are_reported_in_sweep_time(twins):
+    pytest.importorskip("torch")
+    from simlidar.bench.early import early_decisions
+    from simlidar.bench.train import train
+    from simlidar.models.registry import load_recipe
+
+    scan = twins["scan"]
+    result = train(load_recipe("snn_simlidar"), scan, epochs=1, progress=False)
+    early = early_decisions(result.model, scan, per_sample=True)
+    with h5py.File(scan / "test.h5") as f:
+        x, unit = f["delays"][:], f.attrs["delay_unit_ns"]
+    last = np.where(x < 1.0, x, 0.0).reshape(len(x), -1).max(axis=1) * unit
+    assert early["last_input_ns_mean"] == pytest.approx(last.mean())
+    times = early["per_sample"]["decision_time_ns"]
+    decided = [(t, w) for t, w in zip(times, last) if t is not None]
+    assert decided, "an untrained-ish network still decides on some samples"
+    # sensor time of a sweep: milliseconds, not the nanoseconds of a time of flight
+    assert min(t for t, _ in decided) > 1e4
+    assert early["decision_time_ns_mean"] == pytest.approx(np.mean([t for t, _ in decided]))
+    assert early["wait_saved_mean"] == pytest.approx(np.mean([1 - t / w for t, w in decided]))
+
+
+def test_timing_is_checked_and_stored_only_when_scan():
+    config = GeneratorConfig()
+    assert "timing" not in config.to_dict() and config.scan_window_ns is None
+    scan = replace(config, timing="scan")
+    assert scan.to_dict()["timing"] == "scan"
+    assert GeneratorConfig.from_dict(scan.to_dict()) == scan
+    with pytest.raises(ConfigError, match="timing='sweep'"):
+        GeneratorConfig(timing="sweep")
+
+
+def test_a_bad_timing_is_one_line_and_writes_nothing(tmp_path):
+    result = run("generate", *SMALL, "--timing", "sweep", "--out", tmp_path)
+    assert result.exit_code == 2
+    assert "'sweep' is not one of 'flash', 'scan'" in result.output
+    assert "Traceback" not in result.output and list(tmp_path.iterdir()) == []
