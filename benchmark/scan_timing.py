@@ -22,9 +22,14 @@ from the window's first firing:
 * flash: the end of the window's listening (its last emission, from the scan twin's
   ``emission_ns``, + tof_max) plus the flash decision time.
 
-Each (timing, seed) cell is a JSON file under ``--out``/cells (a rerun resumes); the summary
-goes to ``--out``/scan_timing.json, the decision times' histogram to ``--out``/scan_timing.png
-and a picture of one sample under both clocks to ``--picture`` (docs/img/scan-timing.png).
+With ``--penalties`` (default ``0,1``) each timing is trained once more with the training
+option ``early_penalty`` (``benchmark/early_tradeoff.py``: a reward for an early correct
+output spike), to see whether the network can be taught to decide before the sweep ends.
+
+Each (timing, penalty, seed) cell is a JSON file under ``--out``/cells (a rerun resumes); the
+summary goes to ``--out``/scan_timing.json, the decision times' histogram to
+``--out``/scan_timing.png and a picture of one sample under both clocks to ``--picture``
+(docs/img/scan-timing.png).
 """
 
 import argparse
@@ -80,7 +85,7 @@ def summarise(cells: dict[str, list[dict]], ready_ns: np.ndarray) -> dict:
         latency = []
         for c in mine:
             t = np.array([np.nan if v is None else v for v in c["decision_time_ns"]])
-            latency.append(t + ready_ns if timing == "flash" else t)
+            latency.append(t + ready_ns if timing.startswith("flash") else t)
         latency = np.concatenate(latency) / 1e3
         decided = latency[np.isfinite(latency)]
         rows[timing] = {
@@ -110,15 +115,15 @@ def plot(cells: dict[str, list[dict]], ready_ns: np.ndarray, out: Path) -> Path:
 
     fig, ax = plt.subplots(figsize=(7, 3.6))
     bins = np.linspace(0, (ready_ns.max() + 50e3) / 1e3, 80)
-    for timing, mine in cells.items():
+    for colour, (timing, mine) in enumerate(cells.items()):
         for k, c in enumerate(mine):
             t = np.array([np.nan if v is None else v for v in c["decision_time_ns"]])
-            t = (t + ready_ns if timing == "flash" else t) / 1e3
+            t = (t + ready_ns if timing.startswith("flash") else t) / 1e3
             ax.hist(
                 t[np.isfinite(t)],
                 bins=bins,
                 histtype="step",
-                color=f"C{TIMINGS.index(timing)}",
+                color=f"C{colour}",
                 label=f"{timing} timing" if k == 0 else None,
             )
     ax.axvline(
@@ -196,6 +201,11 @@ def timing_picture(data: dict[str, Path], rows: dict, out: Path) -> Path:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", default="0,1,2")
+    parser.add_argument(
+        "--penalties",
+        default="0,1",
+        help="training option early_penalty of each variant (benchmark/early_tradeoff.py)",
+    )
     parser.add_argument("--noise", type=float, default=0.2)
     parser.add_argument("--profile", default="physical")
     parser.add_argument("--epochs", type=int, default=None, help="override the recipe's 60")
@@ -210,24 +220,40 @@ def main(argv=None) -> int:
     )
     args = parser.parse_args(argv)
     seeds = [int(s) for s in args.seeds.split(",") if s]
+    penalties = [float(p) for p in args.penalties.split(",") if p]
     data = twin_datasets(args.data, args.profile, args.noise)
     cell_dir = args.out / "cells"
     cell_dir.mkdir(parents=True, exist_ok=True)
 
-    def cell_path(timing: str, seed: int) -> Path:
+    def cell_path(timing: str, penalty: float, seed: int) -> Path:
         epochs = f"-e{args.epochs}" if args.epochs else ""
-        return cell_dir / f"{data[timing].name}__{RECIPE}{epochs}__seed{seed}.json"
+        early = f"__early{penalty!r}" if penalty else ""
+        return cell_dir / f"{data[timing].name}__{RECIPE}{early}{epochs}__seed{seed}.json"
 
+    variants = {
+        (t if not p else f"{t}, early penalty {p:g}"): (t, p) for p in penalties for t in TIMINGS
+    }
     todo = [
-        (RECIPE, str(data[t]), seed, str(cell_path(t, seed)), None, args.epochs)
-        for t in TIMINGS
+        (
+            RECIPE,
+            str(data[t]),
+            seed,
+            str(cell_path(t, p, seed)),
+            {"early_penalty": p} if p else None,
+            args.epochs,
+        )
+        for t, p in variants.values()
         for seed in seeds
-        if not done(cell_path(t, seed), RECIPE, args.epochs)
+        if not done(cell_path(t, p, seed), RECIPE, args.epochs)
     ]
     run_cells(todo, args.jobs)
     cells = {
-        t: [json.loads(cell_path(t, s).read_text()) for s in seeds if cell_path(t, s).is_file()]
-        for t in TIMINGS
+        key: [
+            json.loads(cell_path(t, p, s).read_text())
+            for s in seeds
+            if cell_path(t, p, s).is_file()
+        ]
+        for key, (t, p) in variants.items()
     }
     ready = flash_ready_ns(data["scan"])
     rows = summarise(cells, ready)
@@ -247,12 +273,16 @@ def main(argv=None) -> int:
         f"{RECIPE}, profile {args.profile}, noise {args.noise}; flash input complete at "
         f"{summary['flash_ready_us_median']} us (median)"
     )
-    print("timing  accuracy %        decision us (median, p10..p90)  input spikes (median)  R_data")
+    width = max(len(t) for t in rows)
+    print(
+        f"{'variant':{width}}  accuracy %        decision us (median, p10..p90)  input spikes "
+        "(median)  R_data"
+    )
     for t, r in rows.items():
         sd = f" +- {r['std']:.2f}" if r["std"] is not None else ""
         spread = f"({r['latency_us_p10']:.1f}..{r['latency_us_p90']:.1f})"
         print(
-            f"{t:6}  {r['mean']:6.2f}{sd:9}  {r['latency_us_median']:8.1f} {spread:22}  "
+            f"{t:{width}}  {r['mean']:6.2f}{sd:9}  {r['latency_us_median']:8.1f} {spread:22}  "
             f"{r['input_spikes_median']:6.1f}                 {r['data_ratio_mean']:.3f}"
         )
     return 0

@@ -75,3 +75,34 @@ def test_generation_workers_compares_the_counts_on_the_same_bytes():
         timeout=300,
     )
     assert "ratio" in done.stdout and "the same bytes for every count: yes" in done.stdout
+
+
+def test_sweep_speed_prints_frames_per_second_and_the_ratio(tmp_path):
+    figures = tmp_path / "sweep.json"
+    done = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "benchmark" / "sweep_speed.py"),
+            "--frames",
+            "16",
+            "--samples",
+            "1024",
+            "--json",
+            str(figures),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=300,
+    )
+    lines = done.stdout.splitlines()
+    assert lines[0].startswith("sweep (vlp16, 28928 pulses a frame): ")
+    assert "frames/s on one core (target 100" in lines[0]
+    assert lines[2].startswith("ratio of pulses/s, sweep over window: ")
+    import json
+
+    record = json.loads(figures.read_text())
+    assert record["frames"] == 16 and record["frames_per_s"] > 0
+    assert record["rays_ratio_sweep_over_window"] == pytest.approx(
+        record["sweep_rays_per_s"] / record["window_rays_per_s"], rel=0.01
+    )

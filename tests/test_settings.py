@@ -10,6 +10,7 @@ from simlidar.cli import main
 from simlidar.convert.options import DvsConfig, KittiConfig
 from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.sweep import SweepConfig
 from simlidar.models.training import TrainingConfig
 from simlidar.settings import Choice, Range, default_of, rule_of
 
@@ -54,6 +55,8 @@ def _option(command: click.Command, flag: str) -> click.Option:
         (("generate",), "--test-size", GeneratorConfig, "test_size"),
         (("generate",), "--seed", GeneratorConfig, "seed"),
         (("generate",), "--width", GeneratorConfig, "width"),
+        (("sweep",), "--frames", SweepConfig, "frames"),
+        (("sweep",), "--variation", GeneratorConfig, "variation"),
         (("convert", "kitti"), "--crop", KittiConfig, "crop"),
         (("convert", "kitti"), "--res-h", KittiConfig, "res_h_deg"),
         (("convert", "kitti"), "--max-range", KittiConfig, "max_range_m"),

@@ -12,7 +12,7 @@ import click
 
 from simlidar import __version__
 from simlidar.cli.convert import convert
-from simlidar.cli.generate import generate, profiles, scenes, sensors
+from simlidar.cli.generate import generate, profiles, scenes, sensors, sweep
 from simlidar.cli.options import Group
 from simlidar.cli.release import card, fetch, info, pack, preview, verify
 from simlidar.cli.training import bench, train
@@ -31,6 +31,6 @@ def main(ctx: click.Context, debug: bool) -> None:
         )
 
 
-for command in (generate, profiles, sensors, scenes, info, preview, card, verify, pack, fetch,
-                train, bench, convert):  # fmt: skip
+for command in (generate, sweep, profiles, sensors, scenes, info, preview, card, verify, pack,
+                fetch, train, bench, convert):  # fmt: skip
     main.add_command(command)

@@ -21,9 +21,37 @@ from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.generate import BATCH
 from simlidar.generator.profiles import DEFAULT_PROFILE
+from simlidar.generator.sweep import SweepConfig
 from simlidar.sensor.model import DEFAULT_SENSOR, load_sensor
 from simlidar.sensor.raycast import MAX_BATCH
 from simlidar.settings import help_of
+
+sensor_option = click.option(
+    "--sensor",
+    default=None,
+    help="Sensor model: a name in sensors/ (vlp16, hdl64e, hdl32e) or a .toml file; see "
+    f"`simlidar sensors`. Rows of a sample = its beams. [default: {DEFAULT_SENSOR}]",
+)
+
+
+def chosen_sensor_of(sensor):
+    """The sensor an option names (default: the VLP-16); a bad one is a usage error."""
+    try:
+        return load_sensor(sensor if sensor is not None else DEFAULT_SENSOR)
+    except ConfigError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--sensor'") from None
+
+
+def catalog_for(scenes, classes: int):
+    """The scene catalog of --scenes, checked to give ``classes`` classes."""
+    from simlidar.generator.simulate import class_plan
+
+    catalog = load_scene_catalog(scenes)
+    try:
+        class_plan(catalog, classes)
+    except ConfigError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--classes'") from None
+    return catalog
 
 
 @click.command()
@@ -69,12 +97,7 @@ from simlidar.settings import help_of
     help="Folder that receives the dataset directories.",
 )
 @setting_option(GeneratorConfig, "width")
-@click.option(
-    "--sensor",
-    default=None,
-    help="Sensor model: a name in sensors/ (vlp16, hdl64e, hdl32e) or a .toml file; see "
-    f"`simlidar sensors`. Rows of a sample = its beams. [default: {DEFAULT_SENSOR}]",
-)
+@sensor_option
 @setting_option(GeneratorConfig, "timing")
 @scenes_option
 @click.option(
@@ -132,7 +155,6 @@ def generate(
     values; the dataset's name then says so (docs/profiles.md)."""
     from simlidar.generator.generate import generate as run
     from simlidar.generator.profiles import load_profile
-    from simlidar.generator.simulate import class_plan
 
     try:
         chosen = load_profile(profile if profile is not None else DEFAULT_PROFILE)
@@ -146,15 +168,8 @@ def generate(
             click.echo(
                 f"Note: {option} {value!r} overrides profile {chosen.name}'s {own!r}", err=True
             )
-    try:
-        chosen_sensor = load_sensor(sensor if sensor is not None else DEFAULT_SENSOR)
-    except ConfigError as exc:
-        raise click.BadParameter(str(exc), param_hint="'--sensor'") from None
-    catalog = load_scene_catalog(scenes)
-    try:
-        class_plan(catalog, classes)
-    except ConfigError as exc:
-        raise click.BadParameter(str(exc), param_hint="'--classes'") from None
+    chosen_sensor = chosen_sensor_of(sensor)
+    catalog = catalog_for(scenes, classes)
     config = GeneratorConfig.from_profile(
         chosen,
         variation=variation,
@@ -197,6 +212,69 @@ def generate(
                 f"noise {w.noise:g}) and its preview.png"
             )
         click.echo(f"done in {seconds:.1f} s")
+
+
+class ExportFormats(click.ParamType):
+    """A comma-separated list of point-cloud formats (simlidar.generator.sweep.EXPORTS)."""
+
+    name = "FORMATS"
+
+    def convert(self, value, param, ctx):
+        from simlidar.generator.sweep import EXPORTS
+
+        if isinstance(value, tuple):
+            return value
+        formats = tuple(dict.fromkeys(v.strip() for v in str(value).split(",") if v.strip()))
+        bad = [f for f in formats if f not in EXPORTS]
+        if bad:
+            self.fail(f"{bad[0]!r}: expected a comma-separated list of {', '.join(EXPORTS)}")
+        return formats
+
+
+@click.command()
+@setting_option(SweepConfig, "frames")
+@setting_option(GeneratorConfig, "classes")
+@setting_option(GeneratorConfig, "seed")
+@setting_option(GeneratorConfig, "variation")
+@sensor_option
+@scenes_option
+@click.option(
+    "--export",
+    "exports",
+    type=ExportFormats(),
+    default="",
+    help="Also write every frame as point clouds: kitti (velodyne/*.bin and SemanticKITTI-style "
+    "labels/*.label), ply, pcd; a comma-separated list.",
+)
+@click.option(
+    "--out",
+    type=OutFolder(),
+    default=DEFAULT_OUT,
+    show_default=True,
+    help="Folder that receives the sweep directory.",
+)
+@click.option("--force", is_flag=True, help="Overwrite an existing sweep directory.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+def sweep(frames, classes, seed, variation, sensor, scenes, exports, out, force, as_json):
+    """Simulate full 360-degree frames: every firing of whole rotations of the sensor over the
+    scenes, with range, surface label, intensity proxy and emission time per point, into
+    frames.h5, a bird's-eye picture (bev.png) and, with --export, point-cloud files
+    (docs/sweeps.md)."""
+    from simlidar.generator.sweep import sweep as run
+
+    chosen_sensor = chosen_sensor_of(sensor)
+    catalog = catalog_for(scenes, classes)
+    config = GeneratorConfig(classes=classes, seed=seed, variation=variation, sensor=chosen_sensor)
+    start = time.perf_counter()
+    path = run(config, SweepConfig(frames=frames), catalog, out, exports, force=force)
+    seconds = time.perf_counter() - start
+    if as_json:
+        record = {"path": str(path), "frames": frames, "exports": list(exports)}
+        click.echo(json.dumps(record | {"seconds": round(seconds, 3)}))
+        return
+    written = f" and {', '.join(exports)} files" if exports else ""
+    click.echo(f"wrote {path} ({frames} frames, frames.h5, bev.png{written})")
+    click.echo(f"done in {seconds:.1f} s")
 
 
 @click.command()

@@ -40,9 +40,10 @@ class SplitWriter:
         shapes: dict[str, tuple[str, tuple]],
         attrs: dict,
         shuffled: frozenset[str] = frozenset(),
+        chunk: int = CHUNK_SAMPLES,
     ):
         self.size = size
-        self.chunk = min(CHUNK_SAMPLES, size)
+        self.chunk = min(chunk, size)  # rows a chunk (full sweeps: one frame)
         self.written = 0
         self.pending: dict[str, list[np.ndarray]] = {name: [] for name in shapes}
         self.path = Path(path)

@@ -19,7 +19,7 @@ from simlidar.scene.recipe import Catalog
 from simlidar.sensor.raycast import MAX_BATCH, cast
 from simlidar.sensor.rays import column_centres_deg, emission_times_ns, window_rays
 
-SPLIT_IDS = {"train": 0, "test": 1}
+SPLIT_IDS = {"train": 0, "test": 1, "sweep": 2}  # random stream keys (sweep: full frames)
 _FIXED_COLUMNS = 2  # per attempt: rotation phase, delay shift
 
 
@@ -89,7 +89,7 @@ class Samples:
     emission_ns: np.ndarray
 
 
-def _stream(seed: int, split: str, index: int) -> np.random.Generator:
+def sample_stream(seed: int, split: str, index: int) -> np.random.Generator:
     seq = np.random.SeedSequence(seed, spawn_key=(SPLIT_IDS[split], int(index)))
     return np.random.Generator(np.random.PCG64(seq))
 
@@ -134,7 +134,7 @@ def simulate(
     index = np.arange(start, stop)
     n = len(index)
     labels = index % plan.classes
-    streams = [_stream(config.seed, split, i) for i in index]
+    streams = [sample_stream(config.seed, split, i) for i in index]
     free = np.stack([g.random(2) for g in streams])
     noise_u = np.stack([g.random((sensor.beams, width), dtype=np.float32) for g in streams])
     layout, obj = factors(plan, labels, free, len(catalog.layouts), len(catalog.objects))

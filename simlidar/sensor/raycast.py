@@ -37,6 +37,9 @@ class Hits:
     range_m: np.ndarray  # (B, H, W) float64, NaN where nothing is hit
     surface: np.ndarray  # (B, H, W) uint8, 0 where nothing is hit
     on_object: np.ndarray  # (B, H, W) bool, the hit belongs to the labelled object
+    # (B, H, W) float32, |cos| of the angle between the ray and the hit surface's normal, 0
+    # where nothing is hit; only when cast(..., incidence=True), else None
+    cos_incidence: np.ndarray | None = None
 
 
 def cell_offsets(slots: np.ndarray) -> np.ndarray:
@@ -86,6 +89,7 @@ def cast(
     max_range_m: float,
     cull: bool = True,
     shared: bool = True,
+    incidence: bool = False,
 ) -> Hits:
     """First hit of every pulse.
 
@@ -94,6 +98,7 @@ def cast(
     cull : drop triangles no ray can hit first (exact; off only to test that it is)
     shared : hand the triangles to Embree in place (:mod:`simlidar.sensor.embree`; off only to
         test that the hits are those of embreex's own copy)
+    incidence : also give each hit's |cos incidence| (an intensity proxy: full sweeps)
     """
     batch = origins.shape[0]
     if len(np.unique(slots)) != batch or not 0 <= np.min(slots) <= np.max(slots) < MAX_BATCH:
@@ -115,8 +120,9 @@ def cast(
     hit_range = np.full(shape, np.nan)
     surface = np.zeros(shape, np.uint8)
     on_object = np.zeros(shape, bool)
+    cos_incidence = np.zeros(shape, np.float32) if incidence else None
     if len(tris) == 0:
-        return Hits(hit_range, surface, on_object)
+        return Hits(hit_range, surface, on_object, cos_incidence)
 
     embree_scene = new_scene()
     world = tris + np.take(offsets, sample, axis=0)[:, None, :]
@@ -136,7 +142,10 @@ def cast(
     n = np.take(normal, k, axis=0)
     o = np.take(origins.reshape(-1, 3), flat, axis=0)  # np.take: ~3x faster than a[flat]
     d = np.take(directions.reshape(-1, 3), flat, axis=0)
-    hit_range[hit] = (plane[k] - np.einsum("ij,ij->i", n, o)) / np.einsum("ij,ij->i", n, d)
+    n_dot_d = np.einsum("ij,ij->i", n, d)
+    hit_range[hit] = (plane[k] - np.einsum("ij,ij->i", n, o)) / n_dot_d
     surface[hit] = scene.surface[k]
     on_object[hit] = scene.is_object[k]
-    return Hits(hit_range, surface, on_object)
+    if incidence:
+        cos_incidence[hit] = np.abs(n_dot_d) / np.sqrt(np.einsum("ij,ij->i", n, n))
+    return Hits(hit_range, surface, on_object, cos_incidence)

@@ -38,12 +38,18 @@ def _azimuth_parts(sensor: Sensor, width: int, fov_deg: float, phase):
     """Cycle start of each column (B, 1, W) and firing offset of each row (1, H, 1), degrees."""
     cycle, phase = _cycles(sensor, width, fov_deg, phase)
     cycle_start = ((cycle + phase[:, None]) * sensor.azimuth_step_deg)[:, None, :]
+    return cycle_start, _firing_offsets_deg(sensor)
+
+
+def _firing_offsets_deg(sensor: Sensor) -> np.ndarray:
+    """Azimuth of each row's laser from its cycle's start (firing slot, rotational
+    correction): (1, H, 1) degrees."""
     lasers = row_order(sensor)
     firing = np.asarray([sensor.slots[k] for k in lasers], dtype=np.float64)
     firing = firing * sensor.firing_step_deg
     if sensor.rot_corrections_deg:  # beam azimuth = head azimuth - rotational correction
         firing = firing - np.asarray([sensor.rot_corrections_deg[k] for k in lasers])
-    return cycle_start, firing[None, :, None]
+    return firing[None, :, None]
 
 
 def firing_azimuths_deg(sensor: Sensor, width: int, fov_deg: float, phase) -> np.ndarray:
@@ -68,10 +74,49 @@ def emission_times_ns(sensor: Sensor, width: int, fov_deg: float, phase) -> np.n
     returns : (B, H, W) float64, rows in :func:`row_order`
     """
     cycle, _ = _cycles(sensor, width, fov_deg, phase)
-    start = (cycle - cycle[:, :1]) * sensor.cycle_us  # (B, W), us
+    return _emission_ns(sensor, cycle - cycle[:, :1])
+
+
+def _emission_ns(sensor: Sensor, cycles: np.ndarray) -> np.ndarray:
+    """Emission time of every row's laser in cycles ``cycles`` (B, W) counted from the first
+    firing's: (B, H, W) float64 ns."""
     slots = np.asarray([sensor.slots[k] for k in row_order(sensor)], dtype=np.float64)
     firing = slots * sensor.firing_interval_us  # (H,), us
-    return (start[:, None, :] + firing[None, :, None]) * 1000.0
+    return (cycles[:, None, :] * sensor.cycle_us + firing[None, :, None]) * 1000.0
+
+
+def cycles_per_rotation(sensor: Sensor) -> int:
+    """Firing cycles of one full rotation: 1808 for a VLP-16 at 600 RPM (100 ms / 55.296 us;
+    the 0.4 cycle left over belongs to the next rotation)."""
+    return int(60e6 / sensor.rpm // sensor.cycle_us)
+
+
+def sweep_emission_ns(sensor: Sensor) -> np.ndarray:
+    """When each firing of a full rotation (:func:`sweep_rays`) leaves the sensor, ns from the
+    rotation's first firing: (H, C) float64, the same for every rotation."""
+    return _emission_ns(sensor, np.arange(cycles_per_rotation(sensor), dtype=np.float64)[None])[0]
+
+
+def sweep_azimuths_deg(sensor: Sensor, phase) -> np.ndarray:
+    """Azimuth of every firing of B full rotations, degrees: cycle ``k`` starts at
+    ``-180 + (k + phase) * azimuth_step_deg`` (behind the sensor, turning clockwise through
+    the front), each laser at its firing offset. phase : (B,) -> (B, H, C) float64."""
+    return sum(_sweep_parts(sensor, phase))
+
+
+def _sweep_parts(sensor: Sensor, phase):
+    """Cycle start (B, 1, C) and firing offset (1, H, 1) of every firing of B rotations, deg."""
+    phase = np.asarray(phase, dtype=np.float64)
+    k = np.arange(cycles_per_rotation(sensor), dtype=np.float64)
+    start = -180.0 + (k[None, :] + phase[:, None]) * sensor.azimuth_step_deg
+    return start[:, None, :], _firing_offsets_deg(sensor)
+
+
+def sweep_rays(sensor: Sensor, phase):
+    """Origins and unit directions of every firing of B full rotations (frames), as
+    :func:`window_rays` gives those of a window: (B, H, C, 3) each, C =
+    :func:`cycles_per_rotation`."""
+    return _rays(sensor, *_sweep_parts(sensor, phase))
 
 
 def scan_window_ns(sensor: Sensor, width: int, fov_deg: float) -> float:
@@ -100,7 +145,13 @@ def window_rays(sensor: Sensor, width: int, fov_deg: float, phase):
     returns : origins (B, H, W, 3) float64, directions (B, H, W, 3) float64, in the sample's
         local frame (road at z = 0, rotation axis at x = y = 0).
     """
-    cycle_start, firing = (np.deg2rad(a) for a in _azimuth_parts(sensor, width, fov_deg, phase))
+    return _rays(sensor, *_azimuth_parts(sensor, width, fov_deg, phase))
+
+
+def _rays(sensor: Sensor, cycle_start_deg: np.ndarray, firing_deg: np.ndarray):
+    """Origins and directions of the firings at azimuth cycle start (B, 1, W) + firing offset
+    (1, H, 1) degrees: (B, H, W, 3) each."""
+    cycle_start, firing = np.deg2rad(cycle_start_deg), np.deg2rad(firing_deg)
     lasers = row_order(sensor)
     elevation = np.deg2rad(np.asarray(sensor.elevations_deg)[lasers])[None, :, None]
     # azimuth = cycle start + firing offset; expand cos/sin of the sum instead of (B, H, W) trig

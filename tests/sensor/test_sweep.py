@@ -1,0 +1,194 @@
+"""Full sweeps (`simlidar sweep`): every firing of whole rotations, per-point labels and
+timing, the point-cloud exports read back by an independent reader."""
+
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from simlidar.cli import main
+from simlidar.errors import ConfigError
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.sweep import (
+    POINT_DTYPE,
+    SweepConfig,
+    export_frame,
+    frame_points,
+    read_frame,
+    sweep,
+)
+from simlidar.sensor import default_sensor, load_sensor, row_order
+from simlidar.sensor.rays import (
+    cycles_per_rotation,
+    sweep_azimuths_deg,
+    sweep_emission_ns,
+    sweep_rays,
+)
+
+FRAMES = 12
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory, catalog):
+    out = tmp_path_factory.mktemp("sweep")
+    path = sweep(GeneratorConfig(), SweepConfig(frames=FRAMES), catalog, out, progress=False)
+    return path / "frames.h5"
+
+
+def test_a_rotation_fires_every_cycle_once():
+    sensor = default_sensor()
+    assert cycles_per_rotation(sensor) == 1808  # 100 ms / 55.296 us at 600 RPM
+    assert cycles_per_rotation(load_sensor("hdl64e")) == 2083  # 100 ms / 48 us
+    az = sweep_azimuths_deg(sensor, np.array([0.25]))[0]
+    first = row_order(sensor).index(0)  # laser 0 fires first in its cycle
+    k = np.arange(1808)
+    assert np.allclose(az[first], -180.0 + (k + 0.25) * sensor.azimuth_step_deg)
+    assert az.max() - az.min() < 360.0  # one rotation, no firing twice
+    t = sweep_emission_ns(sensor)
+    assert t.shape == (16, 1808) and np.allclose(t[first], k * 55296.0)
+    assert t.max() < 100e6  # all within the 100 ms of one rotation
+    origins, directions = sweep_rays(sensor, np.array([0.0, 0.5]))
+    assert directions.shape == (2, 16, 1808, 3)
+    assert np.allclose(np.linalg.norm(directions, axis=-1), 1.0)
+
+
+def test_road_points_lie_on_the_road_with_the_incidence_of_their_laser(frames):
+    sensor = default_sensor()
+    points = frame_points(frames, 5)  # open_road/car (frame f shows class f mod 32)
+    road = points[points["surface"] == 1]
+    assert len(road) > 1000
+    # the sensor frame's origin is the rotation axis' reference point, 1.8 m above the road
+    assert np.abs(road["z"] + sensor.mount_height_m).max() < 0.01
+    # flat road: |cos incidence| = sin(-elevation) of the laser that hit it
+    elevation = np.deg2rad(np.asarray(sensor.elevations_deg)[road["laser"]])
+    assert np.allclose(road["intensity"], np.sin(-elevation), atol=1e-3)
+    # range limits: nothing at 100 m and beyond (ranges from the emitters, near the origin)
+    r = np.sqrt(points["x"] ** 2 + points["y"] ** 2 + points["z"] ** 2)
+    assert 1.0 < r.min() and r.max() < 100.1
+    assert (np.diff(points["t_ns"]) >= 0).all()  # firing order
+
+
+def test_objects_show_up_where_they_were_placed(frames):
+    with h5py.File(frames) as f:
+        obj, pose, counts = f["object"][:], f["object_pose"][:], f["object_points"][:]
+        names = json.loads(f.attrs["surface_names"])
+    objects = {1: "car", 2: "pedestrian", 3: "truck"}
+    for frame in np.nonzero(obj)[0]:
+        assert counts[frame] > 0
+        points = frame_points(frames, int(frame))
+        mine = points[points["surface"] == names.index(objects[int(obj[frame])])]
+        assert len(mine) == counts[frame]
+        xy = np.stack([mine["x"], mine["y"]], axis=1)
+        # on the object: within half a truck's length of its placement, its near side seen
+        assert np.linalg.norm(xy - pose[frame, :2], axis=1).max() < 7.0
+        assert mine["x"].min() < pose[frame, 0]
+    assert (counts[obj == 0] == 0).all()
+
+
+def test_frames_do_not_depend_on_the_batch(tmp_path, catalog, frames):
+    again = sweep(
+        GeneratorConfig(), SweepConfig(frames=FRAMES), catalog, tmp_path, progress=False, batch=5
+    )
+    assert (again / "frames.h5").read_bytes() == frames.read_bytes()
+
+
+def test_kitti_bin_and_labels_hold_the_points(frames, tmp_path):
+    points = frame_points(frames, 2)
+    written = export_frame(frames, 2, tmp_path, "kitti")
+    assert [p.relative_to(tmp_path).as_posix() for p in written] == [
+        "velodyne/000002.bin",
+        "labels/000002.label",
+    ]
+    xyzi = np.fromfile(written[0], dtype="<f4").reshape(-1, 4)  # how KITTI readers do it
+    assert np.array_equal(xyzi[:, 0], points["x"]) and np.array_equal(
+        xyzi[:, 3], points["intensity"]
+    )
+    labels = np.fromfile(written[1], dtype="<u4")
+    assert np.array_equal(labels & 0xFFFF, points["surface"])
+
+
+def test_ply_reads_back_with_trimesh(frames, tmp_path):
+    import trimesh
+
+    points = frame_points(frames, 3)
+    (ply,) = export_frame(frames, 3, tmp_path, "ply")
+    cloud = trimesh.load(ply)
+    xyz = np.stack([points["x"], points["y"], points["z"]], axis=1)
+    assert np.allclose(np.asarray(cloud.vertices), xyz)
+    assert len(cloud.vertices) == len(points)
+
+
+def test_pcd_header_and_body_agree(frames, tmp_path):
+    points = frame_points(frames, 4)
+    (pcd,) = export_frame(frames, 4, tmp_path, "pcd")
+    raw = pcd.read_bytes()
+    head, body = raw.split(b"DATA binary\n", 1)
+    header = dict(line.split(" ", 1) for line in head.decode().splitlines()[1:])
+    assert header["FIELDS"].split() == list(POINT_DTYPE.names)
+    assert int(header["POINTS"]) == len(points)
+    sizes = [int(s) for s in header["SIZE"].split()]
+    assert sum(sizes) == POINT_DTYPE.itemsize and len(body) == len(points) * sum(sizes)
+    assert np.array_equal(np.frombuffer(body, POINT_DTYPE), points)
+
+
+def test_the_cli_writes_a_sweep_and_its_exports(tmp_path):
+    result = run("sweep", "--frames", 2, "--export", "kitti,pcd", "--out", tmp_path, "--json")
+    assert result.exit_code == 0, result.output
+    path = Path(json.loads(result.stdout)["path"])
+    assert path.name == "simlidar-sweep-32c-vlp16-2f-seed0-v1.0.0"
+    names = sorted(p.relative_to(path).as_posix() for p in path.rglob("*") if p.is_file())
+    assert names == [
+        "bev.png",
+        "frames.h5",
+        "labels/000000.label",
+        "labels/000001.label",
+        "pcd/000000.pcd",
+        "pcd/000001.pcd",
+        "velodyne/000000.bin",
+        "velodyne/000001.bin",
+    ]
+    with h5py.File(path / "frames.h5") as f:
+        assert f["range_m"].shape == (2, 16, 1808) and f["range_m"].chunks == (1, 16, 1808)
+        assert f.attrs["format"] == "simlidar-sweep"
+    again = run("sweep", "--frames", 2, "--out", tmp_path)
+    assert again.exit_code == 1 and "already exists: pass --force" in again.output
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--frames", 0], "'--frames': 0 is not in the range 1<=x<=1000000"),
+        (["--export", "kitti,las"], "'las': expected a comma-separated list of kitti, ply, pcd"),
+        (["--classes", 5], "classes=5: expected one of [4, 8, 32]"),
+        (["--sensor", "hdl99"], "sensor 'hdl99': expected one of"),
+    ],
+)
+def test_bad_sweep_options_are_one_line_and_write_nothing(tmp_path, args, message):
+    result = run("sweep", *args, "--out", tmp_path / "out")
+    assert result.exit_code == 2
+    assert message in result.output and "Traceback" not in result.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_reading_a_frame_checks_the_file_and_the_index(frames, tmp_path):
+    sensor, values, emission = read_frame(frames, 0)
+    assert sensor == default_sensor() and values["range_m"].shape == emission.shape
+    with pytest.raises(ConfigError, match=f"frame {FRAMES}: expected 0 to {FRAMES - 1}"):
+        read_frame(frames, FRAMES)
+    other = tmp_path / "x.h5"
+    with h5py.File(other, "w") as f:
+        f["labels"] = np.zeros(1)
+    with pytest.raises(ConfigError, match="expected a simlidar sweep file"):
+        read_frame(other, 0)
+
+
+def test_sweep_config_is_checked():
+    with pytest.raises(ConfigError, match="frames=0"):
+        SweepConfig(frames=0)
