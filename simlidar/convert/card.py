@@ -62,6 +62,15 @@ def _source_rows(splits: dict) -> list[list]:
     rows = []
     if "tof_max_ns" in attrs:
         rows.append(["`tof_max_ns`", f"{attrs['tof_max_ns']:.3f} ns: the delay 1.0"])
+    if "simulated_from" in attrs:
+        sim = attrs["simulated_from"]
+        rows.append(
+            [
+                "simulated",
+                f"yes: the frames of simlidar sweep `{sim['sweep']}` ({sim['sensor_model']}), "
+                "exported in the KITTI layout; not recorded data",
+            ]
+        )
     if "time_window_us" in attrs:
         rows.append(["`time_window_us`", f"{attrs['time_window_us']:g} us: the delay 1.0"])
     if "frame" in CONVERTED_SCHEMAS[splits["train"].source]:

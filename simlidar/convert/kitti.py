@@ -14,6 +14,7 @@ generator's VLP-16), and 1.0 where the cell is empty or the point is that far or
 """
 
 import hashlib
+import json
 from pathlib import Path
 
 import numpy as np
@@ -136,9 +137,29 @@ def split_frames(frames: list[Frame], config: KittiConfig) -> dict[str, list[Fra
     }
 
 
-def kitti_name(config: KittiConfig) -> str:
-    """``kitti-front-<H>x<W>-v<version>``."""
-    return f"kitti-front-{config.crop[0]}x{config.crop[1]}-v{SOURCES[SOURCE][0]}"
+def kitti_name(config: KittiConfig, simulated: dict | None = None) -> str:
+    """``kitti-front-<H>x<W>[-sim]-v<version>``; ``-sim``: the frames are a simlidar sweep's."""
+    sim = "-sim" if simulated else ""
+    return f"kitti-front-{config.crop[0]}x{config.crop[1]}{sim}-v{SOURCES[SOURCE][0]}"
+
+
+def simulated_from(base: Path) -> dict | None:
+    """Where the frames of the training folder ``base`` came from, when it is a simlidar sweep
+    exported with ``--export kitti`` (its ``frames.h5`` beside the KITTI folders): the sweep's
+    name and sensor model; None for recorded data."""
+    import h5py
+
+    sweep = base / "frames.h5"
+    if not sweep.is_file():
+        return None
+    try:
+        with h5py.File(sweep, "r") as f:
+            if f.attrs.get("format") != "simlidar-sweep":
+                return None
+            model = json.loads(f.attrs["sensor"]).get("model", "Velodyne VLP-16")
+    except OSError:
+        return None
+    return {"sweep": base.name, "sensor_model": model}
 
 
 def convert_kitti(
@@ -166,9 +187,10 @@ def convert_kitti(
     config = KittiConfig(**options)
     base, frames = read_frames(root)
     splits = split_frames(frames, config)
-    name = kitti_name(config)
+    simulated = simulated_from(base)
+    name = kitti_name(config, simulated)
     with building(out, name, force) as temp:
-        write_splits(temp, base, frames, splits, config, progress)
+        write_splits(temp, base, frames, splits, config, progress, simulated)
         write_release_files(temp, name, preview)
     return Path(out) / name
 
@@ -180,10 +202,12 @@ def write_splits(
     splits: dict[str, list[Frame]],
     config: KittiConfig,
     progress: bool = True,
+    simulated: dict | None = None,
 ) -> None:
     """Read every scan once, in split order, and write train.h5 and test.h5 into ``folder``.
 
     base : the training folder (paths in the input's hash are relative to it)
+    simulated : :func:`simulated_from` of ``base``, stored as the attribute ``simulated_from``
     """
     from tqdm import tqdm
 
@@ -209,8 +233,11 @@ def write_splits(
         bar.close()
         # the text `sha256sum calib/* label_2/* velodyne/*` prints in the training folder
         manifest = "".join(f"{h}  {p.as_posix()}\n" for p, h in sorted(hashes.items()))
+        recorded = "Velodyne HDL-64E (KITTI, 10 Hz)"
         sensor = {
-            "name": "Velodyne HDL-64E (KITTI, 10 Hz)",
+            "name": f"{simulated['sensor_model']} (simulated: simlidar sweep)"
+            if simulated
+            else recorded,
             "res_h_deg": config.res_h_deg,
             "res_v_deg": config.res_v_deg,
             "max_range_m": config.max_range_m,
@@ -226,6 +253,8 @@ def write_splits(
                 hashlib.sha256(manifest.encode()).hexdigest(),
             )
             attrs["tof_max_ns"] = tof_ns(config.max_range_m)
+            if simulated:
+                attrs["simulated_from"] = json.dumps(simulated, sort_keys=True)
             attrs["frames_without_objects"] = np.array(
                 [f.number for f in frames if not f.labels], dtype=np.int64
             )

@@ -87,6 +87,9 @@ class Frames:
     layout: np.ndarray  # (n,) uint8
     object: np.ndarray  # (n,) uint8
     object_pose: np.ndarray  # (n, 3) float32: x_m, y_m, yaw_deg; NaN without object
+    # (n, 7) float32: the object's box, length_m, width_m, height_m along its yaw, and its
+    # bottom centre x_m, y_m, z_m in the scene frame, yaw_deg; NaN without object
+    object_box: np.ndarray
     object_points: np.ndarray  # (n,) int32, returns from the labelled object
     phase: np.ndarray  # (n,) float64, rotation phase in azimuth steps
 
@@ -99,6 +102,7 @@ SHAPES = {  # name -> (dtype, trailing shape given H and C)
     "layout": ("uint8", lambda h, c: ()),
     "object": ("uint8", lambda h, c: ()),
     "object_pose": ("float32", lambda h, c: (3,)),
+    "object_box": ("float32", lambda h, c: (7,)),
     "object_points": ("int32", lambda h, c: ()),
     "phase": ("float64", lambda h, c: ()),
 }
@@ -138,9 +142,33 @@ def simulate_frames(config: GeneratorConfig, catalog: Catalog, start: int, stop:
         layout=layout.astype(np.uint8),
         object=obj.astype(np.uint8),
         object_pose=scene.object_pose.astype(np.float32),
+        object_box=object_boxes(scene).astype(np.float32),
         object_points=(hits.on_object & returned).sum(axis=(1, 2)).astype(np.int32),
         phase=u[:, 0],
     )
+
+
+def object_boxes(scene) -> np.ndarray:
+    """The box of each scene's object, aligned with its yaw: (B, 7) float64 length, width,
+    height, bottom centre x, y, z (scene frame), yaw_deg; NaN rows where there is none."""
+    boxes = np.full((scene.size, 7), np.nan)
+    for i in np.unique(scene.sample[scene.is_object]):
+        v = scene.triangles[scene.is_object & (scene.sample == i)].reshape(-1, 3)
+        x, y, yaw = scene.object_pose[i]
+        c, s = np.cos(np.deg2rad(yaw)), np.sin(np.deg2rad(yaw))
+        along = c * (v[:, 0] - x) + s * (v[:, 1] - y)  # in the object's own axes
+        across = -s * (v[:, 0] - x) + c * (v[:, 1] - y)
+        mid_a, mid_c = (along.max() + along.min()) / 2, (across.max() + across.min()) / 2
+        boxes[i] = (
+            np.ptp(along),
+            np.ptp(across),
+            np.ptp(v[:, 2]),
+            x + c * mid_a - s * mid_c,
+            y + s * mid_a + c * mid_c,
+            v[:, 2].min(),
+            yaw,
+        )
+    return boxes
 
 
 def sweep_name(config: GeneratorConfig, sweep: SweepConfig) -> str:
@@ -163,7 +191,7 @@ def sweep(
     batch: int = FRAME_BATCH,
 ) -> Path:
     """Simulate ``sweep_config.frames`` frames into ``out/<sweep_name>/frames.h5`` (one frame
-    a chunk), draw ``bev.png`` (bird's-eye views of the first frames) and write every frame in
+    a chunk), draw ``bev.png`` (:func:`draw_bev`: up to four frames) and write every frame in
     each format of ``exports`` (:data:`EXPORTS`); the folder appears complete or not at all."""
     from tqdm import tqdm
 
@@ -183,6 +211,7 @@ def sweep(
         "catalog_sha256": catalog.fingerprint(),
         "class_names": json.dumps(list(plan.names)),
         "surface_names": json.dumps(list(catalog.surfaces)),
+        "object_names": json.dumps(list(catalog.object_names)),
         "row_laser_ids": np.array(row_order(sensor), dtype=np.int32),
         "cycles": c,
     }
@@ -250,14 +279,43 @@ def frame_points(path: str | Path, frame: int) -> np.ndarray:
     return points
 
 
+# Velodyne -> camera axes (x right, y down, z forward), no offset, no rectification: what
+# `simlidar convert kitti` needs to read a sweep's boxes (simlidar simulates no camera)
+KITTI_CALIB = "R0_rect: 1 0 0 0 1 0 0 0 1\nTr_velo_to_cam: 0 -1 0 0 0 0 -1 0 1 0 0 0\n"
+KITTI_TYPES = {"car": "Car", "pedestrian": "Pedestrian", "truck": "Truck"}  # others: Misc
+
+
+def kitti_label(path: str | Path, frame: int) -> str:
+    """The KITTI object label file (label_2) of one frame: its object, if it has one, as a
+    15-column line in camera coordinates (:data:`KITTI_CALIB`): type, truncated 0, occluded 0,
+    alpha, a 2D box of zeros (no camera), h w l, bottom centre x y z, rotation_y."""
+    import h5py
+
+    sensor, values, _ = read_frame(path, frame)
+    if not values["object"]:
+        return ""
+    with h5py.File(path, "r") as f:
+        name = json.loads(f.attrs["object_names"])[int(values["object"])]  # 0: none
+    length, width, height, x, y, z, yaw = (float(v) for v in values["object_box"])
+    # velodyne (x forward, y left, z up from the sensor) -> camera (x right, y down, z ahead)
+    cx, cy, cz = -y, -(z - sensor.mount_height_m), x
+    ry = -np.deg2rad(yaw) - np.pi / 2  # a heading along +x (ahead) is rotation_y = -pi/2
+    ry = (ry + np.pi) % (2 * np.pi) - np.pi
+    alpha = (ry - np.arctan2(cx, cz) + np.pi) % (2 * np.pi) - np.pi
+    numbers = [0, 0, alpha, 0, 0, 0, 0, height, width, length, cx, cy, cz, ry]
+    return " ".join([KITTI_TYPES.get(name, "Misc")] + [f"{v:.4f}" for v in numbers]) + "\n"
+
+
 _PLY_TYPES = {"<f4": "float", "u1": "uchar", "<f8": "double"}
 _PCD_TYPES = {"<f4": ("4", "F"), "u1": ("1", "U"), "<f8": ("8", "F")}
 
 
 def export_frame(path: str | Path, frame: int, out: str | Path, fmt: str) -> list[Path]:
     """Write frame ``frame`` of a sweep file under ``out`` as ``fmt``: ``kitti``
-    (``velodyne/NNNNNN.bin``: float32 x, y, z, intensity, KITTI's layout; and
-    ``labels/NNNNNN.label``: uint32 surface index a point, SemanticKITTI's), ``ply``
+    (``velodyne/NNNNNN.bin``: float32 x, y, z, intensity, KITTI's layout;
+    ``labels/NNNNNN.label``: uint32 surface index a point, SemanticKITTI's; and the object
+    benchmark's ``label_2/NNNNNN.txt`` and ``calib/NNNNNN.txt``, :func:`kitti_label`, so that
+    ``simlidar convert kitti`` reads the folder), ``ply``
     (``ply/NNNNNN.ply``, binary little endian, every field of :data:`POINT_DTYPE`) or ``pcd``
     (``pcd/NNNNNN.pcd``, PCD 0.7 binary, the same fields). Returns the files written."""
     points = frame_points(path, frame)
@@ -266,6 +324,8 @@ def export_frame(path: str | Path, frame: int, out: str | Path, fmt: str) -> lis
         xyzi = np.stack([points[k] for k in ("x", "y", "z", "intensity")], axis=1)
         files = [out / "velodyne" / f"{stem}.bin", out / "labels" / f"{stem}.label"]
         blobs = [xyzi.astype("<f4").tobytes(), points["surface"].astype("<u4").tobytes()]
+        files += [out / "label_2" / f"{stem}.txt", out / "calib" / f"{stem}.txt"]
+        blobs += [kitti_label(path, frame).encode(), KITTI_CALIB.encode()]
     elif fmt == "ply":
         header = ["ply", "format binary_little_endian 1.0", f"element vertex {len(points)}"]
         header += [

@@ -105,6 +105,8 @@ def test_kitti_bin_and_labels_hold_the_points(frames, tmp_path):
     assert [p.relative_to(tmp_path).as_posix() for p in written] == [
         "velodyne/000002.bin",
         "labels/000002.label",
+        "label_2/000002.txt",
+        "calib/000002.txt",
     ]
     xyzi = np.fromfile(written[0], dtype="<f4").reshape(-1, 4)  # how KITTI readers do it
     assert np.array_equal(xyzi[:, 0], points["x"]) and np.array_equal(
@@ -146,7 +148,11 @@ def test_the_cli_writes_a_sweep_and_its_exports(tmp_path):
     names = sorted(p.relative_to(path).as_posix() for p in path.rglob("*") if p.is_file())
     assert names == [
         "bev.png",
+        "calib/000000.txt",
+        "calib/000001.txt",
         "frames.h5",
+        "label_2/000000.txt",
+        "label_2/000001.txt",
         "labels/000000.label",
         "labels/000001.label",
         "pcd/000000.pcd",
@@ -192,3 +198,40 @@ def test_reading_a_frame_checks_the_file_and_the_index(frames, tmp_path):
 def test_sweep_config_is_checked():
     with pytest.raises(ConfigError, match="frames=0"):
         SweepConfig(frames=0)
+
+
+def test_hdl64e_sweep_crops_read_the_distance_of_the_truck(tmp_path):
+    """The sim half of a sim-to-real pair: an HDL-64E sweep exported in the KITTI layout and
+    cropped by `simlidar convert kitti`, the very projection of the real frames. As the
+    converter's test reads KITTI's truck at 63.5 m, the simulated truck's crop reads the
+    distance of its rear face, known from the frame's stored box."""
+    done = run(
+        "sweep", "--frames", 4, "--sensor", "hdl64e", "--export", "kitti", "--out", tmp_path,
+        "--json",
+    )  # fmt: skip
+    assert done.exit_code == 0, done.output
+    sweep_dir = Path(json.loads(done.stdout)["path"])
+    converted = run("convert", "kitti", sweep_dir, "--out", tmp_path / "crops")
+    assert converted.exit_code == 0, converted.output
+    crops = tmp_path / "crops" / "kitti-front-50x118-sim-v1.0.0"
+    assert run("verify", crops).exit_code == 0
+    with h5py.File(sweep_dir / "frames.h5") as f:
+        length, _, _, x, y, _, yaw = f["object_box"][3]  # frame 3: tunnel/truck
+        assert f["object"][3] == 3
+    rows = []
+    for split in ("train", "test"):
+        with h5py.File(crops / f"{split}.h5") as f:
+            assert json.loads(f.attrs["simulated_from"])["sweep"] == sweep_dir.name
+            rows += [
+                (f["delays"][k], f.attrs["tof_max_ns"], f["crop_origin"][k])
+                for k in range(len(f["frame"]))
+                if f["frame"][k] == 3
+            ]
+    ((delays, tof_max, origin),) = rows
+    assert delays.shape == (50, 118)
+    # the truck fills the crop's centre: its nearest points there are its rear face
+    centre = delays[20:30, 54:64].astype(float) * tof_max * 1e-9 * 299_792_458 / 2
+    rear = x - length / 2 * np.cos(np.deg2rad(yaw))  # the rear face, ahead of the sensor
+    assert np.nanmedian(centre) == pytest.approx(np.hypot(rear, y), abs=0.1)
+    labels = (sweep_dir / "label_2" / "000003.txt").read_text().split()
+    assert labels[0] == "Truck" and float(labels[13]) == pytest.approx(x, abs=1e-3)
