@@ -68,7 +68,7 @@ def main() -> None:
     print(f"shared Embree buffers: {'on' if embree.shared_buffers() else 'off'}")
     with tempfile.TemporaryDirectory() as tmp:
         generate(config, [0.2], catalog, f"{tmp}/warm", progress=False, preview=False)
-        simulate._stream = timed("random streams (SeedSequence)", simulate._stream)
+        simulate.sample_stream = timed("random streams (SeedSequence)", simulate.sample_stream)
         simulate.window_rays = timed("window rays", simulate.window_rays)
         simulate.build_batch = timed("scene building (numpy)", simulate.build_batch)
         raycast.visible_triangles = timed("back-face culling", raycast.visible_triangles)

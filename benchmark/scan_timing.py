@@ -114,17 +114,18 @@ def plot(cells: dict[str, list[dict]], ready_ns: np.ndarray, out: Path) -> Path:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 3.6))
-    bins = np.linspace(0, (ready_ns.max() + 50e3) / 1e3, 80)
-    for colour, (timing, mine) in enumerate(cells.items()):
-        for k, c in enumerate(mine):
+    latencies = {}
+    for timing, mine in cells.items():
+        for c in mine:
             t = np.array([np.nan if v is None else v for v in c["decision_time_ns"]])
             t = (t + ready_ns if timing.startswith("flash") else t) / 1e3
+            latencies.setdefault(timing, []).append(t[np.isfinite(t)])
+    top = max([ready_ns.max() / 1e3] + [t.max() for ts in latencies.values() for t in ts if len(t)])
+    bins = np.linspace(0, top * 1.02, 100)
+    for colour, (timing, ts) in enumerate(latencies.items()):
+        for k, t in enumerate(ts):
             ax.hist(
-                t[np.isfinite(t)],
-                bins=bins,
-                histtype="step",
-                color=f"C{colour}",
-                label=f"{timing} timing" if k == 0 else None,
+                t, bins=bins, histtype="step", color=f"C{colour}", label=timing if k == 0 else None
             )
     ax.axvline(
         np.median(ready_ns) / 1e3, color="grey", ls=":", label="window's last pulse back (median)"
@@ -179,15 +180,14 @@ def timing_picture(data: dict[str, Path], rows: dict, out: Path) -> Path:
             color=f"C{k}",
             label=label,
         )
-        timing = ("flash", "scan")[k]
-        if timing in rows:
-            right.axvline(
-                rows[timing]["latency_us_median"],
-                color=f"C{k}",
-                ls="--",
-                lw=1,
-                label=f"{timing}: median decision ({rows[timing]['mean']:.1f} % correct)",
-            )
+    for k, (variant, row) in enumerate(rows.items()):  # the colours of plot()
+        right.axvline(
+            row["latency_us_median"],
+            color=f"C{k}",
+            ls="--" if variant in ("flash", "scan") else ":",
+            lw=1,
+            label=f"{variant}: median decision ({row['mean']:.1f} % correct)",
+        )
     right.set_xlabel("us after the window's first firing")
     right.set_ylabel("input spikes received")
     right.set_title("VLP-16, 600 RPM, 16 x 16 window of 36 deg", fontsize=9)
