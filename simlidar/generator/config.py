@@ -85,6 +85,16 @@ class GeneratorConfig:
                     "balanced)"
                 )
         check(self)
+        step = self.sensor.azimuth_step_deg
+        if self.fov_deg / self.width < step * (1.0 - 1e-9):
+            # a column takes the cycle nearest its centre: closer columns would share firings
+            raise ConfigError(
+                f"width={self.width}: columns {self.fov_deg / self.width:.4g} deg apart, closer "
+                f"than the {step:.4g} deg between the firing cycles of sensor {self.sensor.name} "
+                f"at {self.sensor.rpm:g} RPM; expected at most "
+                f"{int(self.fov_deg / step + 1e-9)} columns over {self.fov_deg:g} deg (each "
+                "column its own firing)"
+            )
         if self.profile is not None and not isinstance(self.profile, Profile):
             raise ConfigError(f"profile={self.profile!r}: expected a Profile or None")
 

@@ -193,3 +193,18 @@ def test_a_bad_timing_is_one_line_and_writes_nothing(tmp_path):
     assert result.exit_code == 2
     assert "'sweep' is not one of 'flash', 'scan'" in result.output
     assert "Traceback" not in result.output and list(tmp_path.iterdir()) == []
+
+
+def test_a_window_finer_than_the_firing_cycles_is_refused(tmp_path):
+    """Columns closer than one firing cycle would share firings (the same pulses twice)."""
+    sensor = default_sensor()
+    widest = GeneratorConfig(width=180)  # 36 deg / 0.199 deg a cycle at 600 RPM
+    t = emission_times_ns(sensor, 180, 36.0, np.random.default_rng(0).random(16))
+    assert (np.diff(t[:, 0, :], axis=1) > 0).all()  # every column its own cycle
+    assert widest.width == 180
+    expected = "width=181: columns 0.1989 deg apart, closer than the 0.1991 deg.*at most 180"
+    with pytest.raises(ConfigError, match=expected):
+        GeneratorConfig(width=181)
+    result = run("generate", "--width", 200, "--out", tmp_path / "out")
+    assert result.exit_code == 2 and "expected at most 180 columns over 36 deg" in result.output
+    assert not (tmp_path / "out").exists()
