@@ -84,7 +84,7 @@ def read_split_info(path: Path) -> SplitInfo:
 
 def written_version(attrs) -> str | None:
     """The version this simlidar writes for a split like this one, when it is not its source's
-    current version: a scan-timed split is SCAN_VERSION (2.1.0); a generated split without a
+    current version: a scan-timed split is SCAN_VERSION (3.0.0); a generated split without a
     profile follows the physical rule, still written as PHYSICAL_VERSION (1.0.0)."""
     if split_source(attrs) != GENERATOR:
         return None

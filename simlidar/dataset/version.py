@@ -12,16 +12,17 @@ DATASET_VERSION = "2.0.0"
 # The records of the physical pulse rule (profile `physical`) have not changed since 1.0.0:
 # such datasets are still written as 1.0.0, byte for byte (see dataset_version).
 PHYSICAL_VERSION = "1.0.0"
-# Scan-timed datasets (``--timing scan``, either profile) add fields: the flash datasets made by
-# this simlidar keep the versions above and their bytes.
-SCAN_VERSION = "2.1.0"
+# Scan-timed datasets (``--timing scan``, either profile): their delays mean arrival times, so a
+# reader that knows only flash delays must refuse them (a new MAJOR); the flash datasets made
+# by this simlidar keep the versions above and their bytes.
+SCAN_VERSION = "3.0.0"
 
 # Release dates are part of the published metadata (croissant.json's datePublished), so they are
 # constants too: a dataset's bytes never depend on the day it was generated.
 RELEASE_DATES: dict[str, str] = {
     "1.0.0": "2026-11-22",
     "2.0.0": "2026-11-23",
-    "2.1.0": "2026-11-23",
+    "3.0.0": "2026-11-23",
 }
 
 RELEASE_NOTES: dict[str, str] = {
@@ -38,11 +39,12 @@ RELEASE_NOTES: dict[str, str] = {
         "delays are shifted by U(-0.05, 0.05). Records change, hence a new MAJOR. The "
         "`physical` profile writes the 1.0.0 records byte for byte and keeps version 1.0.0."
     ),
-    "2.1.0": (
+    "3.0.0": (
         "Scan timing (`--timing scan`, either profile): every pulse's emission time in the "
         "sweep is stored (`emission_ns`) and the delays are arrival times, emission plus time "
-        "of flight, in units of the attribute `delay_unit_ns`; attribute `timing` = scan. Flash "
-        "datasets keep their versions (2.0.0, physical 1.0.0) and bytes."
+        "of flight, in units of the attribute `delay_unit_ns`; attribute `timing` = scan. The "
+        "delays mean something else, hence a new MAJOR: a reader of flash delays refuses these "
+        "files. Flash datasets keep their versions (2.0.0, physical 1.0.0) and bytes."
     ),
 }
 

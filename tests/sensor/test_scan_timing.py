@@ -81,7 +81,7 @@ def test_every_arrival_lies_inside_the_scan_window(name, width, fov):
 def test_scan_delays_are_arrival_times_of_the_flash_twin(twins):
     flash, scan = twins["flash"], twins["scan"]
     assert flash.name == "simlidar-32c-noise0.2-physical-v1.0.0"
-    assert scan.name == "simlidar-32c-noise0.2-physical-scan-v2.1.0"
+    assert scan.name == "simlidar-32c-noise0.2-physical-scan-v3.0.0"
     with h5py.File(flash / "train.h5") as f, h5py.File(scan / "train.h5") as g:
         assert set(g) - set(f) == {"emission_ns"} and set(f) <= set(g)
         for name in f:  # same scenes, phases and noise: only the clock differs
@@ -111,7 +111,7 @@ def test_a_scan_dataset_says_so_everywhere(twins):
     scan = twins["scan"]
     assert run("verify", scan).exit_code == 0
     info = run("info", scan)
-    assert "600 RPM, scan timing" in info.stdout and "dataset version 2.1.0" in info.stdout
+    assert "600 RPM, scan timing" in info.stdout and "dataset version 3.0.0" in info.stdout
     card = (scan / "README.md").read_text()
     assert "| timing | `scan`: a delay is the pulse's arrival time" in card
     assert "`emission_ns` | float64 | (N, 16, 16)" in card
