@@ -17,6 +17,11 @@ threshold (``sum_C w - 1`` close to ``MIN_EXCESS``) a float32 sum loses most of 
 subtraction, so float32 inputs get float64 decisions and spike times (rounded to float32 at the
 end); in float64 a neuron's causal set is the reference's. Ties do not matter: a firing prefix
 never ends inside a group of equal input times, so the order within a tie changes nothing.
+
+The backward kernels may reassociate their sums (``fastmath={"reassoc"}``, nothing else): the
+input gradient's sum over output neurons is then vectorised (3 times faster, measured), its
+rounding depending on the CPU's vector width as a BLAS product's does. The forward kernels keep
+strict order: their decisions (which inputs are causal) must be the reference's.
 """
 
 import numpy as np
@@ -93,7 +98,7 @@ def forward(z, w, min_excess, threads):
     return z_out, order, last, excess
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath={"reassoc"})
 def backward(z, w, z_out, order, last, excess, grad_out, threads):
     """Gradients of the summed ``grad_out * z_out`` with respect to z (R, N) and w (N, M):
     for i in a neuron's causal set, dz_out/dz_i = w_i / excess and dz_out/dw_i = (z_i - z_out)
@@ -215,7 +220,7 @@ def conv_forward(z, wt, stride, padding, h_out, w_out, min_excess):
     return z_out, z_last, excess
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath={"reassoc"})
 def conv_backward(z, wt, stride, padding, z_out, z_last, excess, grad_out, threads):
     """Gradients of the summed ``grad_out * z_out`` of :func:`conv_forward` with respect to z
     and to wt (C, k, k, C_out): every field's inputs at or before each neuron's ``z_last``."""
