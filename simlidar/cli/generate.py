@@ -26,6 +26,18 @@ from simlidar.sensor.model import DEFAULT_SENSOR, load_sensor
 from simlidar.sensor.raycast import MAX_BATCH
 from simlidar.settings import help_of
 
+
+def out_option(what: str):
+    """``--out``: the folder that receives ``what``."""
+    return click.option(
+        "--out",
+        type=OutFolder(),
+        default=DEFAULT_OUT,
+        show_default=True,
+        help=f"Folder that receives {what}.",
+    )
+
+
 sensor_option = click.option(
     "--sensor",
     default=None,
@@ -89,13 +101,7 @@ def catalog_for(scenes, classes: int):
     help=help_of(GeneratorConfig, "variation")
     + " Overrides the profile's value (named in the dataset's name).",
 )
-@click.option(
-    "--out",
-    type=OutFolder(),
-    default=DEFAULT_OUT,
-    show_default=True,
-    help="Folder that receives the dataset directories.",
-)
+@out_option("the dataset directories")
 @setting_option(GeneratorConfig, "width")
 @sensor_option
 @setting_option(GeneratorConfig, "timing")
@@ -246,13 +252,7 @@ class ExportFormats(click.ParamType):
     help="Also write every frame as point clouds: kitti (velodyne/*.bin and SemanticKITTI-style "
     "labels/*.label), ply, pcd; a comma-separated list.",
 )
-@click.option(
-    "--out",
-    type=OutFolder(),
-    default=DEFAULT_OUT,
-    show_default=True,
-    help="Folder that receives the sweep directory.",
-)
+@out_option("the sweep directory")
 @click.option("--force", is_flag=True, help="Overwrite an existing sweep directory.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def sweep(frames, classes, seed, variation, sensor, scenes, exports, out, force, as_json):
