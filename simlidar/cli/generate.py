@@ -341,10 +341,18 @@ def profiles(as_json):
     "--format", "fmt", type=click.Choice(["glb", "ply"]), default="glb", show_default=True
 )
 @click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
-def scenes(scenes, export_dir, fmt, seed):
-    """List the scene catalog, or export sampled scenes as mesh files."""
-    catalog = load_scene_catalog(scenes)
+@sensor_option
+def scenes(scenes, export_dir, fmt, seed, sensor):
+    """List the scene catalog, or export sampled scenes as mesh files (as --sensor sees them:
+    the catalog's variant for that sensor, if it has one)."""
+    base = load_scene_catalog(scenes)
+    catalog = base.for_sensor(chosen_sensor_of(sensor).name)
     click.echo(f"scene catalog {catalog.root} (sha256 {catalog.fingerprint()[:12]})")
+    for name, (layouts, objects) in base.variants.items():
+        pairs = zip(layouts + objects, base.layouts + base.objects)
+        changed = [new.name for new, old in pairs if new != old]
+        chosen = f" (in use below: --sensor {name})" if name == catalog.sensor else ""
+        click.echo(f"sensor variant {name}: its own parameters for {', '.join(changed)}{chosen}")
     click.echo(f"layouts ({len(catalog.layouts)}):")
     for k, r in enumerate(catalog.layouts):
         click.echo(f"  {k}  {r.name:<18} {len(r.params):2d} params  {r.description}")

@@ -84,10 +84,11 @@ def generated_front_matter(path: Path) -> dict:
 
 
 @cache
-def _shipped_catalog_sha256() -> str:
+def _shipped_catalog_sha256(sensor: str) -> str:
+    """The fingerprint of the shipped catalog as ``sensor`` sees it."""
     from simlidar.scene.recipe import load_catalog
 
-    return load_catalog().fingerprint()
+    return load_catalog().for_sensor(sensor).fingerprint()
 
 
 def shard_option(splits: dict) -> int | None:
@@ -164,7 +165,7 @@ def regenerate_command(
         parts.append(f"--variation {config.variation!r}")
     if shard_samples:
         parts.append(f"--shard-size {shard_samples}")
-    if catalog_sha256 != _shipped_catalog_sha256():
+    if catalog_sha256 != _shipped_catalog_sha256(sensor.name):
         parts.append(f"--scenes CATALOG  # the scene catalog with sha256 {catalog_sha256}")
     return " ".join(parts)
 

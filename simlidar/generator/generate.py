@@ -298,6 +298,7 @@ def generate(
     if isinstance(shard_samples, bool) or not isinstance(shard_samples, int) or shard_samples < 1:
         raise ConfigError(f"shard_samples={shard_samples!r}: expected a number of samples >= 1")
     configs = [config.with_noise(level) for level in noise_levels]
+    catalog = catalog.for_sensor(config.sensor.name)  # what is stored: the recipes used
     class_plan(catalog, config.classes)  # fail before touching the disk
     out = Path(out)
     finals = [out / generated_name(c) for c in configs]

@@ -37,7 +37,7 @@ def _cluster_shard(config, noise_levels, where, shard, temps, batch_size) -> str
     """A cluster task: simulate and write one file of every noise level's dataset."""
     root, fingerprint = where
     if where not in _CATALOGS:
-        catalog = load_catalog(root)
+        catalog = load_catalog(root).for_sensor(config.sensor.name)
         if catalog.fingerprint() != fingerprint:
             raise DatasetError(
                 f"scene catalog {root or '(shipped)'} on worker {socket.gethostname()}: sha256 "

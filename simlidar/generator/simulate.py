@@ -129,7 +129,7 @@ def simulate(
     if not 0 < stop - start <= MAX_BATCH:
         raise ConfigError(f"batch of {stop - start} samples: expected 1..{MAX_BATCH}")
     sensor, width = config.sensor, config.width
-    catalog = catalog.with_variation(config.variation)
+    catalog = catalog.for_sensor(sensor.name).with_variation(config.variation)
     plan = class_plan(catalog, config.classes)
     index = np.arange(start, stop)
     n = len(index)

@@ -43,7 +43,7 @@ from simlidar.sensor.raycast import MAX_BATCH, cast
 from simlidar.sensor.rays import cycles_per_rotation, sweep_emission_ns, sweep_rays
 from simlidar.settings import Range, check, setting
 
-SWEEP_VERSION = "1.0.0"
+SWEEP_VERSION = "1.1.0"  # 1.1.0: the catalog's sensor variants (HDL-64E frames changed)
 SWEEP_FILE = "frames.h5"
 FRAME_BATCH = 16  # frames ray-cast together (does not change the files)
 MAX_FRAMES = 10**6
@@ -114,7 +114,7 @@ def simulate_frames(config: GeneratorConfig, catalog: Catalog, start: int, stop:
     if not 0 < stop - start <= MAX_BATCH:
         raise ConfigError(f"batch of {stop - start} frames: expected 1..{MAX_BATCH}")
     sensor = config.sensor
-    catalog = catalog.with_variation(config.variation)
+    catalog = catalog.for_sensor(sensor.name).with_variation(config.variation)
     plan = class_plan(catalog, config.classes)
     index = np.arange(start, stop)
     labels = index % plan.classes
@@ -198,6 +198,7 @@ def sweep(
     for fmt in exports:
         if fmt not in EXPORTS:
             raise ConfigError(f"export {fmt!r}: expected one of {', '.join(EXPORTS)}")
+    catalog = catalog.for_sensor(config.sensor.name)  # its fingerprint: the recipes used
     plan = class_plan(catalog, config.classes)  # a bad class count fails before any file
     sensor, n = config.sensor, sweep_config.frames
     h, c = sensor.beams, cycles_per_rotation(sensor)

@@ -13,7 +13,7 @@ import json
 import math
 import stat
 import tomllib
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import cache
 from pathlib import Path
 
@@ -105,6 +105,21 @@ class Catalog:
     surfaces: tuple[str, ...]  # index 0 is "none" (no return)
     layouts: tuple[Recipe, ...]
     objects: tuple[Recipe, ...]  # index 0 is the empty "none" object
+    # sensor name -> (layouts, objects) with the parameters of sensors/<name>.toml: the
+    # catalog that sensor sees (:meth:`for_sensor`); not part of the stored catalog
+    variants: dict = field(default_factory=dict, compare=False, repr=False)
+    sensor: str | None = None  # the sensor whose variant this catalog is, once chosen
+
+    def for_sensor(self, name: str) -> "Catalog":
+        """The catalog as the sensor ``name`` sees it: the recipes with the parameters of
+        its file in the catalog's ``sensors/`` folder, if it has one, else the catalog as
+        written. The stored catalog (:meth:`to_dict`) is then the recipes used."""
+        if self.sensor is not None:
+            if self.sensor != name:
+                raise ValueError(f"catalog chosen for sensor {self.sensor}, not {name}")
+            return self
+        layouts, objects = self.variants.get(name, (self.layouts, self.objects))
+        return replace(self, layouts=layouts, objects=objects, variants={}, sensor=name)
 
     @property
     def layout_names(self) -> list[str]:
@@ -332,8 +347,11 @@ def _primitive(
 
 def load_scene_recipe(path: Path, surfaces: list[str], is_object: bool) -> Recipe:
     """Read and check one layout or object recipe."""
-    data = _read_toml(path)
-    where = str(path)
+    return _recipe(str(path), path.stem, _read_toml(path), surfaces, is_object)
+
+
+def _recipe(where: str, stem: str, data: dict, surfaces: list[str], is_object: bool) -> Recipe:
+    """Check one layout or object recipe's parsed TOML ``data``."""
     allowed = {"description", "params", "primitive"} | ({"placement"} if is_object else {"visible"})
     _check_keys(
         where, data, allowed, {"description", "primitive"} | ({"placement"} if is_object else set())
@@ -358,7 +376,7 @@ def load_scene_recipe(path: Path, surfaces: list[str], is_object: bool) -> Recip
     prims = data["primitive"]
     if not (isinstance(prims, list) and prims and all(isinstance(p, dict) for p in prims)):
         raise _fail(where, "primitive", "one or more [[primitive]] tables", prims)
-    default_surface = path.stem if is_object else None
+    default_surface = stem if is_object else None
     primitives = tuple(
         _primitive(f"{where}: primitive[{k}]", p, params, surfaces, default_surface)
         for k, p in enumerate(prims)
@@ -370,7 +388,7 @@ def load_scene_recipe(path: Path, surfaces: list[str], is_object: bool) -> Recip
             f"(every primitive at its largest repeat), got {triangles}"
         )
     return Recipe(
-        path.stem,
+        stem,
         data["description"],
         where,
         tuple(params.values()),
@@ -455,4 +473,51 @@ def load_catalog(root: str | Path | None = None) -> Catalog:
                     surfaces[surface],
                 )
     empty = Recipe(NO_OBJECT, "No object on the road.", "", (), (), {})
-    return Catalog(str(root), tuple(surfaces), layouts, (empty,) + objects)
+    objects = (empty,) + objects
+    variants = {
+        path.stem: _sensor_variant(path, surfaces, layouts, objects)
+        for path in sorted((root / "sensors").glob("*.toml"))
+    }
+    return Catalog(str(root), tuple(surfaces), layouts, objects, variants)
+
+
+def _sensor_variant(
+    path: Path, surfaces: list[str], layouts: tuple[Recipe, ...], objects: tuple[Recipe, ...]
+) -> tuple[tuple[Recipe, ...], tuple[Recipe, ...]]:
+    """The layouts and objects of ``sensors/<sensor>.toml``: each recipe it names with the
+    parameter ranges it gives (checked as the recipe itself is), the others as they are."""
+    data = _read_toml(path)
+    where = str(path)
+    _check_keys(where, data, {"description", "layouts", "objects"}, {"description"})
+    if not isinstance(data["description"], str):
+        raise _fail(where, "description", "a string", data["description"])
+    result = []
+    for group, recipes in (("layouts", layouts), ("objects", objects)):
+        by_name = {r.name: r for r in recipes if r.name != NO_OBJECT}
+        table = data.get(group, {})
+        if not isinstance(table, dict):
+            raise _fail(where, group, "a table of recipe names", table)
+        changed = dict(by_name)
+        for name, values in table.items():
+            key = f"{group}.{name}"
+            if name not in by_name:
+                raise _fail(where, group, f"names of the catalog's {group} {sorted(by_name)}", name)
+            recipe = by_name[name]
+            sections = ("params", "placement") if group == "objects" else ("params",)
+            if not isinstance(values, dict) or not values:
+                raise _fail(where, key, f"a table of {' or '.join(sections)}", values)
+            _check_keys(f"{where} [{key}]", values, set(sections), set())
+            source = json.loads(json.dumps(recipe.source))  # a deep copy
+            for section, given in values.items():
+                known = source.get(section, {})
+                if not isinstance(given, dict) or not given:
+                    raise _fail(where, f"{key}.{section}", "a table of parameters", given)
+                for param, spec in given.items():
+                    if param not in known:
+                        expected = f"parameters of {recipe.path} {sorted(known)}"
+                        raise _fail(where, f"{key}.{section}", expected, param)
+                    known[param] = spec
+            changed[name] = _recipe(f"{where} [{key}]", name, source, surfaces, group == "objects")
+        kept = tuple(changed.get(r.name, r) for r in recipes)
+        result.append(kept)
+    return result[0], result[1]

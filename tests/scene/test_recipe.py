@@ -200,3 +200,54 @@ def test_variation_shrinks_ranges_around_their_centre(catalog):
             if p.kind == "uniform":
                 (a, b), (c, d) = p.values, q.values
                 assert d - c == pytest.approx(0.25 * (b - a)) and c + d == pytest.approx(a + b)
+
+
+def test_a_sensor_variant_changes_only_the_parameters_it_names(catalog):
+    """sensors/hdl64e.toml gives the lower bridge and the tunnel other ranges; the VLP-16, which
+    has no variant, sees the recipes as written (so its datasets keep their bytes)."""
+    assert sorted(catalog.variants) == ["hdl64e"]
+    assert catalog.for_sensor("vlp16").to_dict() == catalog.to_dict()
+    kitti = catalog.for_sensor("hdl64e")
+    assert kitti.fingerprint() != catalog.fingerprint() and kitti.sensor == "hdl64e"
+    changed = {r.name for r, o in zip(kitti.layouts, catalog.layouts) if r != o}
+    assert changed == {"lower_bridge", "tunnel"} and kitti.objects == catalog.objects
+    bridge = dict(zip(kitti.layout_names, kitti.layouts))["lower_bridge"]
+    ranges = {p.name: p.values for p in bridge.params}
+    assert ranges["bridge_m"] == (85.0, 105.0) and ranges["half_width_m"] == (3.5, 7.0)
+    stored = kitti.to_dict()["layouts"]["lower_bridge"]
+    assert stored["params"]["clearance_m"] == [4.2, 5.0]
+    assert stored["primitive"] == catalog.to_dict()["layouts"]["lower_bridge"]["primitive"]
+    assert kitti.for_sensor("hdl64e") is kitti  # chosen once
+    with pytest.raises(ValueError, match="chosen for sensor hdl64e, not vlp16"):
+        kitti.for_sensor("vlp16")
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ('description = "x"\n[layouts.viaduct.params]\nspan_m = 1.0\n', "key 'layouts'"),
+        ('description = "x"\n[layouts.tunnel.params]\nlong_m = 1.0\n', "'layouts.tunnel.params'"),
+        ('description = "x"\n[layouts.tunnel.params]\nrise_m = [3.0, 2.0]\n', "low <= high"),
+        ('description = "x"\n[layouts.tunnel.placement]\ndistance_m = 1.0\n', "placement"),
+        ('description = "x"\n[objects.car.params]\nlength_m = "long"\n', "key 'params.length_m'"),
+        ('description = "x"\n[layouts.tunnel]\n', "key 'layouts.tunnel'"),
+        ("[layouts.tunnel.params]\nrise_m = 2.0\n", "key 'description' is missing"),
+        ('description = "x"\nlayout = 1\n', "key 'layout'"),
+    ],
+)
+def test_a_bad_sensor_variant_names_the_file_and_the_key(catalog_copy, text, words):
+    (catalog_copy / "sensors" / "hdl64e.toml").write_text(text)
+    with pytest.raises(RecipeError) as err:
+        load_catalog(catalog_copy)
+    message = str(err.value)
+    assert "hdl64e.toml" in message and words in message and "\n" not in message
+
+
+def test_a_variant_object_keeps_its_placement_and_may_change_it(catalog_copy):
+    (catalog_copy / "sensors" / "hdl32e.toml").write_text(
+        'description = "x"\n[objects.truck.placement]\ndistance_m = [10.0, 12.0]\n'
+    )
+    catalog = load_catalog(catalog_copy)
+    truck = dict(zip(catalog.object_names, catalog.for_sensor("hdl32e").objects))["truck"]
+    assert truck.params[0].name == "distance_m" and truck.params[0].values == (10.0, 12.0)
+    assert catalog.for_sensor("hdl64e").objects == catalog.objects

@@ -144,7 +144,7 @@ def test_the_cli_writes_a_sweep_and_its_exports(tmp_path):
     result = run("sweep", "--frames", 2, "--export", "kitti,pcd", "--out", tmp_path, "--json")
     assert result.exit_code == 0, result.output
     path = Path(json.loads(result.stdout)["path"])
-    assert path.name == "simlidar-sweep-32c-vlp16-2f-seed0-v1.0.0"
+    assert path.name == "simlidar-sweep-32c-vlp16-2f-seed0-v1.1.0"
     names = sorted(p.relative_to(path).as_posix() for p in path.rglob("*") if p.is_file())
     assert names == [
         "bev.png",
