@@ -9,8 +9,9 @@ used, not the whole row, and nothing larger than a row's outputs is held. The ba
 walks each row's causal prefix again. Rows run in parallel (``prange``); each thread adds its
 weight gradient into its own buffer (in the weights' dtype), summed at the end, so the result
 does not depend on the thread count beyond float rounding. The convolutional layer has kernels
-of its own (:func:`conv_forward`): each sample's spikes are sorted once and delivered to every
-receptive field that holds them, as the sensor would deliver them.
+of its own (:func:`conv_forward`): each sample's spikes are sorted once (a radix sort,
+:func:`time_order`) and handed out in that order to every receptive field that holds them,
+whose own walk is then the dense kernel's.
 
 Sums run in float64 whatever the inputs' dtype, prefix by prefix in time order: near the
 threshold (``sum_C w - 1`` close to ``MIN_EXCESS``) a float32 sum loses most of its digits to the
@@ -136,6 +137,62 @@ def backward(z, w, z_out, order, last, excess, grad_out, threads):
 
 
 @njit(cache=True)
+def time_order(flat):
+    """Indices of the finite entries of ``flat`` (times >= 0) in increasing time, ties in index
+    order. A least-significant-digit radix sort of the floats' bit patterns, which order
+    non-negative floats as their values (a zero is keyed 0, so -0.0 too): 11 bits a pass, a
+    pass skipped where every key has the same digit (a float32's upper 32 bits). On a 48 x 25 x
+    59 map, 9 times faster than numba's ``argsort``."""
+    n = flat.size
+    count = 0
+    for i in range(n):
+        if np.isfinite(flat[i]):
+            count += 1
+    idx = np.empty(count, dtype=np.int64)
+    keys = np.empty(count, dtype=np.uint64)
+    k = 0
+    if flat.itemsize == 4:
+        b32 = flat.view(np.uint32)
+        for i in range(n):
+            if np.isfinite(flat[i]):
+                idx[k] = i
+                keys[k] = np.uint64(b32[i]) if flat[i] != 0 else np.uint64(0)
+                k += 1
+    else:
+        b64 = flat.view(np.uint64)
+        for i in range(n):
+            if np.isfinite(flat[i]):
+                idx[k] = i
+                keys[k] = b64[i] if flat[i] != 0 else np.uint64(0)
+                k += 1
+    idx2 = np.empty(count, dtype=np.int64)
+    keys2 = np.empty(count, dtype=np.uint64)
+    hist = np.empty(2048, dtype=np.int64)
+    mask = np.uint64(2047)
+    for p in range(6):
+        shift = np.uint64(11 * p)
+        hist[:] = 0
+        for j in range(count):
+            hist[(keys[j] >> shift) & mask] += 1
+        if count == 0 or hist.max() == count:
+            continue
+        total = 0
+        for d in range(2048):
+            c = hist[d]
+            hist[d] = total
+            total += c
+        for j in range(count):
+            d = (keys[j] >> shift) & mask
+            q = hist[d]
+            idx2[q] = idx[j]
+            keys2[q] = keys[j]
+            hist[d] = q + 1
+        idx, idx2 = idx2, idx
+        keys, keys2 = keys2, keys
+    return idx
+
+
+@njit(cache=True)
 def _field_range(pos, padding, stride, kernel, n_fields):
     """The receptive fields (first, stop) of one axis that hold input position ``pos``."""
     first = max(0, (pos + padding - kernel + stride) // stride)
@@ -145,11 +202,12 @@ def _field_range(pos, padding, stride, kernel, n_fields):
 
 @njit(cache=True, parallel=True)
 def conv_forward(z, wt, stride, padding, h_out, w_out, min_excess):
-    """The convolutional layer, event by event: each sample's input spikes are sorted once
-    (not once per receptive field) and delivered in time order to every receptive field that
-    holds them; a field's neuron fires at the first prefix of its own inputs that is valid,
-    which is known when the field's next input arrives (or at the end). Padding is "no spike":
-    it never arrives.
+    """The convolutional layer: each sample's input spikes are sorted once (not once per
+    receptive field, :func:`time_order`) and handed out, in that order, to every receptive
+    field that holds them; then each field walks its own inputs in time order as the dense
+    kernel walks a row (:func:`forward`), until all its neurons have fired. Padding is "no
+    spike": it never arrives. The spikes go out in two steps, to the rows of fields and then
+    to the fields of one row, so that the lists being filled stay few and in cache.
 
     z (B, C, H, W) input spikes (inf: none); wt (C, k, k, C_out): the weights, output channel
     last; returns z_out (B, C_out, H_out, W_out) (inf: silent), z_last (the time of each
@@ -161,62 +219,127 @@ def conv_forward(z, wt, stride, padding, h_out, w_out, min_excess):
     z_out = np.full((batch, n_out, h_out, w_out), np.inf, dtype=z.dtype)
     z_last = np.full((batch, n_out, h_out, w_out), -np.inf, dtype=z.dtype)
     excess = np.ones((batch, n_out, h_out, w_out), dtype=np.float64)
+    w2 = wt.reshape(channels * kernel * kernel, n_out)  # row (c * k + ky) * k + kx
     low, high = 1 - 1e-14, 1 + 1e-14
+    # tables instead of integer divisions per spike (they took most of the handing out):
+    # each input's (c, y, x), packed, and the fields that hold each input row and column
+    bits = 21
+    low_bits = (1 << bits) - 1
+    coords = np.empty(channels * height * width, dtype=np.int64)
+    i = 0
+    for c in range(channels):
+        for y in range(height):
+            for x in range(width):
+                coords[i] = (c << (2 * bits)) | (y << bits) | x
+                i += 1
+    fy_lo = np.empty(height, dtype=np.int64)
+    fy_hi = np.empty(height, dtype=np.int64)
+    for y in range(height):
+        fy_lo[y], fy_hi[y] = _field_range(y, padding, stride, kernel, h_out)
+    fx_lo = np.empty(width, dtype=np.int64)
+    fx_hi = np.empty(width, dtype=np.int64)
+    for x in range(width):
+        fx_lo[x], fx_hi[x] = _field_range(x, padding, stride, kernel, w_out)
     for b in prange(batch):
         flat = z[b].ravel()
-        spikes = np.nonzero(np.isfinite(flat))[0]
-        spikes = spikes[np.argsort(flat[spikes])]
-        sum_w = np.zeros((h_out, w_out, n_out), dtype=np.float64)
-        sum_wz = np.zeros((h_out, w_out, n_out), dtype=np.float64)
-        prev = np.full((h_out, w_out), -np.inf)  # the field's latest input time (-inf: none)
-        open_ = np.ones((h_out, w_out, n_out), dtype=np.int64)
-        remaining = np.full((h_out, w_out), n_out, dtype=np.int64)
-        for s in range(len(spikes) + 1):
-            if s < len(spikes):
-                index = spikes[s]
-                c, rest = divmod(index, height * width)
-                y, x = divmod(rest, width)
-                t = np.float64(flat[index])
-                fy0, fy1 = _field_range(y, padding, stride, kernel, h_out)
-                fx0, fx1 = _field_range(x, padding, stride, kernel, w_out)
-            else:  # the end: every field's last prefix, before a next input that never comes
-                t = np.inf
-                fy0, fy1, fx0, fx1 = 0, h_out, 0, w_out
-            for fy in range(fy0, fy1):
-                for fx in range(fx0, fx1):
-                    zp = prev[fy, fx]
-                    if remaining[fy, fx] == 0 or zp == -np.inf and s == len(spikes):
-                        continue
-                    if zp > -np.inf:  # did a neuron fire on the prefix before this input?
-                        hits = 0
+        spikes = time_order(flat)
+        n_spikes = len(spikes)
+        # the spikes' positions and times in time order: one gather, then only sequential reads
+        spike_at = np.empty(n_spikes, dtype=np.int64)
+        spike_t = np.empty(n_spikes, dtype=np.float64)
+        for s in range(n_spikes):
+            spike_at[s] = coords[spikes[s]]
+            spike_t[s] = flat[spikes[s]]
+        # the spikes of each row of fields, in time order
+        row_start = np.zeros(h_out + 1, dtype=np.int64)
+        for s in range(n_spikes):
+            y = (spike_at[s] >> bits) & low_bits
+            for fy in range(fy_lo[y], fy_hi[y]):
+                row_start[fy + 1] += 1
+        for fy in range(h_out):
+            row_start[fy + 1] += row_start[fy]
+        row_at = np.empty(row_start[h_out], dtype=np.int64)
+        row_t = np.empty(row_start[h_out], dtype=np.float64)
+        fill = row_start[:-1].copy()
+        for s in range(n_spikes):
+            at = spike_at[s]
+            y = (at >> bits) & low_bits
+            for fy in range(fy_lo[y], fy_hi[y]):
+                q = fill[fy]
+                row_at[q] = at
+                row_t[q] = spike_t[s]
+                fill[fy] = q + 1
+        longest = 0
+        for fy in range(h_out):
+            longest = max(longest, row_start[fy + 1] - row_start[fy])
+        times = np.empty(longest * kernel, dtype=np.float64)  # one row's fields' inputs
+        rows = np.empty(longest * kernel, dtype=np.int64)  # their rows of w2
+        start = np.empty(w_out + 1, dtype=np.int64)
+        pos = np.empty(w_out, dtype=np.int64)
+        sum_w = np.empty(n_out, dtype=np.float64)
+        sum_wz = np.empty(n_out, dtype=np.float64)
+        open_ = np.empty(n_out, dtype=np.int64)
+        flag = np.empty(n_out, dtype=np.int64)
+        for fy in range(h_out):
+            # each field of this row: its inputs in time order
+            start[:] = 0
+            for s in range(row_start[fy], row_start[fy + 1]):
+                x = row_at[s] & low_bits
+                for fx in range(fx_lo[x], fx_hi[x]):
+                    start[fx + 1] += 1
+            for fx in range(w_out):
+                start[fx + 1] += start[fx]
+            pos[:] = start[:-1]
+            for s in range(row_start[fy], row_start[fy + 1]):
+                at = row_at[s]
+                c, y, x = at >> (2 * bits), (at >> bits) & low_bits, at & low_bits
+                t = row_t[s]
+                base = (c * kernel + y + padding - fy * stride) * kernel + x + padding
+                for fx in range(fx_lo[x], fx_hi[x]):
+                    p = pos[fx]
+                    times[p] = t
+                    rows[p] = base - fx * stride
+                    pos[fx] = p + 1
+            for fx in range(w_out):
+                # the field's walk: the dense kernel's (forward), on this field's inputs
+                sum_w[:] = 0
+                sum_wz[:] = 0
+                open_[:] = 1
+                remaining = n_out
+                stop = start[fx + 1]
+                for j in range(start[fx], stop):
+                    zj = times[j]
+                    znext = times[j + 1] if j + 1 < stop else np.inf
+                    wi = w2[rows[j]]
+                    hits = 0
+                    for m in range(n_out):
+                        wm = np.float64(wi[m])
+                        sw = sum_w[m] + wm
+                        swz = sum_wz[m] + wm * zj
+                        sum_w[m] = sw
+                        sum_wz[m] = swz
+                        ex = sw - 1.0
+                        hit = (
+                            open_[m]
+                            & (ex > min_excess)
+                            & (swz >= zj * ex * low)
+                            & (swz < znext * ex * high)
+                        )
+                        flag[m] = hit
+                        hits += hit
+                    if hits:
                         for m in range(n_out):
-                            ex = sum_w[fy, fx, m] - 1.0
-                            swz = sum_wz[fy, fx, m]
-                            hits += (
-                                open_[fy, fx, m]
-                                & (ex > min_excess)
-                                & (swz >= zp * ex * low)
-                                & (swz < t * ex * high)
-                            )
-                        if hits:
-                            for m in range(n_out):
-                                ex = sum_w[fy, fx, m] - 1.0
-                                if open_[fy, fx, m] and ex > min_excess:
-                                    cand = sum_wz[fy, fx, m] / ex
-                                    if cand >= zp and cand < t:
-                                        z_out[b, m, fy, fx] = cand
-                                        z_last[b, m, fy, fx] = zp
-                                        excess[b, m, fy, fx] = ex
-                                        open_[fy, fx, m] = 0
-                                        remaining[fy, fx] -= 1
-                    if s < len(spikes):
-                        ky = y + padding - fy * stride
-                        kx = x + padding - fx * stride
-                        for m in range(n_out):
-                            wm = np.float64(wt[c, ky, kx, m])
-                            sum_w[fy, fx, m] += wm
-                            sum_wz[fy, fx, m] += wm * t
-                        prev[fy, fx] = t
+                            if flag[m]:
+                                ex = sum_w[m] - 1.0
+                                cand = sum_wz[m] / ex
+                                if cand >= zj and cand < znext:
+                                    z_out[b, m, fy, fx] = cand
+                                    z_last[b, m, fy, fx] = zj
+                                    excess[b, m, fy, fx] = ex
+                                    open_[m] = 0
+                                    remaining -= 1
+                        if remaining == 0:
+                            break
     return z_out, z_last, excess
 
 
@@ -239,18 +362,18 @@ def conv_backward(z, wt, stride, padding, z_out, z_last, excess, grad_out, threa
         for b in range(t * per, min(batch, (t + 1) * per)):
             for fy in range(h_out):
                 for fx in range(w_out):
-                    fired = 0
+                    deepest = -np.inf  # inputs after every causal set are skipped
                     for m in range(n_out):
                         if np.isfinite(z_out[b, m, fy, fx]):
                             g[m] = grad_out[b, m, fy, fx] / excess[b, m, fy, fx]
                             gzo[m] = g[m] * z_out[b, m, fy, fx]
                             limit[m] = z_last[b, m, fy, fx]
-                            fired += 1
+                            deepest = max(deepest, limit[m])
                         else:
                             g[m] = 0.0
                             gzo[m] = 0.0
                             limit[m] = -np.inf
-                    if fired == 0:
+                    if deepest == -np.inf:
                         continue
                     for c in range(channels):
                         for ky in range(kernel):
@@ -262,7 +385,7 @@ def conv_backward(z, wt, stride, padding, z_out, z_last, excess, grad_out, threa
                                 if x < 0 or x >= width:
                                     continue
                                 zi = np.float64(z[b, c, y, x])
-                                if not np.isfinite(zi):
+                                if not zi <= deepest:  # silent (inf) or after every set
                                     continue
                                 acc = 0.0
                                 for m in range(n_out):  # masked, branch-free

@@ -4,10 +4,11 @@ gradients to float rounding, on random batches with ties, silent inputs, all-sil
 empty batches, for dense and convolutional layers."""
 
 import numba
+import numpy as np
 import pytest
 import torch
 
-from simlidar.models import ttfs
+from simlidar.models import ttfs, ttfs_kernels
 
 
 def _batch(rows: int, n_in: int, n_out: int, seed: int, dtype=torch.float64):
@@ -65,15 +66,20 @@ def test_float32_inputs_get_float64_decisions(seed):
 
 
 @pytest.mark.parametrize("fast", [None, ttfs.dense])  # event-driven, or dense per field
-@pytest.mark.parametrize(("batch", "stride", "padding"), [(3, 2, 1), (2, 1, 2), (0, 2, 1)])
-def test_the_convolution_matches_its_reference(fast, batch, stride, padding):
+@pytest.mark.parametrize(
+    ("batch", "stride", "padding", "kernel"),
+    [(3, 2, 1, 3), (2, 1, 2, 3), (0, 2, 1, 3), (3, 2, 2, 5), (2, 3, 0, 4)],
+)
+def test_the_convolution_matches_its_reference(fast, batch, stride, padding, kernel):
     generator = torch.Generator().manual_seed(4 + stride)
     z = torch.exp(3 * torch.rand(batch, 2, 9, 11, generator=generator, dtype=torch.float64))
     z[torch.rand(z.shape, generator=generator) < 0.3] = torch.inf
     if batch > 1:
         z[1] = torch.inf  # an all-silent sample
         z[0, 0, :4] = z[0, 0, 0, 0]  # a tie across fields and channels
-    w = torch.randn(4, 2, 3, 3, generator=generator, dtype=torch.float64) / 3 + 3.0 / 18
+    fan_in = 2 * kernel * kernel
+    w = torch.randn(4, 2, kernel, kernel, generator=generator, dtype=torch.float64)
+    w = w / fan_in**0.5 + 3.0 / fan_in
 
     def conv(layer):
         return lambda a, b: ttfs.conv2d(a, b, stride=stride, padding=padding, layer=layer)
@@ -100,3 +106,21 @@ def test_the_thread_count_changes_nothing_but_rounding():
         numba.set_num_threads(previous)
     assert torch.equal(one[0], many[0]) and torch.equal(one[1], many[1])
     assert torch.allclose(one[2], many[2], rtol=1e-12)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_spikes_are_put_in_time_order_ties_by_index(dtype):
+    """ttfs_kernels.time_order (a radix sort of the bit patterns) against numpy's stable sort:
+    ties, zeros of both signs, silent inputs, values spanning many binades."""
+    rng = np.random.default_rng(7)
+    flat = np.exp(rng.uniform(-20, 20, 5000)).astype(dtype)
+    flat[rng.random(5000) < 0.2] = np.inf
+    flat[:50] = flat[60]  # a tie
+    flat[100:110] = 0.0
+    flat[110:120] = -0.0
+    flat[200:300] = np.round(flat[200:300] * 4) / 4
+    expected = np.flatnonzero(np.isfinite(flat))
+    expected = expected[np.argsort(flat[expected], kind="stable")]
+    assert np.array_equal(ttfs_kernels.time_order(flat), expected)
+    assert ttfs_kernels.time_order(np.full(3, np.inf, dtype=dtype)).size == 0
+    assert ttfs_kernels.time_order(np.empty(0, dtype=dtype)).size == 0
