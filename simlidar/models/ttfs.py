@@ -131,7 +131,7 @@ class _DenseTTFS(torch.autograd.Function):
         from simlidar.models import ttfs_kernels
 
         z, w, z_out, order, last, excess = ctx.saved_tensors
-        threads = max(1, min(numba.get_num_threads(), z.shape[0]))
+        threads = max(1, min(numba.get_num_threads(), z.shape[1]))  # blocks of inputs
         dtype = z_out.dtype
         grad_z, grad_w = ttfs_kernels.backward(
             *(t.detach().to(dtype).contiguous().numpy() for t in (z, w, z_out)),

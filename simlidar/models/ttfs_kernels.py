@@ -6,12 +6,12 @@ whatever the prefix at which the neurons fire. These kernels sort a row's spikin
 walk them in time order, keeping one running weight sum and one running weighted sum per output
 neuron, and stop as soon as every neuron of the row has fired: the work is the prefix actually
 used, not the whole row, and nothing larger than a row's outputs is held. The backward pass
-walks each row's causal prefix again. Rows run in parallel (``prange``); each thread adds its
-weight gradient into its own buffer (in the weights' dtype), summed at the end, so the result
-does not depend on the thread count beyond float rounding. The convolutional layer has kernels
-of its own (:func:`conv_forward`): each sample's spikes are sorted once (a radix sort,
-:func:`time_order`) and handed out in that order to every receptive field that holds them,
-whose own walk is then the dense kernel's.
+goes input by input over every row's causal set. Rows (forward) and inputs (backward) run in
+parallel (``prange``); the results do not depend on the thread count (the convolution's
+weight gradient, summed from one part a thread, by float rounding only). The convolutional
+layer has kernels of its own (:func:`conv_forward`): each sample's spikes are sorted once (a
+radix sort, :func:`time_order`) and handed out in that order to every receptive field that
+holds them, whose own walk is then the dense kernel's.
 
 Sums run in float64 whatever the inputs' dtype, prefix by prefix in time order: near the
 threshold (``sum_C w - 1`` close to ``MIN_EXCESS``) a float32 sum loses most of its digits to the
@@ -103,37 +103,48 @@ def forward(z, w, min_excess, threads):
 def backward(z, w, z_out, order, last, excess, grad_out, threads):
     """Gradients of the summed ``grad_out * z_out`` with respect to z (R, N) and w (N, M):
     for i in a neuron's causal set, dz_out/dz_i = w_i / excess and dz_out/dw_i = (z_i - z_out)
-    / excess; nothing for silent neurons and inputs outside the set."""
+    / excess; nothing for silent neurons and inputs outside the set.
+
+    Input by input (``threads`` blocks of inputs in parallel), every row's part at once: an
+    input's weight row and its gradient row stay in cache while the rows are summed (in
+    float64, in row order: the same result for every thread count), where a walk row by row
+    would sweep the whole weight gradient once a row (9.6 MB for the SCNN's dense layer)."""
     rows, n_in = z.shape
     n_out = w.shape[1]
     grad_z = np.zeros_like(z)
-    parts = np.zeros((threads, n_in, n_out), dtype=w.dtype)  # rows summed in the weights dtype
-    per = (rows + threads - 1) // threads
+    grad_w = np.empty((n_in, n_out), dtype=w.dtype)
+    g = np.zeros((rows, n_out), dtype=np.float64)
+    gzo = np.zeros((rows, n_out), dtype=np.float64)
+    rank = np.full((rows, n_in), n_in, dtype=np.int64)  # position in the row's time order
+    deepest = np.full(rows, -1, dtype=np.int64)  # the row's deepest causal position
+    for r in prange(rows):
+        for m in range(n_out):
+            if last[r, m] >= 0:
+                g[r, m] = grad_out[r, m] / excess[r, m]
+                gzo[r, m] = g[r, m] * z_out[r, m]
+                deepest[r] = max(deepest[r], last[r, m])
+        for j in range(deepest[r] + 1):
+            rank[r, order[r, j]] = j
+    per = (n_in + threads - 1) // threads
     for t in prange(threads):
-        gw = parts[t]
-        g = np.zeros(n_out, dtype=np.float64)
-        gzo = np.zeros(n_out, dtype=np.float64)
-        for r in range(t * per, min(rows, (t + 1) * per)):
-            deepest = -1
-            for m in range(n_out):
-                if last[r, m] >= 0:
-                    g[m] = grad_out[r, m] / excess[r, m]
-                    gzo[m] = g[m] * z_out[r, m]
-                    deepest = max(deepest, last[r, m])
-                else:
-                    g[m] = 0.0
-                    gzo[m] = 0.0
-            for j in range(deepest + 1):
-                i = order[r, j]
+        gw = np.empty(n_out, dtype=np.float64)
+        for i in range(t * per, min(n_in, (t + 1) * per)):
+            gw[:] = 0.0
+            for r in range(rows):
+                j = rank[r, i]
+                if j > deepest[r]:
+                    continue
                 zi = np.float64(z[r, i])
                 acc = 0.0
                 for m in range(n_out):  # masked, branch-free: vectorised
                     causal = j <= last[r, m]
-                    gm = g[m] * causal
+                    gm = g[r, m] * causal
                     acc += gm * w[i, m]
-                    gw[i, m] += gm * zi - gzo[m] * causal
+                    gw[m] += gm * zi - gzo[r, m] * causal
                 grad_z[r, i] = acc
-    return grad_z, parts.sum(axis=0)
+            for m in range(n_out):
+                grad_w[i, m] = gw[m]
+    return grad_z, grad_w
 
 
 @njit(cache=True)
