@@ -30,18 +30,19 @@ from simlidar.convert.common import (
 from simlidar.convert.kitti_files import (
     CLASSES,
     Frame,
+    TrainingFiles,
     box_corners_cam,
     inside_box,
     read_frames,
     read_velodyne,
     to_velo,
+    training_dir,
 )
 from simlidar.convert.options import KittiConfig
 from simlidar.dataset.schema import CONVERTED_SCHEMAS, SPLITS, expected_shapes
 from simlidar.dataset.version import SOURCES
 from simlidar.dataset.writer import SplitWriter
 from simlidar.errors import DatasetError
-from simlidar.release.checksums import sha256_file
 from simlidar.sensor.model import tof_ns
 
 SOURCE = "kitti"
@@ -143,10 +144,47 @@ def kitti_name(config: KittiConfig, simulated: dict | None = None) -> str:
     return f"kitti-front-{config.crop[0]}x{config.crop[1]}{sim}-v{SOURCES[SOURCE][0]}"
 
 
+class SweepFiles(TrainingFiles):
+    """A simlidar sweep's folder read as a KITTI training folder without its ``--export kitti``
+    files: each file's bytes are made from ``frames.h5`` as the export would write them
+    (:func:`simlidar.generator.sweep.kitti_file`), so the crops and every hash are those of
+    the exported folder, without its 1.6 MB of scan a frame on disk."""
+
+    FOLDERS = ("label_2", "calib", "velodyne")
+
+    def __init__(self, base: Path):
+        import h5py
+
+        super().__init__(base)
+        with h5py.File(base / "frames.h5", "r") as f:
+            self.frames = f["labels"].shape[0]
+
+    def stems(self) -> list[str]:
+        return [f"{frame:06d}" for frame in range(self.frames)]
+
+    def has(self, relative: Path) -> bool:
+        stem = relative.stem
+        return relative.parent.name in self.FOLDERS and stem.isdigit() and int(stem) < self.frames
+
+    def read(self, relative: Path) -> bytes:
+        from simlidar.generator.sweep import kitti_file
+
+        return kitti_file(self.base / "frames.h5", int(relative.stem), relative.parent.name)
+
+
+def training_files(root: str | Path) -> TrainingFiles:
+    """The KITTI training folder at ``root`` (or ``root/training``); or a simlidar sweep's
+    folder without its KITTI export, read from its ``frames.h5`` (:class:`SweepFiles`)."""
+    root = Path(root)
+    if simulated_from(root) and not (root / "velodyne").is_dir():
+        return SweepFiles(root)
+    return TrainingFiles(training_dir(root))
+
+
 def simulated_from(base: Path) -> dict | None:
     """Where the frames of the training folder ``base`` came from, when it is a simlidar sweep
-    exported with ``--export kitti`` (its ``frames.h5`` beside the KITTI folders): the sweep's
-    name and sensor model; None for recorded data."""
+    (its ``frames.h5`` beside the KITTI folders, or alone): the sweep's name and sensor model;
+    None for recorded data."""
     import h5py
 
     sweep = base / "frames.h5"
@@ -185,19 +223,20 @@ def convert_kitti(
         res_v_deg, max_range_m, test_fraction, seed), each with its default there
     """
     config = KittiConfig(**options)
-    base, frames = read_frames(root)
+    files = training_files(root)
+    frames = read_frames(files)
     splits = split_frames(frames, config)
-    simulated = simulated_from(base)
+    simulated = simulated_from(files.base)
     name = kitti_name(config, simulated)
     with building(out, name, force) as temp:
-        write_splits(temp, base, frames, splits, config, progress, simulated)
+        write_splits(temp, files, frames, splits, config, progress, simulated)
         write_release_files(temp, name, preview)
     return Path(out) / name
 
 
 def write_splits(
     folder: Path,
-    base: Path,
+    files: TrainingFiles,
     frames: list[Frame],
     splits: dict[str, list[Frame]],
     config: KittiConfig,
@@ -206,7 +245,7 @@ def write_splits(
 ) -> None:
     """Read every scan once, in split order, and write train.h5 and test.h5 into ``folder``.
 
-    base : the training folder (paths in the input's hash are relative to it)
+    files : the training folder's files (paths in the input's hash are relative to it)
     simulated : :func:`simulated_from` of ``base``, stored as the attribute ``simulated_from``
     """
     from tqdm import tqdm
@@ -214,7 +253,8 @@ def write_splits(
     shapes = {n: (d, s[1:]) for n, (d, s) in expected_shapes(SOURCE, 0, *config.crop).items()}
     writers: dict[str, SplitWriter] = {}
     try:
-        hashes = _small_file_hashes(base, frames)
+        base = files.base
+        hashes = _small_file_hashes(files, frames)
         for split in SPLITS:
             size = sum(len(f.labels) for f in splits[split])
             writers[split] = SplitWriter(
@@ -223,12 +263,14 @@ def write_splits(
         bar = tqdm(total=len(frames), unit="frame", disable=not progress, desc="kitti")
         for split in SPLITS:
             for frame in splits[split]:
-                points, hashes[frame.velodyne.relative_to(base)] = read_velodyne(frame.velodyne)
+                scan = frame.velodyne.relative_to(base)
+                points, hashes[scan] = read_velodyne(frame.velodyne, files.read(scan))
                 writers[split].append(frame_crops(frame, points, config))
                 bar.update()
         for frame in frames:  # frames without objects count in the input's hash too
-            if frame.velodyne.relative_to(base) not in hashes:
-                hashes[frame.velodyne.relative_to(base)] = sha256_file(frame.velodyne)
+            scan = frame.velodyne.relative_to(base)
+            if scan not in hashes:
+                hashes[scan] = hashlib.sha256(files.read(scan)).hexdigest()
                 bar.update()
         bar.close()
         # the text `sha256sum calib/* label_2/* velodyne/*` prints in the training folder
@@ -266,11 +308,11 @@ def write_splits(
             writer.abort()  # a no-op after close()
 
 
-def _small_file_hashes(base: Path, frames: list[Frame]) -> dict[Path, str]:
-    """sha256 of every frame's label and calibration file, by path relative to ``base``."""
+def _small_file_hashes(files: TrainingFiles, frames: list[Frame]) -> dict[Path, str]:
+    """sha256 of every frame's label and calibration file, by path relative to the folder."""
     hashes = {}
     for frame in frames:
-        for folder, suffix in (("label_2", ".txt"), ("calib", ".txt")):
-            path = base / folder / f"{frame.velodyne.stem}{suffix}"
-            hashes[path.relative_to(base)] = sha256_file(path)
+        for folder in ("label_2", "calib"):
+            path = Path(folder, f"{frame.velodyne.stem}.txt")
+            hashes[path] = hashlib.sha256(files.read(path)).hexdigest()
     return hashes

@@ -5,6 +5,9 @@
     ROOT/[training/]velodyne/NNNNNN.bin  float32 x, y, z, reflectance per point (Velodyne frame)
 
 Every malformed input raises a DatasetError naming the file, the line and what was expected.
+The files are read through a :class:`TrainingFiles` (a folder on disk), or through its
+subclass for a simlidar sweep without the KITTI export (:mod:`simlidar.convert.kitti`), which
+makes the same bytes from the sweep's ``frames.h5``.
 """
 
 import hashlib
@@ -44,6 +47,24 @@ class Frame:
     cam_to_velo: np.ndarray  # (4, 4): inverse of Tr_velo_to_cam (4 x 4) times inverse of R0_rect
 
 
+class TrainingFiles:
+    """The files of a KITTI training folder, by path relative to it (``label_2/000001.txt``):
+    what the converter reads and hashes."""
+
+    def __init__(self, base: Path):
+        self.base = base
+
+    def stems(self) -> list[str]:
+        """Every label file's name without ``.txt``, in name order."""
+        return sorted(p.stem for p in (self.base / "label_2").glob("*.txt"))
+
+    def has(self, relative: Path) -> bool:
+        return (self.base / relative).is_file()
+
+    def read(self, relative: Path) -> bytes:
+        return (self.base / relative).read_bytes()
+
+
 def training_dir(root: str | Path) -> Path:
     """The folder holding label_2/, calib/ and velodyne/: ``root`` or ``root/training``."""
     root = Path(root)
@@ -66,10 +87,18 @@ def _number(path: Path, line: int, text: str) -> float:
     return value
 
 
-def read_labels(path: Path) -> tuple[Label, ...]:
-    """The objects of one label file, DontCare skipped."""
+def _text(path: Path, data: bytes) -> str:
+    try:
+        return data.decode()
+    except UnicodeDecodeError as exc:
+        raise DatasetError(f"{path}: byte {exc.start}: expected UTF-8 text") from None
+
+
+def read_labels(path: Path, data: bytes) -> tuple[Label, ...]:
+    """The objects of one label file (``data``, its bytes; ``path`` names it), DontCare
+    skipped."""
     labels = []
-    for line, text in enumerate(path.read_text().splitlines(), 1):
+    for line, text in enumerate(_text(path, data).splitlines(), 1):
         fields = text.split()
         if not fields:
             continue
@@ -97,11 +126,12 @@ def read_labels(path: Path) -> tuple[Label, ...]:
     return tuple(labels)
 
 
-def read_cam_to_velo(path: Path) -> np.ndarray:
+def read_cam_to_velo(path: Path, data: bytes) -> np.ndarray:
     """(4, 4) matrix taking rectified camera coordinates to Velodyne coordinates: the inverse of
-    ``R0_rect``, then the inverse of ``Tr_velo_to_cam`` (both made 4 x 4)."""
+    ``R0_rect``, then the inverse of ``Tr_velo_to_cam`` (both made 4 x 4), from a calibration
+    file's bytes ``data`` (``path`` names it)."""
     found: dict[str, np.ndarray] = {}
-    for line, text in enumerate(path.read_text().splitlines(), 1):
+    for line, text in enumerate(_text(path, data).splitlines(), 1):
         if not text.strip():
             continue
         key, sep, rest = text.partition(":")
@@ -129,9 +159,9 @@ def read_cam_to_velo(path: Path) -> np.ndarray:
         raise DatasetError(f"{path}: R0_rect or Tr_velo_to_cam is singular") from None
 
 
-def read_velodyne(path: Path) -> tuple[np.ndarray, str]:
-    """One scan: ((n, 3) float64 x, y, z in metres, sha256 of the file)."""
-    data = path.read_bytes()
+def read_velodyne(path: Path, data: bytes) -> tuple[np.ndarray, str]:
+    """One scan from its file's bytes ``data`` (``path`` names it): ((n, 3) float64 x, y, z in
+    metres, sha256 of the file)."""
     if len(data) % 16:
         raise DatasetError(
             f"{path}: {len(data)} bytes, expected a multiple of 16 (float32 x, y, z, reflectance)"
@@ -142,23 +172,25 @@ def read_velodyne(path: Path) -> tuple[np.ndarray, str]:
     return points, hashlib.sha256(data).hexdigest()
 
 
-def read_frames(root: str | Path) -> tuple[Path, list[Frame]]:
-    """(training folder, every frame with a label file, in file-name order), labels and
-    calibration read and checked; the scans are read later, one at a time."""
-    base = training_dir(root)
+def read_frames(files: TrainingFiles) -> list[Frame]:
+    """Every frame with a label file, in file-name order, labels and calibration read and
+    checked; the scans are read later, one at a time."""
+    base = files.base
     frames = []
-    for label_file in sorted((base / "label_2").glob("*.txt")):
-        stem = label_file.stem
+    for stem in files.stems():
+        label_file = base / "label_2" / f"{stem}.txt"
         if not stem.isdigit():
             raise DatasetError(f"{label_file}: expected a file name of digits (000001.txt)")
-        calib, velodyne = base / "calib" / f"{stem}.txt", base / "velodyne" / f"{stem}.bin"
+        calib, velodyne = Path("calib", f"{stem}.txt"), Path("velodyne", f"{stem}.bin")
         for needed in (calib, velodyne):
-            if not needed.is_file():
-                raise DatasetError(f"{needed}: missing (the frame of {label_file})")
-        frames.append(Frame(int(stem), velodyne, read_labels(label_file), read_cam_to_velo(calib)))
+            if not files.has(needed):
+                raise DatasetError(f"{base / needed}: missing (the frame of {label_file})")
+        labels = read_labels(label_file, files.read(label_file.relative_to(base)))
+        matrix = read_cam_to_velo(base / calib, files.read(calib))
+        frames.append(Frame(int(stem), base / velodyne, labels, matrix))
     if not frames:
         raise DatasetError(f"{base / 'label_2'}: no label files (expected NNNNNN.txt)")
-    return base, frames
+    return frames
 
 
 def box_corners_cam(box: tuple[float, ...]) -> np.ndarray:

@@ -307,6 +307,24 @@ def kitti_label(path: str | Path, frame: int) -> str:
     return " ".join([KITTI_TYPES.get(name, "Misc")] + [f"{v:.4f}" for v in numbers]) + "\n"
 
 
+def kitti_file(path: str | Path, frame: int, folder: str, points=None) -> bytes:
+    """The bytes of one file of frame ``frame`` in the KITTI export (:func:`export_frame`):
+    ``folder`` ``velodyne`` (float32 x, y, z, intensity), ``labels`` (uint32 surface a point),
+    ``label_2`` (:func:`kitti_label`) or ``calib`` (:data:`KITTI_CALIB`). ``points``: the
+    frame's :func:`frame_points`, if already made."""
+    if folder == "label_2":
+        return kitti_label(path, frame).encode()
+    if folder == "calib":
+        return KITTI_CALIB.encode()
+    points = frame_points(path, frame) if points is None else points
+    if folder == "velodyne":
+        xyzi = np.stack([points[k] for k in ("x", "y", "z", "intensity")], axis=1)
+        return xyzi.astype("<f4").tobytes()
+    if folder == "labels":
+        return points["surface"].astype("<u4").tobytes()
+    raise ConfigError(f"KITTI folder {folder!r}: expected velodyne, labels, label_2 or calib")
+
+
 _PLY_TYPES = {"<f4": "float", "u1": "uchar", "<f8": "double"}
 _PCD_TYPES = {"<f4": ("4", "F"), "u1": ("1", "U"), "<f8": ("8", "F")}
 
@@ -322,11 +340,9 @@ def export_frame(path: str | Path, frame: int, out: str | Path, fmt: str) -> lis
     points = frame_points(path, frame)
     out, stem = Path(out), f"{frame:06d}"
     if fmt == "kitti":
-        xyzi = np.stack([points[k] for k in ("x", "y", "z", "intensity")], axis=1)
-        files = [out / "velodyne" / f"{stem}.bin", out / "labels" / f"{stem}.label"]
-        blobs = [xyzi.astype("<f4").tobytes(), points["surface"].astype("<u4").tobytes()]
-        files += [out / "label_2" / f"{stem}.txt", out / "calib" / f"{stem}.txt"]
-        blobs += [kitti_label(path, frame).encode(), KITTI_CALIB.encode()]
+        folders = {"velodyne": ".bin", "labels": ".label", "label_2": ".txt", "calib": ".txt"}
+        files = [out / folder / f"{stem}{suffix}" for folder, suffix in folders.items()]
+        blobs = [kitti_file(path, frame, folder, points) for folder in folders]
     elif fmt == "ply":
         header = ["ply", "format binary_little_endian 1.0", f"element vertex {len(points)}"]
         header += [

@@ -235,3 +235,33 @@ def test_hdl64e_sweep_crops_read_the_distance_of_the_truck(tmp_path):
     assert np.nanmedian(centre) == pytest.approx(np.hypot(rear, y), abs=0.1)
     labels = (sweep_dir / "label_2" / "000003.txt").read_text().split()
     assert labels[0] == "Truck" and float(labels[13]) == pytest.approx(x, abs=1e-3)
+
+
+def test_a_sweep_converts_without_its_kitti_export_to_the_same_bytes(tmp_path):
+    """`simlidar convert kitti` reads a sweep's frames.h5 directly when the KITTI files are
+    not on disk: the same crops and input hash as from the exported folder."""
+    made = {}
+    for kind, extra in (("exported", ["--export", "kitti"]), ("direct", [])):
+        done = run(
+            "sweep", "--frames", 6, "--sensor", "hdl64e", *extra, "--out", tmp_path / kind,
+            "--json",
+        )  # fmt: skip
+        assert done.exit_code == 0, done.output
+        sweep_dir = Path(json.loads(done.stdout)["path"])
+        assert (sweep_dir / "velodyne").is_dir() == (kind == "exported")
+        converted = run("convert", "kitti", sweep_dir, "--out", tmp_path / kind / "crops")
+        assert converted.exit_code == 0, converted.output
+        made[kind] = tmp_path / kind / "crops" / "kitti-front-50x118-sim-v1.0.0"
+    for split in ("train.h5", "test.h5"):
+        exported = (made["exported"] / split).read_bytes()
+        assert exported == (made["direct"] / split).read_bytes()
+    with h5py.File(made["direct"] / "train.h5") as f:
+        assert len(f["labels"]) > 0 and json.loads(f.attrs["simulated_from"])["sweep"]
+    assert run("verify", made["direct"]).exit_code == 0
+
+
+def test_a_folder_that_is_neither_kitti_nor_a_sweep_is_named(tmp_path):
+    (tmp_path / "frames.h5").write_bytes(b"not hdf5")
+    result = run("convert", "kitti", tmp_path, "--out", tmp_path / "out")
+    assert result.exit_code != 0
+    assert "expected the KITTI object benchmark's training layout" in result.output
