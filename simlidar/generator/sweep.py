@@ -292,12 +292,19 @@ def kitti_label(path: str | Path, frame: int) -> str:
     alpha, a 2D box of zeros (no camera), h w l, bottom centre x y z, rotation_y."""
     import h5py
 
-    sensor, values, _ = read_frame(path, frame)
-    if not values["object"]:
-        return ""
-    with h5py.File(path, "r") as f:
-        name = json.loads(f.attrs["object_names"])[int(values["object"])]  # 0: none
-    length, width, height, x, y, z, yaw = (float(v) for v in values["object_box"])
+    with h5py.File(path, "r") as f:  # only what the label needs (not the frame's points)
+        if f.attrs.get("format") != "simlidar-sweep":
+            raise ConfigError(f"{path}: expected a simlidar sweep file ({SWEEP_FILE})")
+        count = f["labels"].shape[0]
+        if not 0 <= frame < count:
+            raise ConfigError(f"frame {frame}: expected 0 to {count - 1} ({path})")
+        obj = int(f["object"][frame])
+        if not obj:
+            return ""
+        name = json.loads(f.attrs["object_names"])[obj]  # 0: none
+        sensor = Sensor.from_dict(json.loads(f.attrs["sensor"]))
+        box = f["object_box"][frame]
+    length, width, height, x, y, z, yaw = (float(v) for v in box)
     # velodyne (x forward, y left, z up from the sensor) -> camera (x right, y down, z ahead)
     cx, cy, cz = -y, -(z - sensor.mount_height_m), x
     ry = -np.deg2rad(yaw) - np.pi / 2  # a heading along +x (ahead) is rotation_y = -pi/2
