@@ -41,7 +41,7 @@ from simlidar.convert.kitti_files import (
 from simlidar.convert.options import KittiConfig
 from simlidar.dataset.schema import CONVERTED_SCHEMAS, SPLITS, expected_shapes
 from simlidar.dataset.version import SOURCES
-from simlidar.dataset.writer import SplitWriter
+from simlidar.dataset.writer import SplitWriter, attrs_fit
 from simlidar.errors import DatasetError
 from simlidar.sensor.model import tof_ns
 
@@ -255,10 +255,18 @@ def write_splits(
     try:
         base = files.base
         hashes = _small_file_hashes(files, frames)
+        # one int64 a frame: beyond 8,182 frames (a sweep of ~30,000) the HDF5 1.8 format
+        without = np.array([f.number for f in frames if not f.labels], dtype=np.int64)
+        large = not attrs_fit({"frames_without_objects": without})
         for split in SPLITS:
             size = sum(len(f.labels) for f in splits[split])
             writers[split] = SplitWriter(
-                folder / f"{split}.h5", size, shapes, {}, frozenset({"delays", "box_corners_m"})
+                folder / f"{split}.h5",
+                size,
+                shapes,
+                {},
+                frozenset({"delays", "box_corners_m"}),
+                large_attrs=large,
             )
         bar = tqdm(total=len(frames), unit="frame", disable=not progress, desc="kitti")
         for split in SPLITS:
@@ -297,9 +305,7 @@ def write_splits(
             attrs["tof_max_ns"] = tof_ns(config.max_range_m)
             if simulated:
                 attrs["simulated_from"] = json.dumps(simulated, sort_keys=True)
-            attrs["frames_without_objects"] = np.array(
-                [f.number for f in frames if not f.labels], dtype=np.int64
-            )
+            attrs["frames_without_objects"] = without
             for key, value in attrs.items():
                 writer.file.attrs[key] = value
             writer.close()

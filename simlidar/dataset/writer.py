@@ -16,6 +16,21 @@ from simlidar.dataset.schema import CHUNK_SAMPLES
 from simlidar.errors import DatasetError
 
 
+def attrs_fit(attrs: dict) -> bool:
+    """Whether every attribute fits an object header message of the earliest HDF5 format
+    (64 KB each, less its name, type and shape), as tried in a file held in memory: e.g. at
+    most 8,182 int64 values under the name ``frames_without_objects``."""
+    with h5py.File(
+        "attrs_fit", "w", driver="core", backing_store=False, libver=("earliest", "v110")
+    ) as probe:
+        for key, value in attrs.items():
+            try:
+                probe.attrs[key] = value
+            except OSError:  # "object header message is too large"
+                return False
+    return True
+
+
 class SplitWriter:
     """Appends blocks of rows to the datasets of one HDF5 file; peak memory is a block plus
     one chunk.
@@ -31,6 +46,11 @@ class SplitWriter:
     inside a handle's deallocation, where h5py can only print it: generation went on for
     seconds, printing thousands of tracebacks, and crashed at close. After an error,
     :meth:`abort` closes the file without raising.
+
+    large_attrs : write the file in the HDF5 1.8 format, whose (dense) attribute storage takes
+    attributes beyond the 64 KB an object header message holds; the earliest format refuses
+    them. Chosen by itself when ``attrs`` need it; pass ``not attrs_fit(...)`` for attributes
+    set after the rows. Only then, so that every file whose attributes fit keeps its bytes.
     """
 
     def __init__(
@@ -41,6 +61,7 @@ class SplitWriter:
         attrs: dict,
         shuffled: frozenset[str] = frozenset(),
         chunk: int = CHUNK_SAMPLES,
+        large_attrs: bool = False,
     ):
         self.size = size
         self.chunk = min(chunk, size)  # rows a chunk (full sweeps: one frame)
@@ -48,7 +69,11 @@ class SplitWriter:
         self.pending: dict[str, list[np.ndarray]] = {name: [] for name in shapes}
         self.path = Path(path)
         self.file = h5py.File(
-            path, "w", libver=("earliest", "v110"), track_order=False, rdcc_nbytes=0
+            path,
+            "w",
+            libver=("v108" if large_attrs or not attrs_fit(attrs) else "earliest", "v110"),
+            track_order=False,
+            rdcc_nbytes=0,
         )
         self.datasets = {}
         for name, (dtype, tail) in shapes.items():

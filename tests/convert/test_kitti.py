@@ -186,6 +186,30 @@ def test_a_frame_without_objects_joins_neither_split(synthetic_kitti, tmp_path):
     assert verify(path) == []
 
 
+def test_more_frames_without_objects_than_an_object_header_holds(synthetic_kitti, tmp_path):
+    """8,183 numbers (64 KB) do not fit the earliest HDF5 format's object header; a 40,000-frame
+    sweep's 10,000 stopped its conversion at the very end. The file is then written in the
+    1.8 format, with the same crops, and every smaller dataset keeps its bytes."""
+    small = convert_kitti(synthetic_kitti, tmp_path / "small", progress=False, preview=False)
+    base = synthetic_kitti / "training"
+    calib = (base / "calib" / "000002.txt").read_text()
+    for k in range(3, 8185):  # with 000002, 8,183 frames without objects: empty labels, scans
+        (base / "velodyne" / f"{k:06d}.bin").write_bytes(b"")
+        (base / "label_2" / f"{k:06d}.txt").write_text("")
+        (base / "calib" / f"{k:06d}.txt").write_text(calib)
+    path = convert_kitti(synthetic_kitti, tmp_path / "large", progress=False, preview=False)
+    for split in ("train", "test"):
+        with h5py.File(small / f"{split}.h5") as a, h5py.File(path / f"{split}.h5") as b:
+            assert a.attrs["frames_without_objects"].tolist() == [2]
+            assert b.attrs["frames_without_objects"].tolist() == list(range(2, 8185))
+            assert a.id.get_create_plist().get_version()[0] == 0  # the earliest superblock
+            assert b.id.get_create_plist().get_version()[0] > 0
+            for name in a:
+                np.testing.assert_array_equal(a[name][()], b[name][()], err_msg=name)
+    assert verify(path) == []
+    assert "(8183 without objects, in neither)" in (path / "README.md").read_text()
+
+
 @pytest.mark.parametrize(
     "folder, stem, damage, words",
     [
