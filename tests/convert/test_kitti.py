@@ -189,7 +189,8 @@ def test_a_frame_without_objects_joins_neither_split(synthetic_kitti, tmp_path):
 def test_more_frames_without_objects_than_an_object_header_holds(synthetic_kitti, tmp_path):
     """8,183 numbers (64 KB) do not fit the earliest HDF5 format's object header; a 40,000-frame
     sweep's 10,000 stopped its conversion at the very end. The file is then written in the
-    1.8 format, with the same crops, and every smaller dataset keeps its bytes."""
+    1.8 format, with the same crops; where the numbers fit, the earliest format stays (and
+    with it the bytes datasets always had)."""
     small = convert_kitti(synthetic_kitti, tmp_path / "small", progress=False, preview=False)
     base = synthetic_kitti / "training"
     calib = (base / "calib" / "000002.txt").read_text()
