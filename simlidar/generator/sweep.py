@@ -239,18 +239,24 @@ def sweep(
     return Path(out) / name
 
 
+def _check_frame(f, path: str | Path, frame: int) -> Sensor:
+    """The sensor of the open sweep file ``f``; a ConfigError unless it is a sweep file that
+    holds frame ``frame``."""
+    if f.attrs.get("format") != "simlidar-sweep":
+        raise ConfigError(f"{path}: expected a simlidar sweep file ({SWEEP_FILE})")
+    count = f["labels"].shape[0]
+    if not 0 <= frame < count:
+        raise ConfigError(f"frame {frame}: expected 0 to {count - 1} ({path})")
+    return Sensor.from_dict(json.loads(f.attrs["sensor"]))
+
+
 def read_frame(path: str | Path, frame: int) -> tuple[Sensor, dict, np.ndarray]:
     """The sensor, the per-frame values and the emission times of frame ``frame`` of a sweep
     file."""
     import h5py
 
     with h5py.File(path, "r") as f:
-        if f.attrs.get("format") != "simlidar-sweep":
-            raise ConfigError(f"{path}: expected a simlidar sweep file ({SWEEP_FILE})")
-        count = f["labels"].shape[0]
-        if not 0 <= frame < count:
-            raise ConfigError(f"frame {frame}: expected 0 to {count - 1} ({path})")
-        sensor = Sensor.from_dict(json.loads(f.attrs["sensor"]))
+        sensor = _check_frame(f, path, frame)
         values = {name: f[name][frame] for name in SHAPES}
         return sensor, values, f["emission_ns"][:]
 
@@ -293,16 +299,11 @@ def kitti_label(path: str | Path, frame: int) -> str:
     import h5py
 
     with h5py.File(path, "r") as f:  # only what the label needs (not the frame's points)
-        if f.attrs.get("format") != "simlidar-sweep":
-            raise ConfigError(f"{path}: expected a simlidar sweep file ({SWEEP_FILE})")
-        count = f["labels"].shape[0]
-        if not 0 <= frame < count:
-            raise ConfigError(f"frame {frame}: expected 0 to {count - 1} ({path})")
+        sensor = _check_frame(f, path, frame)
         obj = int(f["object"][frame])
         if not obj:
             return ""
         name = json.loads(f.attrs["object_names"])[obj]  # 0: none
-        sensor = Sensor.from_dict(json.loads(f.attrs["sensor"]))
         box = f["object_box"][frame]
     length, width, height, x, y, z, yaw = (float(v) for v in box)
     # velodyne (x forward, y left, z up from the sensor) -> camera (x right, y down, z ahead)
