@@ -51,6 +51,8 @@ class TrainResult:
     stopped: str = "epochs"  # one of STOPS
     validation_size: int = 0
     test_predictions: np.ndarray | None = None  # predicted class of every test sample (-1: none)
+    rule: str = SELECTION  # the selection rule (selection_rule) that picked ``best_epoch``
+    epoch_cap: int = 0  # the epochs it was given (``epochs`` is how many it ran)
 
     def selection(self) -> dict:
         """What a benchmark cell records about the selection (docs/benchmark.md)."""
@@ -311,6 +313,8 @@ def train(
         stopped,
         len(held),
         predicted.numpy(),
+        selection_rule(training),
+        epochs,
     )
 
 

@@ -42,6 +42,26 @@ def _selection(command):
     return command
 
 
+def _chosen(result) -> str:
+    """Which epoch a ``simlidar train`` run kept, and why it stopped, in words."""
+    from simlidar.bench.train import ANNEALED
+
+    why = {
+        "plateau": "stopped on a validation plateau",
+        "epochs": "ran every epoch",
+        "time": "stopped by the time cap",
+    }[result.stopped]
+    kept = f"epoch {result.best_epoch + 1} of {result.epochs} kept"
+    if not result.validation_size:
+        return f"{result.epochs} epochs, no validation, the last kept, {why}"
+    if result.rule == ANNEALED:
+        return (
+            f"{kept} (the last of its cosine schedule; validation accuracy of "
+            f"{result.validation_size} held-out samples recorded, not used to choose), {why}"
+        )
+    return f"{kept} (best validation accuracy of {result.validation_size} held-out samples), {why}"
+
+
 @click.command()
 @click.option(
     "--model",
@@ -69,9 +89,10 @@ def _selection(command):
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, as_json):
     """Train a model on a dataset's train split, keep the epoch with the best accuracy on a
-    held-out validation part of it, score that once on the test split, save a checkpoint."""
+    held-out validation part of it (the last epoch of a cosine schedule), score that once on
+    the test split, save a checkpoint."""
     _need_torch("train")
-    from simlidar.bench.train import check_writable, save_checkpoint
+    from simlidar.bench.train import ANNEALED, check_writable, save_checkpoint
     from simlidar.bench.train import train as run
     from simlidar.models.registry import load_recipe
     from simlidar.release.verify import check_trainable
@@ -82,6 +103,14 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
     check_trainable(dataset)  # a sound dataset, or a one-line error
     check_writable(out)  # before training, not after
     result = run(recipe, dataset, seed=seed, epochs=epochs, max_seconds=max_seconds)
+    if result.rule == ANNEALED and result.stopped == "time":
+        click.echo(
+            f"warning: the time cap stopped the cosine schedule after epoch {result.epochs} of "
+            f"{result.epoch_cap}, before it annealed (learning rate {result.history[-1]['lr']:.3g} "
+            "in that epoch): the kept weights are not the schedule's end; raise --max-seconds "
+            "or lower --epochs",
+            err=True,
+        )
     path = save_checkpoint(result, out / f"{recipe['name']}-seed{seed}.pt")
     record = {
         "model": recipe["name"],
@@ -100,19 +129,8 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
     if as_json:
         click.echo(json.dumps(record))
         return
-    chosen = (
-        f"epoch {result.best_epoch + 1} of {result.epochs} kept (best validation "
-        f"accuracy of {result.validation_size} held-out samples)"
-        if result.validation_size
-        else f"{result.epochs} epochs, no validation"
-    )
-    why = {
-        "plateau": "stopped on a validation plateau",
-        "epochs": "ran every epoch",
-        "time": "stopped by the time cap",
-    }[result.stopped]
     click.echo(
-        f"{recipe['name']}: test accuracy {result.test_accuracy:.4f}, {chosen}, {why}, "
+        f"{recipe['name']}: test accuracy {result.test_accuracy:.4f}, {_chosen(result)}, "
         f"{result.seconds:.0f} s; wrote {path}"
     )
     if "early" in record:

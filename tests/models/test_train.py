@@ -4,6 +4,7 @@ import copy
 import json
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import pytest
 import torch
@@ -237,3 +238,26 @@ def test_noise_augment_draws_the_noise_anew_each_epoch(datasets):
     a = train(recipe, path, seed=0, epochs=2, progress=False)
     b = train(recipe, path, seed=0, epochs=2, progress=False)
     assert [h["loss"] for h in a.history] == [h["loss"] for h in b.history]
+
+
+def test_the_train_command_says_what_a_cosine_schedule_kept(datasets, tmp_path):
+    recipe = tmp_path / "mlp_cosine.toml"
+    text = (Path(__file__).parents[2] / "baselines" / "mlp.toml").read_text()
+    recipe.write_text(text.replace("[training]", '[training]\nlr_schedule = "cosine"'))
+    base = ["train", "--model", str(recipe), "--dataset", str(datasets[0.1])]
+    base += ["--out", str(tmp_path / "runs"), "--validation", "0.34"]
+    whole = CliRunner().invoke(main, [*base, "--epochs", "3"])
+    assert whole.exit_code == 0, whole.output
+    assert "epoch 3 of 3 kept (the last of its cosine schedule; validation accuracy" in whole.stdout
+    assert "ran every epoch" in whole.stdout and "warning" not in whole.stderr
+    cut = CliRunner().invoke(main, [*base, "--epochs", "5", "--max-seconds", "0"])
+    assert cut.exit_code == 0, cut.output
+    assert "epoch 1 of 1 kept (the last of its cosine schedule" in cut.stdout
+    assert "stopped by the time cap" in cut.stdout
+    assert cut.stderr.splitlines()[-1].startswith(
+        "warning: the time cap stopped the cosine schedule after epoch 1 of 5, before it "
+        "annealed (learning rate 0.001 in that epoch)"
+    )
+    plain = ["train", "--model", "mlp", "--dataset", str(datasets[0.1]), "--out", str(tmp_path)]
+    capped = CliRunner().invoke(main, [*plain, "--epochs", "5", "--max-seconds", "0"])
+    assert capped.exit_code == 0 and "warning" not in capped.stderr  # constant rate: no schedule
