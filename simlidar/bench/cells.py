@@ -17,6 +17,9 @@ def cell_id(dataset: Path, model: str, seed: int) -> str:
     return f"{dataset.name}__{Path(model).stem}__seed{seed}"
 
 
+RULE_KEYS = ("epochs", "max_seconds", "validation", "patience")  # recorded in a cell's rules
+
+
 def training_rules(model: str, budget: dict) -> dict:
     """The rules a cell trains by: the recipe's [training] with the suite's budget over it
     (epochs, time cap, validation fraction, patience), defaults filled in, and the selection
@@ -42,13 +45,22 @@ def splits_sha256(dataset: Path) -> str | None:
     return hashlib.sha256(lines.encode()).hexdigest()
 
 
+def recipe_sha256(recipe: dict) -> str:
+    """sha256 of a recipe's content without the [training] keys that a cell's rules record
+    (:data:`RULE_KEYS`): a suite's budget overrides them, so a recipe whose default epoch cap
+    or time cap changes still makes the same cells, and a cell whose rules did change is
+    refused on its rules."""
+    training = {k: v for k, v in recipe.get("training", {}).items() if k not in RULE_KEYS}
+    content = {**recipe, "training": training}
+    return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
+
+
 def cell_inputs(dataset: Path, model: str, budget: dict) -> dict:
     """Fingerprints of what a cell was made from: the data (:func:`splits_sha256`), the recipe
-    (sha256 of its content) and the training rules."""
-    recipe = load_recipe(model)
+    (:func:`recipe_sha256`) and the training rules."""
     return {
         "splits_sha256": splits_sha256(dataset),
-        "recipe_sha256": hashlib.sha256(json.dumps(recipe, sort_keys=True).encode()).hexdigest(),
+        "recipe_sha256": recipe_sha256(load_recipe(model)),
         "rules": training_rules(model, budget),
     }
 

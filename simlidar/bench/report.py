@@ -139,7 +139,9 @@ def training_table(cells: list[dict]) -> list[str]:
         "## Training: selection, stops and time per model",
         "",
         "Over every cell of the model (all datasets and seeds). Epochs are counted from 1; "
-        "the kept epoch is the one with the best validation accuracy.",
+        "the kept epoch is the one with the best validation accuracy under a constant learning "
+        'rate, the last under a cosine schedule (docs/benchmark.md, "Training and model '
+        'selection").',
         "",
         "| model | cells | epoch budget | epochs run | kept epoch (median) | stopped: "
         "plateau / epoch cap / time cap | still improving at the cap | validation samples "

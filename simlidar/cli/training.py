@@ -144,7 +144,7 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
     "--suite",
     default="quick",
     show_default=True,
-    help="Suite: a name in benchmark/ (quick, paper) or a .toml file.",
+    help="Suite: a name in benchmark/ (quick, paper, physical) or a .toml file.",
 )
 @click.option(
     "--models",

@@ -360,6 +360,18 @@ def test_a_cell_from_other_inputs_is_refused_not_reused(tiny_suite, tmp_path, da
     assert other.name == datasets[0.1].name
     with pytest.raises(DatasetError, match="was made from another dataset"):
         run_suite(suite, out, [str(recipe)], other, progress=False)
+    # the recipe's own epoch cap is not what the cell ran by (the suite's budget sets it): the
+    # cell is kept, not retrained
+    cell = next((out / "cells").glob("*__mycnn__*.json"))
+    made = cell.read_bytes()
+    recipe.write_text(recipe.read_text().replace("epochs = 1", "epochs = 50"))
+    run_suite(suite, out, [str(recipe)], datasets[0.1], progress=False)
+    assert cell.read_bytes() == made
+    # a time cap the suite leaves to the recipe is a training rule of the cell
+    recipe.write_text(recipe.read_text() + "max_seconds = 5\n")
+    with pytest.raises(DatasetError, match="other training rules .*max_seconds inf.*"):
+        run_suite(suite, out, [str(recipe)], datasets[0.1], progress=False)
+    recipe.write_text(recipe.read_text().replace("max_seconds = 5\n", ""))
     recipe.write_text(recipe.read_text().replace("dense = [8]", "dense = [9]"))
     with pytest.raises(DatasetError, match="was made from another recipe"):
         run_suite(suite, out, [str(recipe)], datasets[0.1], progress=False)
