@@ -1,6 +1,7 @@
 """simlidar bench end to end on small datasets: suites, cells, reruns, reports, bad input."""
 
 import json
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -56,6 +57,18 @@ def test_shipped_suites_load():
     assert quick.budget_for("resnet18")["epochs"] < quick.budget_for("cnn")["epochs"]
     # each suite keeps its own name (the default output folder), not its profile's
     assert (quick.name, paper.name, physical.name) == ("quick", "paper", "physical")
+
+
+def test_the_physical_ablation_runs_the_physical_suites_data_and_rules(monkeypatch):
+    """benchmark/ablation/physical-ablation.toml (its recipes are paths from the repository's
+    root) makes the physical suite's datasets and trains by its budget defaults."""
+    root = Path(__file__).resolve().parents[2]
+    monkeypatch.chdir(root)
+    ablation = load_suite("benchmark/ablation/physical-ablation.toml")
+    physical = load_suite("physical")
+    assert ablation.data_sha256 == physical.data_sha256 and ablation.seeds == physical.seeds
+    for model in ablation.models:
+        assert ablation.budget_for(model) == physical.budget["*"]
 
 
 def test_a_suite_runs_reruns_and_reports(tiny_suite, tmp_path, datasets):
