@@ -6,6 +6,7 @@ import hashlib
 import json
 from pathlib import Path
 
+from simlidar.bench.suite import BUDGET_KEYS
 from simlidar.bench.train import selection_rule
 from simlidar.errors import DatasetError
 from simlidar.models.registry import load_recipe
@@ -17,19 +18,13 @@ def cell_id(dataset: Path, model: str, seed: int) -> str:
     return f"{dataset.name}__{Path(model).stem}__seed{seed}"
 
 
-RULE_KEYS = ("epochs", "max_seconds", "validation", "patience")  # recorded in a cell's rules
-
-
 def training_rules(model: str, budget: dict) -> dict:
     """The rules a cell trains by: the recipe's [training] with the suite's budget over it
     (epochs, time cap, validation fraction, patience), defaults filled in, and the selection
     rule's name."""
     training = TrainingConfig.from_table({**load_recipe(model)["training"], **budget}, model)
     return {
-        "epochs": training.epochs,
-        "max_seconds": training.max_seconds,
-        "validation": training.validation,
-        "patience": training.patience,
+        **{key: getattr(training, key) for key in BUDGET_KEYS},
         "selection": selection_rule(training),
     }
 
@@ -47,10 +42,10 @@ def splits_sha256(dataset: Path) -> str | None:
 
 def recipe_sha256(recipe: dict) -> str:
     """sha256 of a recipe's content without the [training] keys that a cell's rules record
-    (:data:`RULE_KEYS`): a suite's budget overrides them, so a recipe whose default epoch cap
+    (:data:`BUDGET_KEYS`, which a suite's budget overrides): a recipe whose default epoch cap
     or time cap changes still makes the same cells, and a cell whose rules did change is
     refused on its rules."""
-    training = {k: v for k, v in recipe.get("training", {}).items() if k not in RULE_KEYS}
+    training = {k: v for k, v in recipe.get("training", {}).items() if k not in BUDGET_KEYS}
     content = {**recipe, "training": training}
     return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
 

@@ -40,7 +40,7 @@ from simlidar.models.training import TrainingConfig
 
 SUITE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,99}$")
 KEYS = {"name", "description", "models", "seeds", "board_power_w", "generate", "datasets", "budget"}
-BUDGET_KEYS = {"epochs", "max_seconds", "patience", "validation"}
+BUDGET_KEYS = ("epochs", "max_seconds", "validation", "patience")  # also a cell's rules
 
 
 @dataclass(frozen=True)
