@@ -4,28 +4,42 @@
 ``.sha256``. ``fetch`` downloads an archive, checks its checksum, extracts it safely, verifies
 the dataset and only then moves it into place; a failure at any step removes what it wrote and
 says which step failed.
+
+A fetched archive installs only under the dataset's own name: the one folder it holds must be
+named as its ``croissant.json`` names the dataset (a file its SHA256SUMS covers), and as the
+URL's ``<name>.tar.gz`` where the URL ends in one. ``--force`` replaces only a folder that is a
+simlidar dataset of that name (its SHA256SUMS, split files and ``croissant.json`` naming it),
+and in one step (:func:`simlidar.atomic.install`): a kill leaves the old dataset or the new one,
+never neither.
 """
 
 import gzip
 import http.client
+import json
 import os
 import re
-import shutil
 import tarfile
-import tempfile
+import time
 import urllib.error
 import urllib.parse
 import urllib.request
 from pathlib import Path
 
-from simlidar.atomic import Temporary, claim_folder
+from simlidar.atomic import Temporary, claim_folder, install
+from simlidar.dataset.schema import SPLITS
+from simlidar.dataset.shards import find_split_files
 from simlidar.errors import ConfigError, DatasetError
-from simlidar.release.checksums import is_os_litter, is_sha256, sha256_file
+from simlidar.release.checksums import SUMS, is_os_litter, is_sha256, sha256_file
+from simlidar.release.croissant import CROISSANT
 from simlidar.release.verify import verify
 
 DEFAULT_MAX_BYTES = 20 * 2**30  # refuse archives that unpack to more than this
 MAX_TIMEOUT_S = 86_400.0  # one day: the longest wait for the server that makes sense
 TIMEOUT_S = 30.0  # the default wait for the server
+# a download slower than this over any --timeout window fails (curl's --speed-limit): each wait
+# is bounded by the timeout, and this bounds the whole, so a server trickling a byte a second
+# cannot hold a fetch for hours
+MIN_RATE_BPS = 1024
 _CHUNK = 1 << 16
 _PLAIN_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
 
@@ -49,30 +63,43 @@ def pack(path: str | Path, out: str | Path | None = None) -> tuple[Path, Path]:
     out = Path(out) if out is not None else path.parent
     if out.resolve() == path.resolve() or path.resolve() in out.resolve().parents:
         raise DatasetError(f"--out {out}: expected a folder outside the dataset {path}")
-    out.mkdir(parents=True, exist_ok=True)
+    links = [p.name for p in path.iterdir() if p.is_symlink()]
+    if links:  # never pack what a link points at (a secret of the packer's, say)
+        raise DatasetError(f"{path / links[0]}: a symbolic link; expected only regular files")
+    claim_folder(out)  # also removes the temporaries of packs that were killed
     archive = out / f"{path.name}.tar.gz"
+    checksum = archive.with_name(archive.name + ".sha256")
     files = sorted(p for p in path.iterdir() if p.is_file() and not is_os_litter(p.name))
-    fd, name = tempfile.mkstemp(prefix=f".{archive.name}.partial-", dir=out)  # unique
-    tmp = Path(name)
+    work = Temporary(out, archive.name)
     try:
-        with os.fdopen(fd, "wb") as raw:
-            os.fchmod(raw.fileno(), 0o644)  # mkstemp's 0600 would keep a published one private
+        tmp = work.path / archive.name
+        with open(tmp, "wb") as raw:
+            os.fchmod(raw.fileno(), 0o644)  # a published archive is readable by all
             with (
                 gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz,
                 tarfile.open(fileobj=gz, mode="w", format=tarfile.PAX_FORMAT) as tar,
             ):
                 tar.addfile(_info(path.name, tarfile.DIRTYPE, 0))
                 for file in files:
-                    size = file.stat().st_size
-                    with open(file, "rb") as f:
+                    with open(file, "rb", opener=_no_follow) as f:
+                        size = os.fstat(f.fileno()).st_size
                         tar.addfile(_info(f"{path.name}/{file.name}", tarfile.REGTYPE, size), f)
+        tmp_sum = work.path / checksum.name
+        tmp_sum.write_text(f"{sha256_file(tmp)}  {archive.name}\n")
+        tmp_sum.chmod(0o644)
+        # both are complete before either is in place: a full disk leaves neither
         tmp.replace(archive)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    checksum = archive.with_name(archive.name + ".sha256")
-    checksum.write_text(f"{sha256_file(archive)}  {archive.name}\n")
+        tmp_sum.replace(checksum)
+    except OSError as exc:
+        raise DatasetError(f"{archive}: cannot write ({exc.strerror or exc})") from None
+    finally:
+        work.release()
     return archive, checksum
+
+
+def _no_follow(name: str, flags: int) -> int:
+    """``open``'s opener that refuses a link swapped in after the check (ELOOP)."""
+    return os.open(name, flags | os.O_NOFOLLOW)
 
 
 def _info(name: str, kind: bytes, size: int) -> tarfile.TarInfo:
@@ -91,6 +118,19 @@ class FetchError(DatasetError):
     def __init__(self, step: str, message: str):
         super().__init__(f"fetch failed at {step}: {message}")
         self.step = step
+
+
+def check_url(url: str) -> str:
+    """``url`` if it is an http(s) URL with a host; a FetchError naming it otherwise (``file://``
+    and ``ftp://`` are not downloads, ``http://[::1`` does not parse)."""
+    try:
+        parts = urllib.parse.urlsplit(url)
+        parts.port  # noqa: B018 (raises ValueError for a port out of range)
+    except ValueError as exc:
+        raise FetchError("download", f"{url!r}: not a URL ({exc})") from None
+    if parts.scheme.lower() not in ("http", "https") or not parts.hostname:
+        raise FetchError("download", f"{url!r}: expected an http:// or https:// URL with a host")
+    return url
 
 
 def _download(url: str, target: Path, timeout: float, progress: bool) -> None:
@@ -112,10 +152,21 @@ def _download(url: str, target: Path, timeout: float, progress: bool) -> None:
                     leave=False,
                 ) as bar,
             ):
-                while block := response.read(_CHUNK):
+                window_start, window_bytes = time.monotonic(), 0
+                while block := response.read1(_CHUNK):  # returns what one wait brought
                     f.write(block)
                     received += len(block)
+                    window_bytes += len(block)
                     bar.update(len(block))
+                    elapsed = time.monotonic() - window_start
+                    if elapsed >= timeout:
+                        if window_bytes < MIN_RATE_BPS * elapsed:
+                            raise FetchError(
+                                "download",
+                                f"{url}: {window_bytes} bytes in {elapsed:.0f} s, slower than "
+                                f"{MIN_RATE_BPS} bytes/s",
+                            )
+                        window_start, window_bytes = time.monotonic(), 0
     except urllib.error.HTTPError as exc:
         raise FetchError("download", f"{url}: HTTP {exc.code} {exc.reason}") from None
     except urllib.error.URLError as exc:
@@ -185,6 +236,53 @@ def safe_extract(archive: Path, target: Path, max_bytes: int) -> Path:
     return target / tops.pop()
 
 
+def _own_name(folder: Path, url: str) -> str:
+    """The name a verified extracted dataset installs under: its folder's, which must be the
+    name its ``croissant.json`` gives and, where the URL ends in ``<name>.tar.gz``, that one
+    (an archive cannot choose to land on another folder of ``--out``)."""
+    name = folder.name
+    if not _PLAIN_NAME.fullmatch(name):
+        raise FetchError("install", f"the archive's folder {name!r}: expected a dataset name")
+    claimed = _croissant_name(folder)
+    if claimed != name:
+        raise FetchError(
+            "install",
+            f"the archive's folder {name!r}: its {CROISSANT} names the dataset {claimed!r}",
+        )
+    path = urllib.parse.urlsplit(url).path.rsplit("/", 1)[-1]
+    if path.endswith(".tar.gz") and path.removesuffix(".tar.gz") != name:
+        raise FetchError(
+            "install",
+            f"the archive's folder {name!r}: expected {path.removesuffix('.tar.gz')!r}, "
+            "the name the URL gives",
+        )
+    return name
+
+
+def _croissant_name(folder: Path) -> str | None:
+    """The dataset name that ``folder``'s ``croissant.json`` gives; None if it has none."""
+    file = folder / CROISSANT
+    try:
+        if file.is_symlink() or not file.is_file() or file.stat().st_size > 1 << 24:
+            return None
+        name = json.loads(file.read_text(encoding="utf-8")).get("name")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return name if isinstance(name, str) else None
+
+
+def _is_dataset_named(path: Path, name: str) -> bool:
+    """Whether ``path`` is a simlidar dataset directory named ``name`` (what ``--force`` may
+    replace): a real folder holding SHA256SUMS, the split files and a Croissant naming it."""
+    if path.is_symlink() or not path.is_dir():
+        return False
+    try:
+        has_splits = all(find_split_files(path, split) for split in SPLITS)
+    except DatasetError:
+        has_splits = True  # a dataset with broken shards is still a dataset
+    return has_splits and (path / SUMS).is_file() and _croissant_name(path) == name
+
+
 def check_timeout(timeout: float) -> float:
     """``timeout`` if it is a number of seconds in (0, MAX_TIMEOUT_S]; ConfigError otherwise
     (inf, NaN or 1e300 would overflow the socket's timer)."""
@@ -219,6 +317,7 @@ def fetch(
     if sha256 is not None and not is_sha256(sha256):
         raise FetchError("checksum", f"--sha256 {sha256!r}: expected 64 hexadecimal digits")
     timeout = check_timeout(timeout)
+    check_url(url)
     out = Path(out)
     created = claim_folder(out)
     work = None
@@ -235,12 +334,28 @@ def fetch(
             _checked(folder)
         except DatasetError as exc:
             raise FetchError("verify", str(exc)) from None
-        final = out / folder.name
-        if final.exists():
+        name = _own_name(folder, url)
+        final = out / name
+        if final.exists() or final.is_symlink():
+            if not _is_dataset_named(final, name):
+                raise FetchError(
+                    "install",
+                    f"{final} exists and is not a simlidar dataset named {name!r}: nothing "
+                    "replaced (--force replaces only a dataset of the same name); move it away "
+                    "or choose another --out",
+                )
             if not force:
                 raise FetchError("install", f"{final} already exists: pass --force to replace")
-            shutil.rmtree(final)
-        folder.rename(final)
+        claim = Temporary(out, name)
+        try:
+            claim.path.rmdir()
+            folder.rename(claim.path)
+            try:
+                install(claim, final, force)  # one step; with --force the old one leaves
+            except DatasetError as exc:
+                raise FetchError("install", str(exc)) from None
+        finally:
+            claim.release()
         return final
     finally:
         if work is not None:

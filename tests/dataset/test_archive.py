@@ -3,9 +3,13 @@
 import hashlib
 import http.server
 import io
+import os
 import shutil
+import subprocess
+import sys
 import tarfile
 import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -29,6 +33,17 @@ class _Handler(http.server.SimpleHTTPRequestHandler):
             self.end_headers()
             self.wfile.write(body[: len(body) // 2])  # then the connection closes
             self.close_connection = True
+            return
+        if self.path.startswith("/trickle/"):  # a byte every 0.1 s, for ever
+            self.send_response(200)
+            self.send_header("Content-Length", "1000000")
+            self.end_headers()
+            while not self.release.wait(timeout=0.1):
+                try:
+                    self.wfile.write(b"x")
+                    self.wfile.flush()
+                except OSError:  # the client gave up
+                    return
             return
         if self.path.startswith("/hang/"):
             self.release.wait(timeout=10)  # never answers within the client's timeout
@@ -96,9 +111,10 @@ def test_an_archive_made_with_dot_slash_members_installs(server, datasets, tmp_p
     with tarfile.open(fileobj=buffer, mode="w:gz") as tar:  # like `tar czf x.tar.gz -C d .`
         tar.add(datasets[0.1].parent, arcname=".", recursive=False)
         tar.add(datasets[0.1], arcname=f"./{datasets[0.1].name}")
-    (root / "dot.tar.gz").write_bytes(buffer.getvalue())
+    served = f"{datasets[0.1].name}.tar.gz"
+    (root / served).write_bytes(buffer.getvalue())
     digest = hashlib.sha256(buffer.getvalue()).hexdigest()
-    installed = fetch(f"{url}/dot.tar.gz", sha256=digest, out=tmp_path / "d", progress=False)
+    installed = fetch(f"{url}/{served}", sha256=digest, out=tmp_path / "d", progress=False)
     assert installed.name == datasets[0.1].name
 
 
@@ -256,3 +272,208 @@ def test_a_dataset_that_fails_verify_is_not_installed(server, datasets, tmp_path
     with pytest.raises(FetchError, match="fetch failed at verify: .*notes.txt: not listed"):
         fetch(f"{url}/unverified.tar.gz", sha256=digest, out=out, progress=False)
     _assert_nothing_left(out)
+
+
+# Hostile archives and careless commands (issue 35): each test builds its own archive.
+# - an archive whose one folder is named after a folder of the user's (`Documents`), fetched
+#   with --force: refused, the user's folder untouched;
+# - the same with its croissant.json and SHA256SUMS rewritten to name `Documents`: refused
+#   where `Documents` is not a simlidar dataset of that name, whatever the URL;
+# - an archive served under another name than its folder's;
+# - fetch --force killed with -9 at many moments: the old dataset or the new one is always
+#   installed, never neither;
+# - URLs that are not http(s) downloads (file://, ftp://, an unparsable one) and a server that
+#   trickles a byte at a time;
+# - pack of a dataset holding a symbolic link to a private file; pack killed with -9 (its
+#   temporaries removed by the next pack); pack on a full disk (neither file left).
+
+
+def _serve_folder(root: Path, folder: Path, served: str) -> tuple[str, str]:
+    """``folder`` archived under its own name, served as ``served``: (file name, sha256)."""
+    buffer = io.BytesIO()
+    with tarfile.open(fileobj=buffer, mode="w:gz") as tar:
+        tar.add(folder, arcname=folder.name)
+    (root / served).write_bytes(buffer.getvalue())
+    return served, hashlib.sha256(buffer.getvalue()).hexdigest()
+
+
+def _renamed_dataset(datasets, tmp_path: Path, name: str, rewrite_croissant: bool) -> Path:
+    """The small dataset copied as ``name``; with ``rewrite_croissant`` a consistent dataset
+    of that name (croissant.json names it, SHA256SUMS rewritten), else only the folder renamed."""
+    import json
+
+    from simlidar.release.checksums import write_sums
+
+    copy = tmp_path / "evil" / name
+    shutil.copytree(datasets[0.1], copy)
+    if rewrite_croissant:
+        document = json.loads((copy / "croissant.json").read_text())
+        document["name"] = name
+        (copy / "croissant.json").write_text(json.dumps(document))
+        write_sums(copy)
+    return copy
+
+
+def _users_folder(out: Path) -> Path:
+    documents = out / "Documents"
+    documents.mkdir(parents=True)
+    (documents / "thesis.tex").write_text("years of work")
+    return documents
+
+
+@pytest.mark.parametrize("force", [False, True])
+def test_an_archive_cannot_replace_a_folder_it_names(server, datasets, tmp_path, force):
+    url, root = server
+    folder = _renamed_dataset(datasets, tmp_path, "Documents", rewrite_croissant=False)
+    served, digest = _serve_folder(root, folder, "Documents.tar.gz")
+    documents = _users_folder(tmp_path / "home")
+    with pytest.raises(FetchError, match="install: .*croissant.json names the dataset 'simlidar-"):
+        fetch(f"{url}/{served}", sha256=digest, out=tmp_path / "home", force=force, progress=False)
+    assert (documents / "thesis.tex").read_text() == "years of work"
+    assert sorted(p.name for p in (tmp_path / "home").iterdir()) == ["Documents"]
+
+
+@pytest.mark.parametrize("force", [False, True])
+def test_force_replaces_only_a_dataset_of_that_name(server, datasets, tmp_path, force):
+    url, root = server
+    folder = _renamed_dataset(datasets, tmp_path, "Documents", rewrite_croissant=True)
+    served, digest = _serve_folder(root, folder, "Documents.tar.gz")
+    documents = _users_folder(tmp_path / "home")
+    with pytest.raises(FetchError, match="install: .*Documents exists and is not a simlidar") as e:
+        fetch(f"{url}/{served}", sha256=digest, out=tmp_path / "home", force=force, progress=False)
+    assert "pass --force" not in str(e.value)
+    assert (documents / "thesis.tex").read_text() == "years of work"
+    assert sorted(p.name for p in (tmp_path / "home").iterdir()) == ["Documents"]
+    # where nothing is in the way it installs under the name it and the URL agree on
+    installed = fetch(f"{url}/{served}", sha256=digest, out=tmp_path / "free", progress=False)
+    assert installed == tmp_path / "free" / "Documents"
+
+
+def test_an_archive_served_under_another_name_is_refused(server, datasets, tmp_path):
+    url, root = server
+    served, digest = _serve_folder(root, datasets[0.1], "latest.tar.gz")
+    with pytest.raises(FetchError, match="install: .*expected 'latest', the name the URL gives"):
+        fetch(f"{url}/{served}", sha256=digest, out=tmp_path / "d", progress=False)
+    _assert_nothing_left(tmp_path / "d")
+
+
+@pytest.mark.parametrize(
+    "url, words",
+    [
+        ("file:///etc/passwd.tar.gz", "expected an http:// or https:// URL"),
+        ("ftp://127.0.0.1/x.tar.gz", "expected an http:// or https:// URL"),
+        ("http://[::1", "not a URL"),
+        ("http://127.0.0.1:99999/x.tar.gz", "not a URL"),
+        ("https:///x.tar.gz", "with a host"),
+    ],
+)
+def test_only_http_downloads_are_attempted(tmp_path, url, words):
+    with pytest.raises(FetchError, match=f"fetch failed at download: .*{words}"):
+        fetch(url, sha256="0" * 64, out=tmp_path / "d", progress=False)
+    assert not (tmp_path / "d").exists()  # refused before anything was created
+
+
+def test_a_trickling_server_is_bounded_as_a_whole(server, tmp_path):
+    url, _ = server
+    started = time.monotonic()
+    with pytest.raises(FetchError, match="download: .* slower than 1024 bytes/s"):
+        fetch(
+            f"{url}/trickle/x.tar.gz",
+            sha256="0" * 64,
+            out=tmp_path / "d",
+            timeout=1,
+            progress=False,
+        )
+    # each byte comes within the 1 s wait; the rate over the first window ends it
+    assert time.monotonic() - started < 8
+
+
+def test_fetch_force_killed_at_any_moment_keeps_a_dataset(server, packed, datasets, tmp_path):
+    """Old code deleted the old folder, then renamed the new one in: a kill between the two
+    lost both. The old one here holds 4000 extra files, so that removing it takes a while."""
+    url, _ = server
+    out = tmp_path / "data"
+    name = datasets[0.1].name
+    command = [sys.executable, "-m", "simlidar.cli", "fetch", f"{url}/{packed[0].name}"]
+    command += ["--sha256", packed[1], "--out", str(out), "--force"]
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parents[2])}
+    start = time.monotonic()
+    subprocess.run(command, env=env, check=True, capture_output=True)  # a whole run, timed
+    whole = time.monotonic() - start
+    for k in range(8):
+        old = out / name
+        ballast = old / "ballast"  # marks the old one; verify would refuse it, fetch need not
+        ballast.mkdir()
+        for i in range(4000):
+            (ballast / str(i)).write_bytes(b"x")
+        process = subprocess.Popen(
+            command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+        )
+        time.sleep(whole * (0.35 + 0.1 * k))
+        process.kill()
+        process.wait()
+        installed = out / name
+        assert (installed / "train.h5").is_file(), f"kill {k}: no dataset under {installed}"
+        if ballast.exists():  # the old one: the kill came before the swap
+            shutil.rmtree(ballast)
+        else:
+            assert (installed / "train.h5").read_bytes() == (
+                datasets[0.1] / "train.h5"
+            ).read_bytes()
+
+
+def test_pack_refuses_a_link_to_a_private_file(datasets, tmp_path):
+    from simlidar.release.checksums import write_sums
+
+    secret = tmp_path / "secret"
+    secret.write_text("private key")
+    secret.chmod(0o600)
+    copy = tmp_path / datasets[0.1].name
+    shutil.copytree(datasets[0.1], copy)
+    (copy / "notes.txt").symlink_to(secret)
+    write_sums(copy)  # listed, so only the link itself can be the problem
+    with pytest.raises(DatasetError, match="notes.txt"):
+        pack(copy, tmp_path / "out")
+    assert not list((tmp_path / "out").glob("*.tar.gz*"))
+
+
+def _pack_in_a_subprocess(dataset: Path, out: Path, file_limit: int | None = None):
+    code = (
+        "import resource, signal, sys\n"
+        "from simlidar.release.archive import pack\n"
+        "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"  # a full disk: EFBIG, not a kill
+        f"limit = {file_limit!r}\n"
+        "if limit: resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))\n"
+        f"pack({str(dataset)!r}, {str(out)!r})\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parents[2])}
+    return subprocess.Popen(
+        [sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+
+
+def test_pack_on_a_full_disk_leaves_neither_file(datasets, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    process = _pack_in_a_subprocess(datasets[0.1], out, file_limit=20_000)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode != 0
+    assert b"cannot write" in err, err[-400:]
+    assert list(out.iterdir()) == []  # no archive, no .sha256, no temporary
+
+
+def test_a_killed_pack_leaves_nothing_the_next_pack_keeps(datasets, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    process = _pack_in_a_subprocess(datasets[0.1], out)
+    deadline = time.monotonic() + 60
+    while not any(p.name.endswith(".lock") for p in out.iterdir()):  # it has started writing
+        assert time.monotonic() < deadline and process.poll() is None, "pack ended too soon"
+        time.sleep(0.001)
+    process.kill()
+    process.wait()
+    assert any(p.name.startswith(".") for p in out.iterdir())  # its temporaries stayed
+    with pytest.warns(UserWarning, match="left by a run that did not finish"):
+        archive, checksum = pack(datasets[0.1], out)
+    assert sorted(p.name for p in out.iterdir()) == sorted([archive.name, checksum.name])
+    assert (archive.stat().st_mode & 0o777, checksum.stat().st_mode & 0o777) == (0o644, 0o644)
