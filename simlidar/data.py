@@ -1,6 +1,6 @@
 """Loading simlidar datasets, under the name every dataset card gives::
 
-    from simlidar.data import load_split, PulseDataset, to_events
+    from simlidar.data import load_split, PulseDataset, EventDataset, to_events
 
 The loaders live in :mod:`simlidar.dataset.loaders` (the dataset stage); this module is their
 public name, kept so that published cards and user code keep working. ``PulseDataset``
@@ -9,6 +9,7 @@ imports torch on first use, so importing this module does not. Examples: ``docs/
 
 from simlidar.dataset.loaders import (
     EVENT_DTYPE,
+    EventDataset,
     delay_unit_ns,
     load_split,
     sensor_size,
@@ -16,10 +17,12 @@ from simlidar.dataset.loaders import (
     split_files,
     split_path,
     to_events,
+    window_ticks,
 )
 
 __all__ = [  # and PulseDataset, made on first use (below)
     "EVENT_DTYPE",
+    "EventDataset",
     "delay_unit_ns",
     "load_split",
     "sensor_size",
@@ -27,6 +30,7 @@ __all__ = [  # and PulseDataset, made on first use (below)
     "split_files",
     "split_path",
     "to_events",
+    "window_ticks",
 ]
 
 

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from simlidar.dataset.loaders import EVENT_DTYPE, load_split, to_events
+from simlidar.dataset.loaders import load_split
 from simlidar.errors import DatasetError
 
 
@@ -31,15 +31,6 @@ def test_pulse_dataset_is_a_torch_dataset(datasets):
     loader = torch.utils.data.DataLoader(ds, batch_size=10, num_workers=2)
     labels = torch.cat([b for _, b in loader])
     assert sorted(labels.tolist()) == sorted(load_split(datasets[0.1], "test")[1].tolist())
-
-
-def test_events_by_hand():
-    delays = np.ones((16, 4), np.float32)
-    delays[2, 1] = 0.5  # row 2, column 1, half the window
-    delays[0, 3] = 0.1
-    events = to_events(delays, unit_ns=600.0)
-    assert events.dtype == EVENT_DTYPE
-    assert events.tolist() == [(3, 0, 60_000, 1), (1, 2, 300_000, 1)]  # ps, sorted by time
 
 
 def test_bad_paths_and_splits(tmp_path, datasets):

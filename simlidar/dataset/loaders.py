@@ -9,9 +9,12 @@ import h5py
 import numpy as np
 
 from simlidar.dataset.reader import SplitInfo, read_split
-from simlidar.errors import DatasetError
+from simlidar.errors import ConfigError, DatasetError
+from simlidar.settings import Range
 
+# Tonic's event layout (its N-MNIST's): x column, y row, t time in ticks, p polarity
 EVENT_DTYPE = np.dtype([("x", np.int64), ("y", np.int64), ("t", np.int64), ("p", np.int64)])
+TICK_NS = 1000.0  # the default tick of an event's time: one microsecond, Tonic's time unit
 
 
 def split_info(path: str | Path, split: str) -> SplitInfo:
@@ -50,34 +53,27 @@ def load_split(path: str | Path, split: str = "train", field: str = "delays"):
     return arrays[field], arrays["labels"]
 
 
-class _PulseSplit:
-    """A ``torch.utils.data.Dataset`` over one split: (delays as a float tensor, label).
+class _SplitRows:
+    """One split's samples read by index: (delays (H, W) float32 numpy, label).
 
     The HDF5 files (one, or the split's shards) are opened lazily, once in each process that
     reads from them, so a ``DataLoader`` with ``num_workers > 0`` works (h5py handles do not
     survive a fork).
-
-    transform : optional callable applied to the (H, W) float tensor
-    field : "delays" (with noise, the default) or "clean_delays"
     """
 
-    def __init__(
-        self, path: str | Path, split: str = "train", transform=None, field: str = "delays"
-    ):
+    def __init__(self, path: str | Path, split: str, field: str):
         info = split_info(path, split)
+        self.info = info
         self.files = info.files
         self.starts = np.cumsum((0, *info.sizes))  # the first sample of each file
         self.field = field
-        self.transform = transform
         self.size = info.size
         self._h5 = None  # open files, by position in self.files
 
     def __len__(self) -> int:
         return self.size
 
-    def __getitem__(self, index: int):
-        import torch
-
+    def _row(self, index: int) -> tuple[np.ndarray, int]:
         if not -self.size <= index < self.size:
             raise IndexError(f"index {index} out of range for {self.size} samples")
         index %= self.size
@@ -87,10 +83,7 @@ class _PulseSplit:
         if part not in self._h5:
             self._h5[part] = h5py.File(self.files[part], "r")
         f, row = self._h5[part], index - int(self.starts[part])
-        x = torch.from_numpy(f[self.field][row])
-        if self.transform is not None:
-            x = self.transform(x)
-        return x, int(f["labels"][row])
+        return f[self.field][row], int(f["labels"][row])
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
@@ -103,6 +96,40 @@ class _PulseSplit:
                 f.close()
             except Exception:  # noqa: BLE001 - h5py half torn down at interpreter exit
                 pass
+
+
+class _PulseSplit(_SplitRows):
+    """A ``torch.utils.data.Dataset`` over one split: (delays as a float tensor, label).
+
+    Files are opened lazily in each worker process, so ``num_workers > 0`` works.
+
+    transform : optional callable applied to the (H, W) float tensor
+    target_transform : optional callable applied to the label (an int)
+    field : "delays" (with noise, the default) or "clean_delays"
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        split: str = "train",
+        transform=None,
+        field: str = "delays",
+        target_transform=None,
+    ):
+        super().__init__(path, split, field)
+        self.transform = transform
+        self.target_transform = target_transform
+
+    def __getitem__(self, index: int):
+        import torch
+
+        delays, label = self._row(index)
+        x = torch.from_numpy(delays)
+        if self.transform is not None:
+            x = self.transform(x)
+        if self.target_transform is not None:
+            label = self.target_transform(label)
+        return x, label
 
 
 def __getattr__(name: str):
@@ -145,8 +172,33 @@ def sensor_size(width: int, height: int = 16) -> tuple[int, int, int]:
     return (width, height, 1)
 
 
-def to_events(delays: np.ndarray, unit_ns: float, no_return: float = 1.0) -> np.ndarray:
-    """One sample as spike events in the Tonic convention, sorted by time.
+def _check_tick(unit_ns: float, tick_ns: float) -> None:
+    """Refuse a tick that is not a positive number or is longer than a delay of 1.0: every
+    event of the window would then fall in its first tick or two."""
+    unit = Range(0, None, "nanoseconds", low_open=True, finite=True)
+    if not unit.accepts(unit_ns):
+        raise ConfigError(f"unit_ns={unit_ns!r}: expected {unit.expected()}")
+    tick = Range(0, unit_ns, "nanoseconds", low_open=True)
+    if not tick.accepts(tick_ns):
+        raise ConfigError(
+            f"tick_ns={tick_ns!r}: expected {tick.expected()} (a delay of 1.0 is "
+            f"{unit_ns:g} ns; tick_ns=1 gives nanoseconds, 1000 microseconds)"
+        )
+
+
+def window_ticks(unit_ns: float, tick_ns: float = TICK_NS) -> int:
+    """Ticks that events' times can take: every event of a delay in [0, 1] has
+    0 <= t < ``window_ticks`` (t rounds, and a delay of 1.0 is ``round(unit_ns / tick_ns)``).
+    Frames of a fixed time span from 0 to it are the same for every sample
+    (docs/loading.md)."""
+    _check_tick(unit_ns, tick_ns)
+    return round(unit_ns / tick_ns) + 1
+
+
+def to_events(
+    delays: np.ndarray, unit_ns: float, no_return: float = 1.0, tick_ns: float = TICK_NS
+) -> np.ndarray:
+    """One sample as spike events in Tonic's convention, sorted by time.
 
     delays : (H, W) normalised delays of one sample
     unit_ns : nanoseconds of a delay of 1.0: :func:`delay_unit_ns` of the split's attributes
@@ -154,15 +206,82 @@ def to_events(delays: np.ndarray, unit_ns: float, no_return: float = 1.0) -> np.
         timing)
     no_return : delays at or above it are no event; pass :func:`spike_threshold` of the split's
         attributes (inf for the paper profile, where every pixel is a pulse)
-    returns : structured array with fields x (column), y (row), t (arrival time in
-        picoseconds, so the 2 mm range step of 13 ps survives a flash sample), p (always 1: a
-        pulse). A pulse at the no-return value (the end of the window) is no event.
+    tick_ns : nanoseconds of one unit of ``t``: 1000 (microseconds, Tonic's unit) by default;
+        a flash window (667 ns) needs a finer one, e.g. 1 (nanoseconds); at most ``unit_ns``
+    returns : (E,) :data:`EVENT_DTYPE` array with fields x (column), y (row),
+        t = round(delay * unit_ns / tick_ns) (the arrival time in ticks) and p = 0 (the one
+        polarity of ``sensor_size``: a pulse). A pulse at the no-return value (the end of the
+        window) is no event.
     """
+    _check_tick(unit_ns, tick_ns)
     delays = np.asarray(delays)
     rows, cols = np.nonzero(delays < no_return)
-    t = np.round(delays[rows, cols].astype(np.float64) * unit_ns * 1000.0).astype(np.int64)
+    t = np.round(delays[rows, cols].astype(np.float64) * (unit_ns / tick_ns)).astype(np.int64)
     order = np.argsort(t, kind="stable")
-    events = np.empty(len(t), EVENT_DTYPE)
+    events = np.zeros(len(t), EVENT_DTYPE)
     events["x"], events["y"], events["t"] = cols[order], rows[order], t[order]
-    events["p"] = 1
     return events
+
+
+def _event_unit_ns(info: SplitInfo) -> float:
+    """Nanoseconds of a delay of 1.0 for events: :func:`delay_unit_ns`, or a DVS split's
+    ``time_window_us``."""
+    unit = delay_unit_ns(info.attrs)
+    if unit is None and "time_window_us" in info.attrs:
+        unit = 1000.0 * float(info.attrs["time_window_us"])
+    if unit is None:
+        raise DatasetError(
+            f"{info.path}: no time unit of the delays (attribute delay_unit_ns, tof_max_ns or "
+            "time_window_us); expected one to make events"
+        )
+    return unit
+
+
+class EventDataset(_SplitRows):
+    """One split as spike events, a dataset in the manner of ``tonic.datasets``: sample
+    ``i`` is (:func:`to_events` of its delays, label), with the split's own time unit
+    (:func:`delay_unit_ns`; a DVS split's ``time_window_us``) and no-return rule
+    (:func:`spike_threshold`). Needs no torch; a ``DataLoader`` takes it (with
+    ``num_workers > 0``: files are opened lazily in each worker).
+
+    tick_ns : nanoseconds of one unit of an event's ``t`` (default 1000: microseconds, Tonic's
+        unit; 1 for the 667 ns window of flash timing), at most the split's unit
+    transform : optional callable applied to the events (a Tonic transform, e.g. ``ToFrame``)
+    target_transform : optional callable applied to the label (an int)
+    field : "delays" (with noise, the default) or "clean_delays"
+
+    Attributes as Tonic's datasets have them: ``sensor_size`` (W, H, 1), ``dtype``
+    (:data:`EVENT_DTYPE`), ``ordering`` ("x", "y", "t", "p"), ``classes`` (the class names);
+    and ``tick_ns``, ``unit_ns``, ``window_ticks`` (every event has 0 <= t < it).
+    """
+
+    dtype = EVENT_DTYPE
+    ordering = EVENT_DTYPE.names
+
+    def __init__(
+        self,
+        path: str | Path,
+        split: str = "train",
+        transform=None,
+        target_transform=None,
+        tick_ns: float = TICK_NS,
+        field: str = "delays",
+    ):
+        super().__init__(path, split, field)
+        self.unit_ns = _event_unit_ns(self.info)
+        self.window_ticks = window_ticks(self.unit_ns, tick_ns)
+        self.tick_ns = tick_ns
+        self.no_return = spike_threshold(self.info.attrs)
+        self.sensor_size = sensor_size(self.info.width, self.info.height)
+        self.classes = list(self.info.attrs["class_names"])
+        self.transform = transform
+        self.target_transform = target_transform
+
+    def __getitem__(self, index: int):
+        delays, label = self._row(index)
+        events = to_events(delays, self.unit_ns, self.no_return, self.tick_ns)
+        if self.transform is not None:
+            events = self.transform(events)
+        if self.target_transform is not None:
+            label = self.target_transform(label)
+        return events, label

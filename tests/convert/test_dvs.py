@@ -90,6 +90,26 @@ def test_raw_events_are_kept_alongside(dvs_dataset):
             assert split["event_t_us"][rows].tolist() == t
 
 
+def test_event_dataset_gives_first_spikes_in_microseconds(dvs_dataset):
+    """EventDataset on a DVS split: time_window_us is the unit, the default tick a microsecond;
+    each pixel's first event after the recording's first, one polarity (p = 0)."""
+    from simlidar.data import EventDataset
+
+    checked = set()
+    for split in ("train", "test"):
+        ds = EventDataset(dvs_dataset, split)
+        assert ds.sensor_size == (32, 32, 1) and ds.unit_ns == 401_000.0
+        assert ds.window_ticks == 402
+        for k, recording in enumerate(records(dvs_dataset)[split]["recording"]):
+            events, _ = ds[k]
+            if recording == 0:  # (x, y, t us, p): see test_first_spike_times_by_hand
+                assert events.tolist() == [(0, 0, 0, 0), (31, 1, 250, 0), (2, 31, 400, 0)]
+            if recording == 3:  # no events at all
+                assert len(events) == 0 and events.dtype == ds.dtype
+            checked.add(int(recording))
+    assert {0, 3} <= checked
+
+
 def test_recordings_split_per_class_and_the_dataset_verifies(dvs_dataset):
     both = records(dvs_dataset)
     names = list(both["train"]["attrs"]["class_names"])

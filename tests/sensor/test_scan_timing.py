@@ -146,11 +146,13 @@ def test_events_of_a_scan_sample_come_in_sweep_order(twins):
         sample, emission, attrs = f["delays"][3], f["emission_ns"][3], dict(f.attrs)
     events = to_events(sample, delay_unit_ns(attrs), spike_threshold(attrs))
     assert len(events) == int((sample < 1.0).sum())
-    assert (np.diff(events["t"]) >= 0).all()
-    # picoseconds: each event after its pulse left, within one time of flight at max range
-    left = emission[events["y"], events["x"]] * 1000.0
-    assert (events["t"] >= left - 1000).all()
-    assert (events["t"] <= left + attrs["tof_max_ns"] * 1000.0 + 1000).all()
+    assert (np.diff(events["t"]) >= 0).all() and (events["p"] == 0).all()
+    # microseconds (the default tick): each event after its pulse left, within one time of
+    # flight at max range (0.67 us), both rounded to the microsecond
+    left = emission[events["y"], events["x"]] / 1000.0
+    assert (events["t"] >= np.round(left)).all()
+    assert (events["t"] <= np.round(left + attrs["tof_max_ns"] / 1000.0)).all()
+    assert events["t"].max() > 5000  # a sweep lasts milliseconds
     # the sweep runs left to right: the mean column grows along the event stream
     half = len(events) // 2
     assert events["x"][:half].mean() < events["x"][half:].mean()
