@@ -135,17 +135,13 @@ def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(catalog, tmp_pa
 
 
 def test_bench_cells_on_the_cluster_equal_cells_run_here(cluster, datasets, tmp_path):
+    """Both runs at their defaults: a plain bench used torch's default thread count (2 here)
+    while a cluster task ran on one thread, and the CNN's cells differed (issue 35, item 9);
+    both now run the cells on --threads (default 1) and record it."""
     address, _ = cluster
-    args = ["bench", "--suite", "quick", "--models", "mlp", "--dataset", str(datasets[0.1])]
+    args = ["bench", "--suite", "quick", "--models", "mlp,cnn", "--dataset", str(datasets[0.1])]
     args += ["--epochs", "2"]
-    import torch
-
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # as a cluster task runs (float sums in the same order)
-    try:
-        here = CliRunner().invoke(main, args + ["--out", str(tmp_path / "here"), "--json"])
-    finally:
-        torch.set_num_threads(threads)
+    here = CliRunner().invoke(main, args + ["--out", str(tmp_path / "here"), "--json"])
     there = CliRunner().invoke(
         main, args + ["--out", str(tmp_path / "there"), "--json", "--scheduler", address]
     )
@@ -158,3 +154,4 @@ def test_bench_cells_on_the_cluster_equal_cells_run_here(cluster, datasets, tmp_
         a = json.loads(cell.read_text())
         b = json.loads((tmp_path / "there" / "cells" / cell.name).read_text())
         assert a["accuracy"] == b["accuracy"] and a["validation_curve"] == b["validation_curve"]
+        assert a["threads"] == b["threads"] == 1

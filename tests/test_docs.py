@@ -17,6 +17,17 @@ def test_loading_examples(datasets):
     assert result.failed == 0
 
 
+def test_the_benchmark_pages_api_example(datasets, tmp_path):
+    result = doctest.testfile(
+        str(DOCS / "benchmark.md"),
+        module_relative=False,
+        globs={"path": str(datasets[0.1]), "out": tmp_path / "mine"},
+        optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
+    )
+    assert result.attempted >= 5
+    assert result.failed == 0
+
+
 def test_the_cli_page_states_the_defaults_the_generate_options_have():
     """docs/cli.md's generate table against the options (made from GeneratorConfig)."""
     import re

@@ -9,13 +9,13 @@ from pathlib import Path
 from simlidar.bench.suite import BUDGET_KEYS
 from simlidar.bench.train import selection_rule
 from simlidar.errors import DatasetError
-from simlidar.models.registry import load_recipe
+from simlidar.models.registry import builder_source, load_recipe, model_name
 from simlidar.models.training import TrainingConfig
 from simlidar.release.checksums import SUMS, read_sums
 
 
 def cell_id(dataset: Path, model: str, seed: int) -> str:
-    return f"{dataset.name}__{Path(model).stem}__seed{seed}"
+    return f"{dataset.name}__{model_name(model)}__seed{seed}"
 
 
 def training_rules(model: str, budget: dict) -> dict:
@@ -46,7 +46,11 @@ def recipe_sha256(recipe: dict) -> str:
     or time cap changes still makes the same cells, and a cell whose rules did change is
     refused on its rules."""
     training = {k: v for k, v in recipe.get("training", {}).items() if k not in BUDGET_KEYS}
-    content = {**recipe, "training": training}
+    content = {k: v for k, v in recipe.items() if k != "base"}  # not where it lies: what it is
+    content["training"] = training
+    source = builder_source(recipe)
+    if source is not None:  # an outside builder: its code is part of what it makes
+        content["builder_sha256"] = source
     return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
 
 

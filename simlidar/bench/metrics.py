@@ -2,10 +2,13 @@
 
 Figures under NeuroBench's names (Yik et al. 2024) follow the definitions of its library,
 NeuroBench 2.3.0, and ``tests/bench/test_metrics.py`` checks them against that library on a CNN,
-an MLP and a ResNet: ``params`` (ParameterCount), ``footprint`` (Footprint: bytes of parameters
-and buffers), ``connection_sparsity`` (ConnectionSparsity: fraction of zero weights of the
-connection layers), ``activation_sparsity`` (ActivationSparsity: fraction of zero outputs of the
-ReLU and Sigmoid modules over the whole evaluated split) and ``synaptic_operations``
+an MLP, a ResNet and a snnTorch network: ``params`` (ParameterCount), ``footprint`` (Footprint:
+bytes of parameters and buffers; a neuron's state, which torch keeps in a non-persistent buffer
+such as snnTorch's membrane potential, is left out: it holds a batch's state, not the model),
+``connection_sparsity`` (ConnectionSparsity: fraction of zero weights of the connection
+layers), ``activation_sparsity`` (ActivationSparsity: fraction of zero outputs of the ReLU and
+Sigmoid modules and of the spiking neuron modules, over every time step of the whole evaluated
+split) and ``synaptic_operations``
 (SynapticOperations: ``effective_macs``, ``effective_acs`` and ``dense`` per sample). NeuroBench
 is not imported here: it brings numba, librosa, scikit-learn and a torchaudio that need not
 load beside the installed torch, too much for a runtime dependency, so it is the tests' oracle
@@ -29,6 +32,27 @@ MAC_PJ = 4.6  # energy of a 32-bit float multiply-accumulate at 45 nm (Horowitz,
 # STATELESS_LAYERS; our models have no recurrent ones), and its activation modules
 CONNECTION_LAYERS = (nn.Linear, nn.Conv1d, nn.Conv2d, nn.Conv3d)
 ACTIVATIONS = (nn.ReLU, nn.Sigmoid)
+AC_PJ = 0.9  # energy of a 32-bit float add (an accumulate) at 45 nm (Horowitz, ISSCC 2014)
+# spiking neuron modules of outside libraries, known by a base class's module and name (no
+# import of the library): snnTorch's neurons, Norse's cells and layers; a module of any
+# library can also say so with ``spiking_neuron = True``
+SPIKING_BASES = {
+    ("snntorch", "SpikingNeuron"),
+    ("norse", "SNNCell"),
+    ("norse", "SNN"),
+    ("norse", "SNNRecurrentCell"),
+    ("norse", "SNNRecurrent"),
+}
+
+
+def is_spiking_neuron(module: nn.Module) -> bool:
+    """Whether ``module`` is a layer of spiking neurons (its output, or the first item of a
+    tuple it returns, is spikes)."""
+    if getattr(module, "spiking_neuron", False):
+        return True
+    return any(
+        (c.__module__.split(".")[0], c.__name__) in SPIKING_BASES for c in type(module).__mro__
+    )
 
 
 def confusion_matrix(labels: np.ndarray, predicted: np.ndarray, classes: int) -> np.ndarray:
@@ -53,7 +77,9 @@ def footprint(model: nn.Module) -> dict:
     ]
     zeros = sum(int((w == 0).sum()) for w in weights)
     total = sum(w.numel() for w in weights)
-    size = sum(t.numel() * t.element_size() for t in (*params, *model.buffers()))
+    kept = model.state_dict(keep_vars=True)  # persistent buffers: not a batch's neuron state
+    buffers = [b for name, b in model.named_buffers() if name in kept]
+    size = sum(t.numel() * t.element_size() for t in (*params, *buffers))
     return {
         "params": sum(p.numel() for p in params),
         "footprint": size,
@@ -119,7 +145,7 @@ def layer_operations(layer: nn.Module, x: torch.Tensor) -> tuple[int, int]:
     return (int(effective.sum(dtype=torch.float64)), int(dense.sum(dtype=torch.float64)) * len(x))
 
 
-def workload(model: nn.Module, x: torch.Tensor, batch_size: int = 64) -> dict:
+def workload(model: nn.Module, x: torch.Tensor, batch_size: int = 64, encode=None) -> dict:
     """NeuroBench's workload metrics of a conventional network over a whole split.
 
     ``activation_sparsity``: zero outputs / outputs of every ReLU and Sigmoid module, over all
@@ -131,6 +157,8 @@ def workload(model: nn.Module, x: torch.Tensor, batch_size: int = 64) -> dict:
     data can make it so here) and ``dense``.
 
     x : (N, C, H, W) inputs
+    encode : what makes the model's input of a batch of ``x`` (default: ``x`` itself); a
+        stepped network's layers are called once a time step, and each call is counted
     """
     counts = {"macs": 0, "acs": 0, "dense": 0, "zero": 0, "outputs": 0}
 
@@ -141,6 +169,7 @@ def workload(model: nn.Module, x: torch.Tensor, batch_size: int = 64) -> dict:
         counts["dense"] += dense
 
     def activation(m, inputs, out):
+        out = out[0] if isinstance(out, tuple | list) else out  # snnTorch: (spikes, membrane)
         counts["zero"] += int((out == 0).sum())
         counts["outputs"] += out.numel()
 
@@ -148,13 +177,13 @@ def workload(model: nn.Module, x: torch.Tensor, batch_size: int = 64) -> dict:
     for m in model.modules():
         if isinstance(m, CONNECTION_LAYERS):
             hooks.append(m.register_forward_pre_hook(connection))
-        elif isinstance(m, ACTIVATIONS):
+        elif isinstance(m, ACTIVATIONS) or is_spiking_neuron(m):
             hooks.append(m.register_forward_hook(activation))
     model.eval()
     try:
         with torch.no_grad():
             for batch in torch.split(x, batch_size):
-                model(batch)
+                model(batch if encode is None else encode(batch))
     finally:
         for h in hooks:
             h.remove()
@@ -174,27 +203,30 @@ def latency(
     repeats: int = 30,
     big_batch: int = 512,
     max_seconds: float = 5.0,
+    encode=None,
 ) -> dict:
     """Inference latency at batch 1 (median of ``repeats`` runs over different samples, after
     warm-up; fewer, but at least 5, once they take ``max_seconds``) in milliseconds, and
     throughput at a large batch in samples per second.
 
     x : (N, C, H, W) test inputs
+    encode : what makes the model's input of a batch of ``x`` (timed with the model)
     """
+    encode = encode or (lambda batch: batch)
     model.eval()
     times = []
     with torch.no_grad():
         for i in range(repeats + 3):
             start = time.perf_counter()
-            model(x[i % len(x)][None])
+            model(encode(x[i % len(x)][None]))
             if i >= 3:  # warm-up
                 times.append(time.perf_counter() - start)
                 if len(times) >= 5 and sum(times) > max_seconds:
                     break
         batch = x[:big_batch]
-        model(batch)
+        model(encode(batch))
         start = time.perf_counter()
-        model(batch)
+        model(encode(batch))
         seconds = time.perf_counter() - start
     return {
         "latency_ms": statistics.median(times) * 1e3,
@@ -254,3 +286,21 @@ def spiking_figures(model: nn.Module, x: torch.Tensor, early: dict | None) -> di
     figures["synaptic_operations"]["effective_acs"] = early["accumulates_mean"]
     figures["synaptic_operations"]["dense"] = synapses
     return figures
+
+
+def stepped_figures(model: nn.Module, x: torch.Tensor, encode) -> dict:
+    """A time-stepped spiking network's latency and throughput (the encoding included) and
+    NeuroBench's workload metrics over every time step of the split (:func:`workload`: its
+    connection layers get binary spikes, so their operations are accumulates, and its spiking
+    neuron modules count in the activation sparsity), with the energy of those operations:
+    accumulates x :data:`AC_PJ` plus multiply-accumulates x :data:`MAC_PJ`.
+
+    x : (N, 1, H, W) delays; encode : a batch of them -> the model's input
+    """
+    work = workload(model, x, encode=encode)
+    ops = work["synaptic_operations"]
+    return {
+        **latency(model, x, encode=encode),
+        **work,
+        "energy_pj_ops": ops["effective_acs"] * AC_PJ + ops["effective_macs"] * MAC_PJ,
+    }

@@ -205,6 +205,8 @@ def by_model(cells: list[dict], paper: dict) -> list[str]:
                     energy,
                     "–",
                 ]
+            elif any(c.get("stepped") for c in runs):
+                timing = _stepped_columns([c for c in runs if c.get("stepped")])
             elif runs[0]["kind"] == "conventional":
                 energy = _num(_mean(runs, lambda c: c["energy_pj_mac"]), "{:.3g}")
                 timing = [
@@ -237,6 +239,30 @@ def by_model(cells: list[dict], paper: dict) -> list[str]:
             ]
         lines.append("")
     return lines
+
+
+def _stepped_columns(runs: list[dict]) -> list[str]:
+    """The decision columns of a time-stepped network (simlidar.bench.stepped): the decision
+    step of T by its readout, input spikes delivered by then, R_data, its neurons' spikes and
+    the paper's spike energy."""
+
+    def s(key):
+        return _mean(runs, lambda cell: cell["stepped"][key])
+
+    step = (
+        s("decision_step_mean") if all(c["stepped"]["decision_step_mean"] for c in runs) else None
+    )
+    pj = [_mean(runs, lambda c, a=a: c["stepped"]["energy_pj_mean"][str(a)]) for a in ALPHAS_PJ]
+    return [
+        f"step {step:.1f} of {runs[0]['stepped']['steps']} ({runs[0]['stepped']['readout']})"
+        if step is not None
+        else "–",
+        f"{s('input_spikes_mean'):.1f} of {s('input_spikes_total_mean'):.1f}",
+        _num(s("data_ratio_mean"), "{:.3f}"),
+        _num(s("neuron_spikes_mean"), "{:.1f}"),
+        " / ".join(f"{v:.3g}" for v in pj),
+        "–",
+    ]
 
 
 def plot_accuracy(cells: list[dict], paper: dict, path: Path) -> bool:
@@ -291,7 +317,7 @@ def plot_decisions(out: Path, path: Path) -> bool:
     runs = defaultdict(lambda: {"decision_time_ns": [], "input_spikes": []})
     for file in sorted((out / "cells").glob("*.json")):
         cell = json.loads(file.read_text())
-        if "per_sample" in cell:
+        if "per_sample" in cell and "early" in cell:  # event-driven runs: times in ns
             key = f"{cell['model']} @ {cell['dataset']}"
             for name in runs[key]:
                 runs[key][name] += [v for v in cell["per_sample"][name] if v is not None]
@@ -396,7 +422,12 @@ def write_report(results: dict, out: Path) -> Path:
         "spiking network whose outputs never fire counts as wrong.",
         "* decision ns, input spikes used, R_data, hidden spikes: the event-driven evaluator "
         "(dense spiking networks), means over test samples; R_data = input spikes consumed "
-        "before the decision / all input spikes of the sample.",
+        "before the decision / all input spikes of the sample. Time-stepped networks "
+        "(snnTorch, Norse, ...; simlidar.models.protocol): the decision step of T by the "
+        "network's declared readout (first output spike, or spike count / membrane at the last "
+        "step), the input spikes delivered up to it, and its neurons' spikes (hidden and "
+        "output) in the hidden spikes column; their operations are accumulates (binary "
+        "inputs) in `results.json` (`synaptic_operations`, `energy_pj_ops`).",
         "* energy: spiking networks, spikes (input consumed + hidden + output) x alpha at "
         f"{' and '.join(f'{a:g}' for a in ALPHAS_PJ)} pJ per spike, as the paper estimates it; "
         f"conventional networks, multiply-accumulates x {MAC_PJ:g} pJ (32-bit float at 45 nm, "

@@ -26,19 +26,21 @@ from simlidar import __version__
 from simlidar.bench import metrics
 from simlidar.bench.cells import cell_id, cell_inputs, finished, training_rules
 from simlidar.bench.early import early_decisions
+from simlidar.bench.hardware import DEFAULT_THREADS, check_threads, resolve_device, threads
+from simlidar.bench.stepped import stepped_decisions
 from simlidar.bench.suite import Suite
 from simlidar.bench.train import (
-    is_spiking,
     predictions,
     save_checkpoint,
     train,
     validation_split,
 )
 from simlidar.content import content_dir
-from simlidar.dataset.loaders import load_split
+from simlidar.dataset.loaders import load_split, spike_threshold
 from simlidar.dataset.reader import dataset_splits
 from simlidar.dataset.version import GENERATOR
 from simlidar.errors import ConfigError, DatasetError
+from simlidar.models.protocol import STEPPED_SPIKES, ModelSpec, encode, spec_of
 from simlidar.models.registry import load_recipe
 from simlidar.models.training import TrainingConfig
 from simlidar.release.verify import check_trainable
@@ -165,10 +167,16 @@ def resolve_datasets(suite: Suite, out: Path, dataset: Path | None, progress: bo
 
 
 def run_cell(
-    dataset: Path, model: str, seed: int, suite: Suite, checkpoint: Path | None = None
+    dataset: Path,
+    model: str,
+    seed: int,
+    suite: Suite,
+    checkpoint: Path | None = None,
+    device: str = "cpu",
 ) -> dict:
     """Train one model on one dataset with one seed and measure it (docs/benchmark.md); with
-    ``checkpoint``, save the kept weights there (a figure can be re-measured later)."""
+    ``checkpoint``, save the kept weights there (a figure can be re-measured later).
+    ``device``: where it trains (``--device``); it is measured on the CPU."""
     recipe = load_recipe(model)
     budget = suite.budget_for(model)
     recipe["training"].update(budget)  # the suite's budget over the recipe's values
@@ -176,8 +184,9 @@ def run_cell(
     attrs = splits["test"].attrs
     timing = {}
     start = time.perf_counter()
-    result = train(recipe, dataset, seed=seed, progress=False)
+    result = train(recipe, dataset, seed=seed, progress=False, device=resolve_device(device))
     timing["train"] = time.perf_counter() - start
+    result.model.cpu()
     if checkpoint is not None:
         save_checkpoint(result, checkpoint)
     record = {
@@ -186,7 +195,9 @@ def run_cell(
         "noise": float(attrs["noise"]),
         "model": recipe["name"],
         "seed": seed,
-        "kind": "spiking" if is_spiking(result.model) else "conventional",
+        "kind": "spiking" if result.spec.spiking else "conventional",
+        "spec": result.spec.table(),
+        "device": result.device,
         "family": recipe["model"],
         "classes": len(attrs["class_names"]),
         "train_size": splits["train"].size,
@@ -197,7 +208,9 @@ def run_cell(
         "train_seconds": round(result.seconds, 2),
         "budget": budget,
     }
-    record.update(measure(result.model, recipe, dataset, suite, result.test_predictions, timing))
+    record.update(
+        measure(result.model, recipe, dataset, suite, result.test_predictions, timing, result.spec)
+    )
     return record
 
 
@@ -211,14 +224,18 @@ def measure(
     suite: Suite,
     predicted: np.ndarray,
     timing: dict,
+    spec: ModelSpec | None = None,
 ) -> dict:
-    """Everything a cell measures on its trained model besides training: accuracy, confusion,
-    footprint, latency, NeuroBench's workload metrics, early decisions; ``timing`` gets the
-    seconds of each part, and is recorded."""
+    """Everything a cell measures on its trained model (on the CPU) besides training:
+    accuracy, confusion, footprint, latency, NeuroBench's workload metrics, early decisions;
+    ``timing`` gets the seconds of each part, and is recorded. ``spec``: what the model
+    declares (default: :func:`~simlidar.models.protocol.spec_of` the model, the recipe's
+    ``[spec]`` over it)."""
     attrs = dataset_splits(dataset)["test"].attrs
     x, y = load_split(dataset, "test")
     x = torch.from_numpy(x)[:, None]
     classes = len(attrs["class_names"])
+    spec = spec or spec_of(model, recipe.get("spec"))
     record = {
         "accuracy": float(np.mean(predicted == y)),
         "input_shape": list(x.shape[1:]),
@@ -227,9 +244,17 @@ def measure(
         "lr_schedule": TrainingConfig.from_table(recipe["training"]).lr_schedule,
     }
     start = time.perf_counter()
-    if is_spiking(model):
+    if spec.output == STEPPED_SPIKES:
+        silent_from = spike_threshold(attrs)
+        stepped = stepped_decisions(model, x, y, spec, silent_from, per_sample=True)
+        record["per_sample"] = stepped.pop("per_sample")
+        record["stepped"] = stepped
+        timing["stepped_decisions"] = time.perf_counter() - start
+        start = time.perf_counter()
+        figures = metrics.stepped_figures(model, x, lambda b: encode(b, spec, silent_from))
+    elif spec.spiking:
         early = None
-        if model.event_driven:
+        if getattr(model, "event_driven", False):
             early = early_decisions(model, dataset, per_sample=True)
             record["per_sample"] = early.pop("per_sample")
             record["early"] = early
@@ -277,7 +302,12 @@ def remeasure(out: Path, suite: Suite, progress: bool = True) -> dict:
             out / "checkpoints" / f"{path.stem}.pt", tuple(record["input_shape"]), record["classes"]
         )
         x, y = load_split(dataset, "test")
-        predicted = predictions(model, torch.from_numpy(x)[:, None]).numpy()
+        spec = spec_of(model, data["recipe"].get("spec"))
+        silent_from = float(data.get("silent_from", 1.0))
+        predicted = predictions(
+            model, torch.from_numpy(x)[:, None], spec=spec, silent_from=silent_from
+        )
+        predicted = predicted.numpy()
         if abs(float(np.sum(predicted == y)) - record["accuracy"] * len(y)) > 1.5:
             raise DatasetError(
                 f"--out {out}: checkpoint of cell {path.stem} scores "
@@ -285,7 +315,7 @@ def remeasure(out: Path, suite: Suite, progress: bool = True) -> dict:
                 "expected the cell's own model"
             )
         timing = {k: v for k, v in record.get("timing_seconds", {}).items() if k == "train"}
-        record.update(measure(model, data["recipe"], dataset, suite, predicted, timing))
+        record.update(measure(model, data["recipe"], dataset, suite, predicted, timing, spec))
         _write_json(path, record, indent=None)
     results = collect(out, suite)
     write_report(results, out)
@@ -342,14 +372,21 @@ def run_suite(
     progress: bool = True,
     scheduler: str | None = None,
     workers: int = 2,
+    device: str = "cpu",
+    thread_count: int = DEFAULT_THREADS,
 ) -> dict:
     """Run every unfinished cell of the suite into ``out``; write results.json and the report.
 
     scheduler : a Dask scheduler's address (or ``local``: a LocalCluster of ``workers``
         processes): each cell is then one task on the cluster, writing its own file into
         ``out`` (a path every worker must see; :mod:`simlidar.cluster`)
+    device : where cells train (``auto``, ``cpu``, ``cuda``; :mod:`simlidar.bench.hardware`)
+    thread_count : torch (and numba) threads of a cell, in place or on a worker: the same
+        count gives the same cells
     returns : the results (what results.json holds)
     """
+    check_threads(thread_count)
+    resolve_device(device)  # a device this machine lacks is refused before anything is written
     from tqdm import tqdm
 
     from simlidar.bench.report import write_report
@@ -375,12 +412,12 @@ def run_suite(
         from simlidar.cluster import connect, run_tasks
 
         with connect(scheduler, workers) as client:
-            tasks = [(d, m, s, suite, out) for d, m, s in todo]
+            tasks = [(d, m, s, suite, out, device, thread_count) for d, m, s in todo]
             names = [f"cell {cell_id(d, m, s)}" for d, m, s in todo]
             run_tasks(client, _cluster_cell, tasks, names, lambda index, _: bar.update())
     for d, m, s in todo if scheduler is None else ():
         bar.set_postfix_str(cell_id(d, m, s))
-        run_and_write(d, m, s, suite, out)
+        run_and_write(d, m, s, suite, out, device, thread_count)
         bar.update()
     bar.close()
     results = collect(out, suite)
@@ -388,11 +425,22 @@ def run_suite(
     return results
 
 
-def run_and_write(dataset: Path, model: str, seed: int, suite: Suite, out: Path) -> str:
-    """Run one cell and write it (``out/cells/<cell>.json``, its checkpoint beside); its id."""
+def run_and_write(
+    dataset: Path,
+    model: str,
+    seed: int,
+    suite: Suite,
+    out: Path,
+    device: str = "cpu",
+    thread_count: int = DEFAULT_THREADS,
+) -> str:
+    """Run one cell on ``thread_count`` threads and write it (``out/cells/<cell>.json``, its
+    checkpoint beside); its id."""
     name = cell_id(dataset, model, seed)
     start = time.perf_counter()
-    record = run_cell(dataset, model, seed, suite, out / "checkpoints" / f"{name}.pt")
+    with threads(thread_count):
+        record = run_cell(dataset, model, seed, suite, out / "checkpoints" / f"{name}.pt", device)
+        record["threads"] = thread_count
     record["seconds"] = round(time.perf_counter() - start, 2)
     record.update(
         inputs=cell_inputs(dataset, model, suite.budget_for(model)),
@@ -403,17 +451,18 @@ def run_and_write(dataset: Path, model: str, seed: int, suite: Suite, out: Path)
     return name
 
 
-def _cluster_cell(dataset: Path, model: str, seed: int, suite: Suite, out: Path) -> str:
-    """A cluster task: one cell on one torch thread (a worker runs as many cells at once as it
-    has threads); the cell records the machine it ran on."""
-    torch.set_num_threads(1)
+def _cluster_cell(
+    dataset: Path, model: str, seed: int, suite: Suite, out: Path, device: str, thread_count: int
+) -> str:
+    """A cluster task: one cell on the run's thread count, as in place (a worker runs as many
+    cells at once as it has threads); the cell records the machine it ran on."""
     for folder in (dataset, out):
         if not Path(folder).is_dir():
             raise DatasetError(
                 f"{folder}: not found on worker {socket.gethostname()}; expected it on a file "
                 "system that every worker shares"
             )
-    return run_and_write(dataset, model, seed, suite, out)
+    return run_and_write(dataset, model, seed, suite, out, device, thread_count)
 
 
 def collect(out: Path, suite: Suite) -> dict:

@@ -24,11 +24,19 @@ import torch.nn.functional as F
 from simlidar.dataset.loaders import load_split, spike_threshold, split_info
 from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.pulses import noisy_delays
-from simlidar.models import ttfs
+from simlidar.models.protocol import (
+    STEPPED_SPIKES,
+    ModelSpec,
+    class_scores,
+    encode,
+    readout,
+    spec_of,
+    split_output,
+)
 from simlidar.models.registry import build_model
 from simlidar.models.training import TrainingConfig
 
-STOPS = ("plateau", "epochs", "time")  # why training stopped (TrainResult.stopped)
+STOPS = ("plateau", "epochs", "time", "own-fit")  # why training stopped (TrainResult.stopped)
 SELECTION = "best-validation-accuracy-then-loss/v1"  # the rule's name, recorded by every cell
 ANNEALED = "last-epoch-of-annealed-schedule/v1"  # the rule of a schedule that anneals to 0
 
@@ -53,6 +61,10 @@ class TrainResult:
     test_predictions: np.ndarray | None = None  # predicted class of every test sample (-1: none)
     rule: str = SELECTION  # the selection rule (selection_rule) that picked ``best_epoch``
     epoch_cap: int = 0  # the epochs it was given (``epochs`` is how many it ran)
+    spec: ModelSpec = field(default_factory=ModelSpec)  # what the model declared (protocol)
+    silent_from: float = 1.0  # the data's no-return threshold its inputs were encoded with
+    device: str = "cpu"  # where it trained
+    own_fit: bool = False  # trained by its own simlidar_fit, not simlidar's loop
 
     def selection(self) -> dict:
         """What a benchmark cell records about the selection (docs/benchmark.md)."""
@@ -72,36 +84,28 @@ def _optimizer(params, training: TrainingConfig):
 
 
 def is_spiking(model: torch.nn.Module) -> bool:
-    """Spiking models output first-spike times (z domain); conventional ones output logits."""
-    return getattr(model, "spiking", False)
+    """Whether a model's outputs are spikes (first-spike times or spikes over time steps)
+    rather than logits: what it declares (:func:`simlidar.models.protocol.spec_of`)."""
+    return spec_of(model).spiking
 
 
-def logits(
-    model: torch.nn.Module, out: torch.Tensor, kind: str = "z", scale: float = 1.0
-) -> torch.Tensor:
-    """Logits for the cross-entropy loss: a spiking model's -z (``kind`` "z", the paper's) or
-    -ln z = -t (``kind`` "time"; output times are not scaled by exp), times ``scale`` (an
-    inverse softmax temperature), or ``out`` itself."""
-    if not is_spiking(model):
-        return out
-    return scale * ttfs.output_logits(out if kind == "z" else torch.log(out))
-
-
-def _loss(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, training: TrainingConfig):
-    """(cross-entropy, cross-entropy plus the recipe's penalties) on one batch."""
-    kind, scale = training.logits, training.logit_scale
-    if is_spiking(model):
-        spikes = model.spikes(x)
-        loss = F.cross_entropy(logits(model, spikes[-1], kind, scale), y)
-        total = loss + training.weight_sum_penalty * model.penalty()
-        if training.fire_penalty:
-            last = model.layers[-1].weight
-            fire = ttfs.target_fire_penalty(spikes[-2].flatten(1), last, y, training.fire_margin)
-            total = total + training.fire_penalty * fire
-        if training.early_penalty:
-            total = total + training.early_penalty * ttfs.target_time(spikes[-1], y)
+def _loss(
+    model: torch.nn.Module,
+    x: torch.Tensor,
+    y: torch.Tensor,
+    training: TrainingConfig,
+    spec: ModelSpec | None = None,
+):
+    """(cross-entropy, cross-entropy plus the recipe's penalties) on one encoded batch: the
+    model's own ``simlidar_loss`` where it has one (simlidar's spiking networks add their
+    penalties there), else the cross-entropy of its class scores."""
+    spec = spec or spec_of(model)
+    own = getattr(model, "simlidar_loss", None)
+    if own is not None:
+        loss, total = own(x, y, training)
     else:
-        loss = total = F.cross_entropy(model(x), y)
+        scores = class_scores(model(x), spec, training.logits, training.logit_scale)
+        loss = total = F.cross_entropy(scores, y)
     total = total + training.l2 * sum((p**2).sum() for p in model.parameters())
     return loss, total
 
@@ -161,14 +165,31 @@ def _fresh_noise(dataset, attrs: dict, seed: int, rows: np.ndarray):
     return draw
 
 
-def predictions(model: torch.nn.Module, x: torch.Tensor, batch: int = 500) -> torch.Tensor:
-    """Predicted classes of any registered model, in batches (-1: no output spike)."""
+def _batches(model, x: torch.Tensor, spec: ModelSpec, silent_from: float, batch: int):
+    """Each batch of ``x`` (N, 1, H, W) encoded for the model on its device, and its output."""
+    device = next(iter(model.parameters()), torch.empty(0)).device
     model.eval()
     with torch.no_grad():
-        outs = [model(x[i : i + batch]) for i in range(0, len(x), batch)]
-    if is_spiking(model):
-        return torch.cat([ttfs.predict(o) for o in outs])
-    return torch.cat([o.argmax(1) for o in outs])
+        for i in range(0, len(x), batch):
+            yield i, model(encode(x[i : i + batch].to(device), spec, silent_from))
+
+
+def predictions(
+    model: torch.nn.Module,
+    x: torch.Tensor,
+    batch: int = 500,
+    spec: ModelSpec | None = None,
+    silent_from: float | None = None,
+) -> torch.Tensor:
+    """Predicted classes of any model, in batches, on the CPU (-1: no decision).
+
+    x : (N, 1, H, W) delays, encoded as the model wants (``spec``; default: what it declares)
+    silent_from : the data's no-return threshold (default: the model's, else 1.0)
+    """
+    spec = spec or spec_of(model)
+    silent_from = getattr(model, "silent_from", 1.0) if silent_from is None else silent_from
+    outs = [readout(out, spec)[0].cpu() for _, out in _batches(model, x, spec, silent_from, batch)]
+    return torch.cat(outs) if outs else torch.zeros(0, dtype=torch.long)
 
 
 def evaluate(
@@ -177,22 +198,63 @@ def evaluate(
     y: torch.Tensor,
     training: TrainingConfig,
     batch: int = 500,
+    spec: ModelSpec | None = None,
+    silent_from: float = 1.0,
 ) -> tuple[float, float | None]:
     """(accuracy, mean cross-entropy with the recipe's logits) on ``x``, in eval mode; the loss
     is None where it is not finite (a spiking network whose correct output never fired)."""
-    kind, scale = training.logits, training.logit_scale
-    model.eval()
+    spec = spec or spec_of(model)
     correct, loss = 0, 0.0
-    with torch.no_grad():
-        for i in range(0, len(x), batch):
-            out = model(x[i : i + batch])
-            predicted = ttfs.predict(out) if is_spiking(model) else out.argmax(1)
-            correct += int((predicted == y[i : i + batch]).sum())
-            loss += F.cross_entropy(
-                logits(model, out, kind, scale), y[i : i + batch], reduction="sum"
-            ).item()
+    for i, out in _batches(model, x, spec, silent_from, batch):
+        target = y[i : i + batch].to(_first_tensor(out).device)
+        correct += int((readout(out, spec)[0] == target).sum())
+        scores = class_scores(out, spec, training.logits, training.logit_scale)
+        loss += F.cross_entropy(scores, target, reduction="sum").item()
     loss /= len(x)
     return correct / len(x), (loss if np.isfinite(loss) else None)
+
+
+def _first_tensor(out) -> torch.Tensor:
+    return out[0] if isinstance(out, tuple | list) else out
+
+
+def check_output(model, spec: ModelSpec, x: torch.Tensor, classes: int, where: str) -> None:
+    """Run the model on two samples and refuse, in one line naming ``where``, an output of the
+    wrong kind or shape for what it declares (before any training)."""
+    device = next(iter(model.parameters()), torch.empty(0)).device
+    was_training = model.training
+    model.eval()
+    try:
+        with torch.no_grad():
+            out = model(encode(x[:2].to(device), spec, getattr(model, "silent_from", 1.0)))
+    except Exception as exc:
+        raise ConfigError(
+            f"{where}: the model's forward on a batch of 2 {spec.encoding} inputs raised "
+            f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+        ) from None
+    finally:
+        model.train(was_training)
+    n = len(x[:2])
+    if spec.output == STEPPED_SPIKES:
+        spikes, membrane = split_output(out, spec)
+        shapes = [t.shape if isinstance(t, torch.Tensor) else None for t in (spikes, membrane)]
+        good = (
+            shapes[0] is not None
+            and len(shapes[0]) == 3
+            and tuple(shapes[0][1:]) == (n, classes)
+            and (membrane is None or shapes[1] == shapes[0])
+        )
+        expected = f"output spikes (T, {n}, {classes}), or a tuple (spikes, membrane) of those"
+        got = shapes if membrane is not None else shapes[0]
+    else:
+        good = isinstance(out, torch.Tensor) and tuple(out.shape) == (n, classes)
+        expected = f"{spec.output} ({n}, {classes})"
+        got = tuple(out.shape) if isinstance(out, torch.Tensor) else type(out).__name__
+    if not good:
+        raise ConfigError(
+            f"{where}: the model's output for a batch of {n} is {got}; expected {expected} "
+            f"(it declares output {spec.output!r})"
+        )
 
 
 def _better(score: tuple[float, float | None], best: tuple[float, float | None] | None) -> bool:
@@ -209,13 +271,16 @@ def train(
     epochs: int | None = None,
     max_seconds: float | None = None,
     progress: bool = True,
+    device: torch.device | str = "cpu",
 ) -> TrainResult:
     """Train the recipe's model on ``dataset``'s train split (less the validation rows), keep
     the epoch with the best validation score, and score it once on the test split.
 
-    Deterministic for a given seed, recipe, dataset and thread count (one torch.Generator
-    drives the initial weights and the batch order; the validation rows are drawn from the
-    seed too).
+    The model is fed the encoding it declares (:mod:`simlidar.models.protocol`) on ``device``;
+    one with its own ``simlidar_fit`` trains itself and is then scored the same way.
+    Deterministic for a given seed, recipe, dataset, device and thread count (one
+    torch.Generator drives the initial weights and the batch order; the validation rows are
+    drawn from the seed too).
     """
     from tqdm import tqdm
 
@@ -238,12 +303,20 @@ def train(
     x_all = x_all[:, None]  # (N, 1, H, W)
     x_train, y_train = x_all[rows], y_all[rows]
     x_val, y_val = x_all[held], y_all[held]
+    parts = (x_train, y_train, x_val, y_val)
     patience = training.patience
     annealed = selection_rule(training) == ANNEALED
     generator = torch.Generator().manual_seed(seed)
     model = build_model(recipe, tuple(x_train.shape[1:]), classes, generator)
-    if is_spiking(model):
-        model.silent_from = spike_threshold(attrs)  # the encoding follows the data's profile
+    spec = spec_of(model, recipe.get("spec"), where)
+    silent_from = spike_threshold(attrs)  # the encoding follows the data's profile
+    if hasattr(model, "silent_from") or spec.spiking:
+        model.silent_from = silent_from
+    device = torch.device(device)
+    model.to(device)
+    check_output(model, spec, x_train, classes, f"{where}: builder {recipe['model']!r}")
+    if hasattr(model, "simlidar_fit"):
+        return _own_fit(model, recipe, spec, dataset, seed, training, generator, device, parts)
     fresh_noise = None
     if training.noise_augment:
         fresh_noise = _fresh_noise(dataset, attrs, seed, rows)
@@ -264,7 +337,8 @@ def train(
         losses = []
         for i in range(0, len(order), batch):
             rows = order[i : i + batch]
-            loss, total = _loss(model, x_train[rows], y_train[rows], training)
+            x = encode(x_train[rows].to(device), spec, silent_from)
+            loss, total = _loss(model, x, y_train[rows].to(device), training, spec)
             optimizer.zero_grad()
             total.backward()
             if training.clip_grad_norm:
@@ -276,7 +350,7 @@ def train(
             schedule.step()
         record = {"epoch": epoch, "loss": float(np.mean(losses)), "lr": lr}
         if len(held):
-            score = evaluate(model, x_val, y_val, training)
+            score = evaluate(model, x_val, y_val, training, spec=spec, silent_from=silent_from)
             record.update(val_accuracy=score[0], val_loss=score[1])
             bar.set_postfix(loss=f"{record['loss']:.3f}", val=f"{score[0]:.3f}")
             if annealed:
@@ -299,9 +373,7 @@ def train(
             break
     if best_state is not None:
         model.load_state_dict(best_state)
-    x_test, y_test = (torch.from_numpy(a) for a in load_split(dataset, "test"))
-    predicted = predictions(model, x_test[:, None])  # the test split, read once, at the end
-    accuracy = (predicted == y_test).float().mean().item()
+    predicted, accuracy = _score_test(model, dataset, spec, silent_from)
     return TrainResult(
         model,
         recipe,
@@ -315,6 +387,57 @@ def train(
         predicted.numpy(),
         selection_rule(training),
         epochs,
+        spec,
+        silent_from,
+        str(device),
+    )
+
+
+def _score_test(model, dataset, spec: ModelSpec, silent_from: float):
+    """(predictions, accuracy) on the test split: read once, at the end."""
+    x_test, y_test = (torch.from_numpy(a) for a in load_split(dataset, "test"))
+    predicted = predictions(model, x_test[:, None], spec=spec, silent_from=silent_from)
+    return predicted, (predicted == y_test).float().mean().item()
+
+
+def _own_fit(model, recipe, spec, dataset, seed, training, generator, device, parts):
+    """A model with its own ``simlidar_fit``: it trains itself on the encoded train rows (and
+    may watch the validation rows); simlidar scores the validation rows (recorded) and reads
+    the test split once."""
+    x_train, y_train, x_val, y_val = parts
+    silent_from = getattr(model, "silent_from", 1.0)
+    start = time.perf_counter()
+    model.train()
+    model.simlidar_fit(
+        encode(x_train.to(device), spec, silent_from),
+        y_train.to(device),
+        encode(x_val.to(device), spec, silent_from),
+        y_val.to(device),
+        generator,
+    )
+    record = {"epoch": 0, "loss": None, "lr": None}
+    if len(y_val):
+        score = evaluate(model, x_val, y_val, training, spec=spec, silent_from=silent_from)
+        record.update(val_accuracy=score[0], val_loss=score[1])
+    record["seconds"] = time.perf_counter() - start
+    predicted, accuracy = _score_test(model, dataset, spec, silent_from)
+    return TrainResult(
+        model,
+        recipe,
+        accuracy,
+        record["seconds"],
+        1,
+        [record],
+        0,
+        "own-fit",
+        len(y_val),
+        predicted.numpy(),
+        "the-model's-own-fit/v1",
+        1,
+        spec,
+        silent_from,
+        str(device),
+        own_fit=True,
     )
 
 
@@ -339,7 +462,7 @@ def save_checkpoint(result: TrainResult, path: str | Path) -> Path:
         "state_dict": result.model.state_dict(),
         "recipe": result.recipe,
         "history": result.history,
-        "silent_from": getattr(result.model, "silent_from", 1.0),
+        "silent_from": result.silent_from,
     }
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.partial-", dir=path.parent)
     try:
@@ -354,10 +477,10 @@ def save_checkpoint(result: TrainResult, path: str | Path) -> Path:
 
 
 def load_checkpoint(path: str | Path, input_shape, classes):
-    """Rebuild a model from a checkpoint written by :func:`save_checkpoint`."""
-    data = torch.load(path, weights_only=True)
+    """Rebuild a model from a checkpoint written by :func:`save_checkpoint` (on the CPU)."""
+    data = torch.load(path, weights_only=True, map_location="cpu")
     model = build_model(data["recipe"], input_shape, classes)
     model.load_state_dict(data["state_dict"])
-    if is_spiking(model):
+    if hasattr(model, "silent_from") or is_spiking(model):
         model.silent_from = float(data.get("silent_from", 1.0))  # older checkpoints: 1.0
     return model, data

@@ -42,6 +42,38 @@ def _selection(command):
     return command
 
 
+def _hardware(command):
+    """``--device`` and ``--threads``: where a model trains, on how many threads (recorded)."""
+    from simlidar.bench.hardware import DEFAULT_THREADS, DEVICES, MAX_THREADS
+
+    command = click.option(
+        "--threads",
+        type=click.IntRange(1, MAX_THREADS),
+        default=DEFAULT_THREADS,
+        show_default=True,
+        help="Torch (and spiking-kernel) threads of a run; a cell's figures depend on it, so it "
+        "is fixed and recorded (1: measured fastest here, docs/benchmark.md).",
+    )(command)
+    return click.option(
+        "--device",
+        default="cpu",
+        show_default=True,
+        metavar="|".join(DEVICES),
+        help="Where models train: auto (CUDA where there is a GPU), cpu, cuda or cuda:N; "
+        "measured on the CPU.",
+    )(command)
+
+
+def _device(value: str):
+    """The torch device of ``--device``, or a usage error naming it."""
+    from simlidar.bench.hardware import resolve_device
+
+    try:
+        return resolve_device(value)
+    except ConfigError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--device'") from None
+
+
 def _chosen(result) -> str:
     """Which epoch a ``simlidar train`` run kept, and why it stopped, in words."""
     from simlidar.bench.train import ANNEALED
@@ -67,7 +99,8 @@ def _chosen(result) -> str:
     "--model",
     "model",
     required=True,
-    help="Model recipe: a name in baselines/ (snn_simlidar, ...) or a .toml file.",
+    help="Model recipe: a name in baselines/ (snn_simlidar, ...), a .toml file, or an outside "
+    "builder package.module:function.",
 )
 @click.option(
     "--dataset",
@@ -86,23 +119,32 @@ def _chosen(result) -> str:
 @_override("epochs", type=click.IntRange(1, MAX_EPOCHS))
 @_override("max_seconds")
 @_selection
+@_hardware
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, as_json):
+def train(
+    model, dataset, out, seed, epochs, max_seconds, validation, patience, device, threads, as_json
+):
     """Train a model on a dataset's train split, keep the epoch with the best accuracy on a
     held-out validation part of it (the last epoch of a cosine schedule), score that once on
     the test split, save a checkpoint."""
     _need_torch("train")
+    from simlidar.bench.hardware import threads as using_threads
     from simlidar.bench.train import ANNEALED, check_writable, save_checkpoint
     from simlidar.bench.train import train as run
     from simlidar.models.registry import load_recipe
     from simlidar.release.verify import check_trainable
 
+    device = _device(device)
     recipe = load_recipe(model)
     given = {"validation": validation, "patience": patience}
     recipe["training"].update({k: v for k, v in given.items() if v is not None})
     check_trainable(dataset)  # a sound dataset, or a one-line error
     check_writable(out)  # before training, not after
-    result = run(recipe, dataset, seed=seed, epochs=epochs, max_seconds=max_seconds)
+    with using_threads(threads):
+        result = run(
+            recipe, dataset, seed=seed, epochs=epochs, max_seconds=max_seconds, device=device
+        )
+    result.model.cpu()
     if result.rule == ANNEALED and result.stopped == "time":
         click.echo(
             f"warning: the time cap stopped the cosine schedule after epoch {result.epochs} of "
@@ -121,11 +163,24 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
         **result.selection(),
         "seconds": round(result.seconds, 1),
         "checkpoint": str(path),
+        "spec": result.spec.table(),
+        "device": result.device,
+        "threads": threads,
     }
-    if result.model.event_driven:  # how early the spiking network decides
+    if getattr(result.model, "event_driven", False):  # how early the spiking network decides
         from simlidar.bench.early import early_decisions
 
         record["early"] = early_decisions(result.model, dataset)
+    elif result.spec.output == "stepped_spikes":
+        import torch
+
+        from simlidar.bench.stepped import stepped_decisions
+        from simlidar.dataset.loaders import load_split
+
+        x, y = load_split(dataset, "test")
+        record["stepped"] = stepped_decisions(
+            result.model, torch.from_numpy(x)[:, None], y, result.spec, result.silent_from
+        )
     if as_json:
         click.echo(json.dumps(record))
         return
@@ -137,6 +192,10 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
         from simlidar.bench.early import format_early
 
         click.echo(format_early(record["early"]))
+    if "stepped" in record:
+        from simlidar.bench.stepped import format_stepped
+
+        click.echo(format_stepped(record["stepped"]))
 
 
 @click.command()
@@ -149,7 +208,8 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
 @click.option(
     "--models",
     default=None,
-    help="Comma-separated model recipes to run instead of the suite's (e.g. snn_simlidar,cnn).",
+    help="Comma-separated model recipes to run instead of the suite's (e.g. snn_simlidar,cnn); "
+    "a recipe file, or an outside builder package.module:function.",
 )
 @click.option(
     "--dataset",
@@ -178,6 +238,7 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
     default=None,
     help="With --scheduler local: the LocalCluster's processes (default: auto, every core).",
 )
+@_hardware
 @click.option("--json", "as_json", is_flag=True, help="Print results.json's content on stdout.")
 def bench(
     suite,
@@ -191,6 +252,8 @@ def bench(
     remeasure,
     scheduler,
     workers,
+    device,
+    threads,
     as_json,
 ):
     """Train and score the suite's models on its datasets: accuracy, how early spiking networks
@@ -250,6 +313,8 @@ def bench(
             progress=not as_json,
             scheduler=scheduler,
             workers=workers or Workers().convert("auto", None, None),
+            device=str(_device(device)),
+            thread_count=threads,
         )
     if as_json:
         click.echo(json.dumps(results))

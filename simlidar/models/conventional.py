@@ -16,6 +16,7 @@ import torch
 from torch import nn
 
 from simlidar.errors import ConfigError
+from simlidar.models.protocol import ModelSpec
 
 # torchvision's cfgs: channels of 3 x 3 convolutions, "M" = 2 x 2 max pool
 VGG_PLANS: dict[str, list] = {
@@ -32,9 +33,10 @@ RESNET_PLANS: dict[str, tuple[str, list[int]]] = {
 
 
 class Conventional(nn.Module):
-    """Marker base: outputs are logits (B, classes); the class is their argmax."""
+    """Base of the shipped baselines: outputs are logits (B, classes) of delay images; the
+    class is their argmax (:mod:`simlidar.models.protocol`)."""
 
-    spiking = False
+    simlidar_spec = ModelSpec()
     event_driven = False  # no spikes to run event by event
 
 

@@ -1,11 +1,13 @@
 """The paper's spiking networks: a dense SNN and a spiking CNN, in the z domain."""
 
 import torch
+import torch.nn.functional as F
 from torch import nn
 
 from simlidar.errors import ConfigError
 from simlidar.models import ttfs
 from simlidar.models.layers import ConvTTFS, DenseTTFS
+from simlidar.models.protocol import FIRST_SPIKE_TIMES, ModelSpec, class_scores
 
 MAX_SCALE = 80.0  # exp(80) = 5.5e34, below float32's 3.4e38
 
@@ -20,7 +22,7 @@ class SpikingNet(nn.Module):
         attribute (:func:`simlidar.dataset.loaders.spike_threshold`) and checkpoints keep it.
     """
 
-    spiking = True  # outputs are first-spike times (z domain), not logits
+    simlidar_spec = ModelSpec(output=FIRST_SPIKE_TIMES)  # first-spike times (z), not logits
 
     def __init__(self, layers: list[nn.Module], scale: float):
         if not 0.0 < scale <= MAX_SCALE:
@@ -48,6 +50,22 @@ class SpikingNet(nn.Module):
     def penalty(self) -> torch.Tensor:
         """Mean weight-sum penalty over layers (keeps every neuron able to fire)."""
         return sum(ttfs.weight_sum_penalty(m.weight) for m in self.layers) / len(self.layers)
+
+    def simlidar_loss(self, x: torch.Tensor, y: torch.Tensor, training) -> tuple:
+        """(cross-entropy, cross-entropy plus the recipe's penalties) on one batch: the
+        weight-sum penalty, the target-neuron firing penalty and the early-decision term
+        (``training``: a :class:`~simlidar.models.training.TrainingConfig`; docs/snn.md)."""
+        spikes = self.spikes(x)
+        scores = class_scores(spikes[-1], self.simlidar_spec, training.logits, training.logit_scale)
+        loss = F.cross_entropy(scores, y)
+        total = loss + training.weight_sum_penalty * self.penalty()
+        if training.fire_penalty:
+            last = self.layers[-1].weight
+            fire = ttfs.target_fire_penalty(spikes[-2].flatten(1), last, y, training.fire_margin)
+            total = total + training.fire_penalty * fire
+        if training.early_penalty:
+            total = total + training.early_penalty * ttfs.target_time(spikes[-1], y)
+        return loss, total
 
 
 def dense_snn(

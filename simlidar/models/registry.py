@@ -1,17 +1,32 @@
-"""One registry for every model (spiking and conventional), built from a recipe.
+"""One registry for every model (spiking and conventional, shipped or outside), built from a
+recipe.
 
-A recipe is a TOML file in ``baselines/`` (or any path): ``model`` names a registered
-builder, ``[architecture]`` its arguments and ``[training]`` the hyper-parameters. Input shape
-and class count come from the dataset, never from the recipe.
+A recipe is a TOML file in ``baselines/`` (or any path): ``model`` names a builder,
+``[architecture]`` its arguments, ``[training]`` the hyper-parameters and an optional ``[spec]``
+what the model outputs and which input it wants (:mod:`simlidar.models.protocol`). Input
+shape and class count come from the dataset, never from the recipe.
+
+A builder is one of :data:`BUILDERS` or an outside one: ``"package.module:function"`` (imported)
+or ``"path/to/file.py:function"`` (relative to the recipe's folder), called as
+``function(input_shape, classes, generator, **architecture)`` and returning a
+``torch.nn.Module``. Naming an outside builder runs its code, as a pytest plugin's would.
+``simlidar bench --models package.module:function`` names one without a recipe file (the
+default training of :data:`OUTSIDE_TRAINING`).
 """
 
+import hashlib
 import importlib
+import importlib.util
+import os
+import re
+import sys
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
 
 from simlidar.content import content_dir
 from simlidar.errors import ConfigError
+from simlidar.models.protocol import spec_of
 from simlidar.models.training import TrainingConfig
 
 # model name (a recipe's `model`) -> (module of simlidar.models, builder function); each
@@ -27,21 +42,115 @@ BUILDERS = {
 }
 
 
-def builder(name: str) -> Callable:
-    """The builder of the model ``name`` (one of BUILDERS)."""
-    module, function = BUILDERS[name]
-    return getattr(importlib.import_module(f"simlidar.models.{module}"), function)
+# builders handed over in this process (simlidar.bench.api): key -> (function, fingerprint)
+_REGISTERED: dict[str, tuple[Callable, str | None]] = {}
+# the [training] of a builder named on the command line without a recipe file
+OUTSIDE_TRAINING = {"optimizer": "adam", "lr": 1e-3, "batch_size": 60, "epochs": 30}
+_OUTSIDE = re.compile(r"^(?P<where>[^:]+):(?P<function>[A-Za-z_][A-Za-z0-9_]*)$")
+
+
+def is_outside(model: str) -> bool:
+    """Whether ``model`` (a recipe's key or a ``--models`` entry) names an outside builder."""
+    return _OUTSIDE.match(str(model)) is not None
+
+
+def builder(name: str, base: Path | None = None) -> Callable:
+    """The builder of the model ``name``: one of BUILDERS, ``package.module:function`` or
+    ``path/to/file.py:function`` (relative to ``base``, the recipe's folder); ConfigError naming
+    it when it does not import or is not a function."""
+    if name in BUILDERS:
+        module, function = BUILDERS[name]
+        return getattr(importlib.import_module(f"simlidar.models.{module}"), function)
+    if name in _REGISTERED:
+        return _REGISTERED[name][0]
+    match = _OUTSIDE.match(name)
+    if match is None:
+        raise ConfigError(
+            f"model {name!r}: expected one of {sorted(BUILDERS)}, 'package.module:function' "
+            "or 'path/to/file.py:function'"
+        )
+    where, function = match["where"], match["function"]
+    try:
+        module = _import_file(where, base) if where.endswith(".py") else _import(where)
+    except ConfigError:
+        raise
+    except Exception as exc:  # the user's module failed while importing: say how
+        raise ConfigError(
+            f"builder {name!r}: importing {where!r} raised {type(exc).__name__}: "
+            f"{str(exc).splitlines()[0] if str(exc) else ''}"
+        ) from None
+    found = getattr(module, function, None)
+    if not callable(found):
+        raise ConfigError(f"builder {name!r}: {where!r} has no function {function!r}")
+    return found
+
+
+def register(function: Callable, name: str, fingerprint: str | None = None) -> str:
+    """Make ``function`` a builder of this process under ``python:<name>`` (what recipes and
+    cells then call it); ``fingerprint`` (its source's sha256, say) is what a cell records of
+    its code. Returns the key."""
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
+        raise ConfigError(f"builder name {name!r}: expected a Python identifier")
+    key = f"python:{name}"
+    _REGISTERED[key] = (function, fingerprint)
+    return key
+
+
+def _import(module: str):
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        cwd = os.getcwd()
+        if exc.name == module.split(".")[0] and cwd not in sys.path:
+            sys.path.insert(0, cwd)  # as `python -m` would: a module beside the user
+            return _import(module)
+        raise ConfigError(
+            f"builder module {module!r}: cannot import it ({exc}); expected an installed module "
+            "or a path/to/file.py"
+        ) from None
+
+
+def _import_file(where: str, base: Path | None):
+    path = Path(where)
+    if not path.is_absolute() and base is not None:
+        path = base / path
+    if not path.is_file():
+        raise ConfigError(f"builder file {str(path)!r}: not found; expected a Python file")
+    # one module per file, named after its path: two recipes naming it share it
+    name = "simlidar_outside_" + hashlib.sha256(str(path.resolve()).encode()).hexdigest()[:16]
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[name]
+        raise
+    return module
 
 
 def load_recipe(name_or_path: str | Path) -> dict:
-    """A recipe by name (``baselines/<name>.toml``) or path, checked for its required keys."""
+    """A recipe by name (``baselines/<name>.toml``), path, or an outside builder named alone
+    (``package.module:function``: :data:`OUTSIDE_TRAINING`), checked for its required keys."""
+    if is_outside(str(name_or_path)) and not str(name_or_path).endswith(".toml"):
+        name = str(name_or_path)
+        builder(name)  # imports now: a bad name is refused before any work
+        return {
+            "model": name,
+            "architecture": {},
+            "training": dict(OUTSIDE_TRAINING),
+            "name": model_name(name),
+        }
     path = Path(name_or_path)
     if not path.suffix:
         path = content_dir("baselines") / f"{name_or_path}.toml"
     if not path.is_file():
         names = sorted(p.stem for p in content_dir("baselines").glob("*.toml"))
         raise ConfigError(
-            f"model recipe {str(name_or_path)!r}: expected one of {names} or a .toml file"
+            f"model recipe {str(name_or_path)!r}: expected one of {names}, a .toml file or "
+            "an outside builder 'package.module:function'"
         )
     try:
         recipe = tomllib.loads(path.read_text())
@@ -50,18 +159,73 @@ def load_recipe(name_or_path: str | Path) -> dict:
     for key in ("model", "architecture", "training"):
         if key not in recipe:
             raise ConfigError(f"{path}: key '{key}' is missing")
-    if recipe["model"] not in BUILDERS:
+    model = recipe["model"]
+    if not isinstance(model, str) or (model not in BUILDERS and not is_outside(model)):
         raise ConfigError(
-            f"{path}: key 'model': expected one of {sorted(BUILDERS)}, got {recipe['model']!r}"
+            f"{path}: key 'model': expected one of {sorted(BUILDERS)}, 'package.module:function' "
+            f"or 'path/to/file.py:function', got {model!r}"
         )
     recipe["name"] = path.stem
+    if is_outside(model):
+        recipe["base"] = str(path.resolve().parent)  # where a file builder's path starts
+        builder(model, path.resolve().parent)  # imports now: refused before any work
     TrainingConfig.from_table(recipe["training"], str(path))  # checked; kept as written
+    if "spec" in recipe:
+        if not isinstance(recipe["spec"], dict):
+            raise ConfigError(f"{path}: key 'spec': expected a table, got {recipe['spec']!r}")
+        spec_of(None, recipe["spec"], str(path))  # checked over the defaults
     return recipe
 
 
-def build_model(recipe: dict, input_shape: tuple[int, ...], classes: int, generator=None):
-    """Instantiate the recipe's model for inputs of ``input_shape`` (C, H, W) and ``classes``."""
+def builder_source(recipe: dict) -> str | None:
+    """sha256 of an outside builder's source file (None for a shipped builder or one whose
+    source cannot be read): a cell made by other code is not reused."""
+    if recipe["model"] in BUILDERS:
+        return None
+    if recipe["model"] in _REGISTERED:
+        return _REGISTERED[recipe["model"]][1]
+    function = builder(recipe["model"], Path(recipe["base"]) if "base" in recipe else None)
     try:
-        return builder(recipe["model"])(input_shape, classes, generator, **recipe["architecture"])
+        source = Path(sys.modules[function.__module__].__file__).read_bytes()
+    except (KeyError, AttributeError, TypeError, OSError):
+        return None
+    return hashlib.sha256(source).hexdigest()
+
+
+def model_name(model: str) -> str:
+    """The name a recipe, path or builder named alone goes by in cells and reports: the
+    recipe file's stem, or a builder's module (file) and function, file-safe."""
+    if is_outside(str(model)) and not str(model).endswith(".toml"):
+        where, function = str(model).rsplit(":", 1)
+        return re.sub(r"[^A-Za-z0-9_.-]", "_", f"{Path(where).stem}.{function}")
+    return Path(model).stem
+
+
+def build_model(recipe: dict, input_shape: tuple[int, ...], classes: int, generator=None):
+    """Instantiate the recipe's model for inputs of ``input_shape`` (C, H, W) and ``classes``;
+    ConfigError naming the recipe and the builder where it raises or returns no module."""
+    import torch
+
+    name = recipe["model"]
+    where = f"recipe {recipe.get('name', '?')}"
+    make = builder(name, Path(recipe["base"]) if "base" in recipe else None)
+    try:
+        model = make(input_shape, classes, generator, **recipe["architecture"])
     except TypeError as exc:
-        raise ConfigError(f"recipe {recipe.get('name', '?')}: [architecture] {exc}") from None
+        if name in BUILDERS:
+            raise ConfigError(f"{where}: [architecture] {exc}") from None
+        raise ConfigError(f"{where}: builder {name!r} raised TypeError: {exc}") from None
+    except ConfigError:
+        raise
+    except Exception as exc:
+        if name in BUILDERS:
+            raise
+        raise ConfigError(
+            f"{where}: builder {name!r} raised {type(exc).__name__}: "
+            f"{str(exc).splitlines()[0] if str(exc) else ''}"
+        ) from None
+    if not isinstance(model, torch.nn.Module):
+        raise ConfigError(
+            f"{where}: builder {name!r} returned {type(model).__name__}; expected a torch.nn.Module"
+        )
+    return model

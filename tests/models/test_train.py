@@ -102,15 +102,15 @@ def test_the_train_command(datasets, tmp_path):
 
 
 def test_time_logits_are_minus_ln_z_and_the_choice_is_checked(datasets):
-    from simlidar.bench.train import logits
     from simlidar.errors import ConfigError
+    from simlidar.models.protocol import class_scores
     from simlidar.models.registry import build_model
 
-    model = build_model(_small_recipe(), (1, 16, 16), 32)
+    spec = build_model(_small_recipe(), (1, 16, 16), 32).simlidar_spec
     z = torch.tensor([[1.0, torch.e, torch.inf], [torch.e**2, 1.0, 4.0]])
-    assert torch.allclose(logits(model, z, "time")[1], -torch.log(z[1]))
-    assert torch.allclose(logits(model, z, "z")[1], -z[1])
-    silent = logits(model, z, "time")[0]
+    assert torch.allclose(class_scores(z, spec, "time")[1], -torch.log(z[1]))
+    assert torch.allclose(class_scores(z, spec, "z")[1], -z[1])
+    silent = class_scores(z, spec, "time")[0]
     assert silent[2] < silent[:2].min()  # the silent output ranks below every firing one
     recipe = _small_recipe()
     recipe["training"]["logits"] = "exp"
@@ -119,12 +119,12 @@ def test_time_logits_are_minus_ln_z_and_the_choice_is_checked(datasets):
 
 
 def test_logit_scale_fire_penalty_and_cosine_schedule_train(datasets):
-    from simlidar.bench.train import logits
+    from simlidar.models.protocol import class_scores
     from simlidar.models.registry import build_model
 
-    model = build_model(_small_recipe(), (1, 16, 16), 32)
+    spec = build_model(_small_recipe(), (1, 16, 16), 32).simlidar_spec
     z = torch.tensor([[1.0, torch.e, torch.inf]])
-    assert torch.allclose(logits(model, z, "time", 10.0)[0, :2], torch.tensor([0.0, -10.0]))
+    assert torch.allclose(class_scores(z, spec, "time", 10.0)[0, :2], torch.tensor([0.0, -10.0]))
     recipe = _small_recipe()
     recipe["training"].update(
         logits="time",

@@ -1,0 +1,319 @@
+"""Outside models through the benchmark: builders named by a recipe or on the command line,
+the shipped examples (snnTorch, Norse) trained and scored through ``simlidar bench`` at a tiny
+size, their figures checked against NeuroBench, threads and devices.
+
+Bad input covered (each a one-line error, exit 2, nothing written): a builder module that does
+not import, a file that is not there, a module that raises while importing, a name that is not a
+function, a builder that raises, one that returns no module, a module whose output has the wrong
+shape or kind, a forward that raises, ``--device cuda`` on a machine without a GPU.
+"""
+
+import json
+from pathlib import Path
+
+import pytest
+import torch
+from click.testing import CliRunner
+
+from simlidar.cli import main
+from simlidar.errors import ConfigError
+from simlidar.models.registry import build_model, load_recipe
+
+EXAMPLES = Path(__file__).parents[2] / "examples"
+SUITE = """
+name = "outside"
+description = "outside models"
+models = ["cnn"]
+seeds = [0]
+datasets = [{paths}]
+
+[budget]
+epochs = {epochs}
+"""
+PLAIN = """
+import torch
+from torch import nn
+
+
+class Plain(nn.Module):  # no declaration: a conventional classifier of delay images
+    def __init__(self, pixels, classes):
+        super().__init__()
+        self.fc = nn.Linear(pixels, classes)
+
+    def forward(self, x):
+        return self.fc(x.flatten(1))
+
+
+def build(input_shape, classes, generator=None, **kw):
+    return Plain(input_shape[1] * input_shape[2], classes)
+
+
+def wrong_shape(input_shape, classes, generator=None):
+    return Plain(input_shape[1] * input_shape[2], classes + 1)
+
+
+def raises(input_shape, classes, generator=None):
+    raise ValueError("no weights file at /nowhere.pt")
+
+
+def not_a_module(input_shape, classes, generator=None):
+    return "a model"
+
+
+class Breaks(Plain):
+    def forward(self, x):
+        raise RuntimeError("mat1 and mat2 shapes cannot be multiplied")
+
+
+def breaks(input_shape, classes, generator=None):
+    return Breaks(4, classes)
+
+
+class Fitted(Plain):  # trains itself, as a model trained elsewhere would load its weights
+    def simlidar_fit(self, x_train, y_train, x_val, y_val, generator):
+        with torch.no_grad():  # the class means as weights: a nearest-mean classifier
+            for c in range(self.fc.out_features):
+                rows = x_train[y_train == c].flatten(1)
+                self.fc.weight[c] = rows.mean(0) if len(rows) else 0
+                self.fc.bias[c] = -0.5 * (self.fc.weight[c] ** 2).sum()
+        self.fitted = True
+
+
+def fitted(input_shape, classes, generator=None):
+    return Fitted(input_shape[1] * input_shape[2], classes)
+"""
+
+
+@pytest.fixture
+def plain_module(tmp_path, monkeypatch):
+    """A module ``outside_plain`` importable by name, and the same code as a file."""
+    folder = tmp_path / "code"
+    folder.mkdir()
+    (folder / "outside_plain.py").write_text(PLAIN)
+    monkeypatch.syspath_prepend(str(folder))
+    return folder / "outside_plain.py"
+
+
+def _suite(tmp_path, datasets, epochs=1):
+    path = tmp_path / "outside.toml"
+    paths = ", ".join(f'"{p}"' for p in [datasets[0.1]])
+    path.write_text(SUITE.format(paths=paths, epochs=epochs))
+    return path
+
+
+def _bench(*args):
+    return CliRunner().invoke(main, ["bench", *map(str, args)])
+
+
+def test_a_plain_torch_module_by_name_and_by_file(plain_module, tmp_path, datasets):
+    recipe = load_recipe("outside_plain:build")
+    assert recipe["name"] == "outside_plain.build" and recipe["training"]["epochs"] == 30
+    model = build_model(recipe, (1, 16, 16), 32)
+    assert isinstance(model, torch.nn.Module)
+    (tmp_path / "r").mkdir()
+    file_recipe = tmp_path / "r" / "mine.toml"
+    file_recipe.write_text(
+        f'model = "../code/{plain_module.name}:build"\n[architecture]\n'
+        '[training]\noptimizer = "adam"\nlr = 1e-2\nbatch_size = 32\nepochs = 2\n'
+    )
+    out = tmp_path / "b"
+    result = _bench(
+        "--suite",
+        _suite(tmp_path, datasets),
+        "--models",
+        f"outside_plain:build,{file_recipe}",
+        "--out",
+        out,
+        "--json",
+    )
+    assert result.exit_code == 0, result.output
+    cells = {c["model"]: c for c in json.loads(result.stdout)["cells"]}
+    assert set(cells) == {"outside_plain.build", "mine"}
+    for cell in cells.values():
+        assert cell["kind"] == "conventional" and cell["spec"]["output"] == "logits"
+        assert cell["threads"] == 1 and cell["device"] == "cpu"
+        assert cell["macs"] == 256 * 32  # one linear layer, counted like the baselines'
+
+
+def test_a_model_with_its_own_fit_is_scored_only(plain_module, tmp_path, datasets):
+    out = tmp_path / "b"
+    result = _bench(
+        "--suite",
+        _suite(tmp_path, datasets),
+        "--models",
+        "outside_plain:fitted",
+        "--out",
+        out,
+        "--json",
+    )
+    assert result.exit_code == 0, result.output
+    (cell,) = json.loads(result.stdout)["cells"]
+    assert cell["stopped"] == "own-fit" and cell["epochs_run"] == 1
+    assert cell["validation_size"] > 0 and cell["validation_curve"][0] is not None
+    assert cell["accuracy"] > 3 / 32  # nearest class mean: well above chance at noise 0.1
+
+
+@pytest.mark.parametrize(
+    "model, words",
+    [
+        ("no_such_module_xyz:build", "builder module 'no_such_module_xyz': cannot import it"),
+        ("missing/file.py:build", "builder file '.*missing/file.py': not found"),
+        ("outside_plain:nothing", "has no function 'nothing'"),
+        ("outside_plain:raises", "builder 'outside_plain:raises' raised ValueError: no weights"),
+        ("outside_plain:not_a_module", "returned str; expected a torch.nn.Module"),
+        ("outside_plain:wrong_shape", r"output for a batch of 2 is \(2, 33\); expected logits"),
+        ("outside_plain:breaks", "forward on a batch of 2 delays inputs raised RuntimeError"),
+    ],
+)
+def test_bad_builders_are_one_line(plain_module, tmp_path, datasets, model, words):
+    out = tmp_path / "b"
+    result = _bench("--suite", _suite(tmp_path, datasets), "--models", model, "--out", out)
+    assert result.exit_code in (1, 2), result.output
+    assert "Traceback" not in result.output
+    lines = [line for line in result.output.splitlines() if "rror" in line]
+    assert len(lines) == 1 and __import__("re").search(words, lines[0]), result.output
+    assert not (out / "cells").exists() or not list((out / "cells").iterdir())
+
+
+def test_a_module_that_fails_to_import_is_named(tmp_path, datasets):
+    (tmp_path / "broken.py").write_text("import torch\nraise ImportError('needs a GPU build')\n")
+    recipe = tmp_path / "broken.toml"
+    recipe.write_text(
+        'model = "broken.py:build"\n[architecture]\n[training]\nlr = 1\n'
+        "batch_size = 1\nepochs = 1\n"
+    )
+    result = _bench(
+        "--suite", _suite(tmp_path, datasets), "--models", recipe, "--out", tmp_path / "b"
+    )
+    assert result.exit_code == 2 and "importing 'broken.py' raised ImportError: needs a GPU" in (
+        result.output
+    )
+
+
+def test_a_device_this_machine_lacks_is_refused(tmp_path, datasets):
+    if torch.cuda.is_available():
+        pytest.skip("this machine has a GPU")
+    result = _bench(
+        "--suite", _suite(tmp_path, datasets), "--device", "cuda", "--out", tmp_path / "b"
+    )
+    assert result.exit_code == 2 and "--device cuda: torch sees no CUDA device" in result.output
+    assert not (tmp_path / "b").exists()
+
+
+@pytest.mark.parametrize("example", ["snntorch_lif", "norse_lif"])
+def test_the_examples_train_and_score_through_bench(tmp_path, datasets, example):
+    pytest.importorskip(example.split("_")[0])  # the extras simlidar[snntorch], [norse]
+    out = tmp_path / "b"
+    recipe = EXAMPLES / f"{example}.toml"
+    result = _bench(
+        "--suite", _suite(tmp_path, datasets, epochs=2), "--models", recipe, "--out", out, "--json"
+    )
+    assert result.exit_code == 0, result.output
+    (cell,) = json.loads(result.stdout)["cells"]
+    assert cell["kind"] == "spiking" and cell["spec"]["encoding"] == "latency"
+    stepped = cell["stepped"]
+    assert stepped["steps"] == 25 and stepped["samples"] == 64
+    assert stepped["accuracy"] == cell["accuracy"]  # the same readout as the test score
+    assert 0 < stepped["input_spikes_mean"] <= stepped["input_spikes_total_mean"] <= 256
+    assert stepped["neuron_spikes_by_step"]
+    if stepped["readout"] == "spike_count":  # reads the whole window
+        assert stepped["decision_step_mean"] in (25.0, None)
+        assert stepped["input_spikes_mean"] == stepped["input_spikes_total_mean"]
+    ops = cell["synaptic_operations"]
+    assert ops["effective_macs"] == 0 and ops["effective_acs"] > 0  # binary inputs: accumulates
+    assert cell["energy_pj_ops"] == pytest.approx(ops["effective_acs"] * 0.9)
+    assert 0 < cell["activation_sparsity"] < 1
+    assert cell["footprint"] < 2 * 4 * cell["params"]  # no batch of membrane state in it
+    report = (out / "report.md").read_text()
+    assert cell["model"] in report
+
+
+def test_the_snntorch_examples_figures_are_neurobenchs(datasets):
+    pytest.importorskip("snntorch")
+    from neurobench.benchmarks import Benchmark
+    from neurobench.metrics.static import Footprint, ParameterCount
+    from neurobench.metrics.workload import ActivationSparsity, SynapticOperations
+    from neurobench.models import SNNTorchModel
+    from torch.utils.data import DataLoader, TensorDataset
+
+    from simlidar.bench import metrics
+    from simlidar.data import load_split
+    from simlidar.models.protocol import encode
+
+    model = build_model(
+        load_recipe(EXAMPLES / "snntorch_lif.toml"),
+        (1, 16, 16),
+        32,
+        torch.Generator().manual_seed(0),
+    )
+    x = torch.from_numpy(load_split(datasets[0.1], "test")[0][:40])[:, None]
+    spec = model.simlidar_spec
+
+    def enc(batch):
+        return encode(batch, spec, float("inf"))
+
+    class TimeMajor(torch.nn.Module):  # NeuroBench hands (B, T, ...) and wants (T, B, ...) back
+        def __init__(self, net):
+            super().__init__()
+            self.net = net
+
+        def forward(self, data):
+            return self.net(data.transpose(0, 1))[0]
+
+    ours = {**metrics.footprint(model), **metrics.workload(model, x, batch_size=16, encode=enc)}
+    model(enc(x[:16]))  # a batch's membrane state now sits in the model's buffers ...
+    assert metrics.footprint(model)["footprint"] == ours["footprint"]  # ... and is left out
+    loader = DataLoader(TensorDataset(enc(x).transpose(0, 1), torch.zeros(len(x))), batch_size=16)
+    fresh = build_model(
+        load_recipe(EXAMPLES / "snntorch_lif.toml"),
+        (1, 16, 16),
+        32,
+        torch.Generator().manual_seed(0),
+    )
+    theirs = Benchmark(
+        SNNTorchModel(TimeMajor(fresh), custom_forward=True),
+        loader,
+        [],
+        [],
+        [[Footprint, ParameterCount], [ActivationSparsity, SynapticOperations]],
+    ).run(quiet=True)
+    assert ours["params"] == theirs["ParameterCount"]
+    assert ours["footprint"] == theirs["Footprint"]
+    assert ours["activation_sparsity"] == pytest.approx(theirs["ActivationSparsity"], rel=1e-12)
+    ops, nb_ops = ours["synaptic_operations"], theirs["SynapticOperations"]
+    assert ops["effective_acs"] == nb_ops["Effective_ACs"] > 0
+    assert ops["effective_macs"] == nb_ops["Effective_MACs"] == 0
+    assert ops["dense"] == nb_ops["Dense"]
+
+
+def test_the_python_api_writes_the_cells_bench_writes(tmp_path, datasets):
+    from simlidar.bench.api import bench_model
+
+    def tiny_mlp(input_shape, classes, generator=None):
+        model = torch.nn.Sequential(torch.nn.Flatten(), torch.nn.Linear(256, classes))
+        torch.nn.init.normal_(model[1].weight, std=0.01, generator=generator)
+        return model
+
+    out = tmp_path / "api"
+    cells = bench_model(tiny_mlp, datasets[0.1], out=out, budget={"epochs": 2}, seeds=(0, 1))
+    assert [c["model"] for c in cells] == ["python.tiny_mlp"] * 2
+    assert [c["seed"] for c in cells] == [0, 1]
+    assert sorted(p.name for p in (out / "cells").iterdir()) == [
+        f"{datasets[0.1].name}__python.tiny_mlp__seed{s}.json" for s in (0, 1)
+    ]
+    assert (out / "report.md").is_file() and (out / "results.json").is_file()
+    # the same keys as a cell the command line writes for a shipped model
+    result = _bench("--suite", _suite(tmp_path, datasets), "--out", tmp_path / "b", "--json")
+    (cli_cell,) = json.loads(result.stdout)["cells"]
+    assert set(cells[0]) == set(cli_cell)
+    again = bench_model(tiny_mlp, datasets[0.1], out=out, budget={"epochs": 2}, seeds=(0, 1))
+    assert again == cells  # a rerun reuses the finished cells
+    module = tiny_mlp((1, 16, 16), 32, torch.Generator().manual_seed(3))
+    (cell,) = [
+        c
+        for c in bench_model(module, datasets[0.1], out=tmp_path / "m", budget={"epochs": 1})
+        if c["model"] == "python.Sequential"
+    ]
+    assert cell["params"] == 256 * 32 + 32
+    with pytest.raises(ConfigError, match="budget key 'lr': expected one of"):
+        bench_model(tiny_mlp, datasets[0.1], out=tmp_path / "x", budget={"lr": 1.0})
