@@ -372,8 +372,11 @@ def run_suite(
         dynamic_ncols=True,
     )
     if scheduler is not None:
-        from simlidar.cluster import connect, run_tasks
+        from simlidar.cluster import LOCAL, connect, run_tasks
+        from simlidar.processes import capped_workers
 
+        if scheduler == LOCAL:  # one task a cell: no more processes than cells and cores
+            workers = capped_workers(workers, len(todo), "cells")
         with connect(scheduler, workers) as client:
             tasks = [(d, m, s, suite, out) for d, m, s in todo]
             names = [f"cell {cell_id(d, m, s)}" for d, m, s in todo]

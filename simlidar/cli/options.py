@@ -6,7 +6,6 @@ bad model recipe given to --model), 1 for anything else (a bad scene recipe, a p
 a dataset, an existing dataset, ...). ``--debug`` shows the traceback instead.
 """
 
-import os
 import sys
 from pathlib import Path
 
@@ -91,11 +90,9 @@ class Workers(click.ParamType):
         if isinstance(value, int) and not isinstance(value, bool):
             number = value
         elif str(value).strip().lower() == "auto":
-            return (
-                len(os.sched_getaffinity(0))
-                if hasattr(os, "sched_getaffinity")
-                else (os.cpu_count() or 1)
-            )
+            from simlidar.processes import usable_cores
+
+            return usable_cores()
         else:
             try:
                 number = int(str(value))
