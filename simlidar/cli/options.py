@@ -115,8 +115,8 @@ class Scheduler(click.ParamType):
 
         try:
             check_scheduler(str(value))
-        except ConfigError as exc:
-            self.fail(str(exc).removeprefix(f"--scheduler {value}: "), param, ctx)
+        except ConfigError as exc:  # the address, then why (no "--scheduler" twice)
+            self.fail(str(exc).replace(f"--scheduler {value}: ", f"{value}: ", 1), param, ctx)
         return str(value)
 
 
