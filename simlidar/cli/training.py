@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from simlidar.cli.options import Workers, scheduler_option, setting_option
+from simlidar.cli.options import IntegerRange, Workers, scheduler_option, setting_option
 from simlidar.errors import ConfigError, SimlidarError
 from simlidar.models.training import TrainingConfig
 from simlidar.settings import help_of
@@ -32,7 +32,7 @@ def _override(name: str, **options):
 
 _selection_options = [
     _override("validation"),
-    _override("patience", type=click.IntRange(1, MAX_EPOCHS)),
+    _override("patience", type=IntegerRange(1, MAX_EPOCHS)),
 ]
 
 
@@ -82,8 +82,8 @@ def _chosen(result) -> str:
     show_default=True,
     help="Folder for the checkpoint.",
 )
-@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
-@_override("epochs", type=click.IntRange(1, MAX_EPOCHS))
+@click.option("--seed", type=IntegerRange(0, 2**63 - 1), default=0, show_default=True)
+@_override("epochs", type=IntegerRange(1, MAX_EPOCHS))
 @_override("max_seconds")
 @_selection
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
@@ -163,7 +163,7 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
     default=None,
     help="Output directory (default: bench/<suite name>).",
 )
-@_override("epochs", type=click.IntRange(1, MAX_EPOCHS))
+@_override("epochs", type=IntegerRange(1, MAX_EPOCHS))
 @_override("max_seconds")
 @_selection
 @click.option(
