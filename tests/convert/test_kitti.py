@@ -1,6 +1,12 @@
 """KITTI -> front-view pulse crops, checked against what can be derived without the converter:
 the label files, the calibration and the raw scans, read and transformed here independently
-(forward, Velodyne -> camera, where the converter goes backwards)."""
+(forward, Velodyne -> camera, where the converter goes backwards).
+
+Attack list: malformed label and calibration files (too few columns, an unknown type, a word
+where a number goes, a calibration key without its numbers or missing), a scan whose size is
+not a multiple of 16 bytes, and (issue 35, item 10) numbers that parse but mean nothing: a box
+of 1e308 m or 1e308 m away, a truncation of 1e308, an infinite size; each is one line naming
+the file and line, with no numpy overflow warning and nothing written."""
 
 import json
 import math
@@ -233,6 +239,30 @@ def test_more_frames_without_objects_than_an_object_header_holds(synthetic_kitti
             "000000.txt line 1: 'x' is not a number",
         ),
         (
+            "label_2",
+            "000000",
+            lambda t: t.replace("1.50 1.60 4.00", "1e308 1e308 1e308"),
+            "000000.txt line 1: box size h w l = 1e308 1e308 1e308, expected positive metres",
+        ),
+        (
+            "label_2",
+            "000000",
+            lambda t: t.replace("1.60 4.00 0.00", "1.60 4.00 1e308"),
+            "000000.txt line 1: box location x y z = 1e308 1.00 -10.00, expected metres within",
+        ),
+        (
+            "label_2",
+            "000000",
+            lambda t: t.replace("Car 0.00", "Car 1e308"),
+            "000000.txt line 1: truncated '1e308', expected 0..1",
+        ),
+        (
+            "label_2",
+            "000000",
+            lambda t: t.replace("1.60", "inf"),
+            "000000.txt line 1: 'inf': expected a finite number",
+        ),
+        (
             "calib",
             "000001",
             lambda t: t.replace("0 -1 0 0 0 0 -1 0 1 0 0 0", "0 -1 0"),
@@ -252,6 +282,7 @@ def test_more_frames_without_objects_than_an_object_header_holds(synthetic_kitti
         ),
     ],
 )
+@pytest.mark.filterwarnings("error")  # numpy's overflow warnings: the input got through
 def test_malformed_files_are_named_and_nothing_is_written(
     synthetic_kitti, tmp_path, folder, stem, damage, words
 ):
