@@ -111,7 +111,7 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
             "or lower --epochs",
             err=True,
         )
-    path = save_checkpoint(result, out / f"{recipe['name']}-seed{seed}.pt")
+    path = out / f"{recipe['name']}-seed{seed}.pt"
     record = {
         "model": recipe["name"],
         "dataset": str(dataset),
@@ -120,23 +120,29 @@ def train(model, dataset, out, seed, epochs, max_seconds, validation, patience, 
         "epochs": result.epochs,
         **result.selection(),
         "seconds": round(result.seconds, 1),
-        "checkpoint": str(path),
+        "checkpoint": None,  # set once written
     }
     if result.model.event_driven:  # how early the spiking network decides
         from simlidar.bench.early import early_decisions
 
         record["early"] = early_decisions(result.model, dataset)
-    if as_json:
-        click.echo(json.dumps(record))
-        return
-    click.echo(
-        f"{recipe['name']}: test accuracy {result.test_accuracy:.4f}, {_chosen(result)}, "
-        f"{result.seconds:.0f} s; wrote {path}"
-    )
-    if "early" in record:
-        from simlidar.bench.early import format_early
+    if not as_json:  # the result first: a checkpoint that cannot be written loses nothing else
+        click.echo(
+            f"{recipe['name']}: test accuracy {result.test_accuracy:.4f}, {_chosen(result)}, "
+            f"{result.seconds:.0f} s"
+        )
+        if "early" in record:
+            from simlidar.bench.early import format_early
 
-        click.echo(format_early(record["early"]))
+            click.echo(format_early(record["early"]))
+    try:
+        save_checkpoint(result, path)
+    except SimlidarError:
+        if as_json:  # the result all the same, with no checkpoint
+            click.echo(json.dumps(record))
+        raise
+    record["checkpoint"] = str(path)
+    click.echo(json.dumps(record) if as_json else f"wrote {path}")
 
 
 @click.command()
