@@ -19,6 +19,7 @@ import errno
 import fcntl
 import os
 import re
+import secrets
 import shutil
 import tempfile
 import warnings
@@ -171,14 +172,28 @@ def claim_folder(out: Path) -> bool:
     return created
 
 
+def new_temporary(folder: Path, prefix: str, suffix: str = "") -> tuple[int, Path]:
+    """A new empty file ``<folder>/<prefix><random><suffix>``, opened for writing: (its file
+    descriptor, its path). As ``tempfile.mkstemp``, but with the mode every other output gets,
+    0666 less the umask (0644 usually): mkstemp's 0600 made ``preview.png`` and checkpoints
+    private beside public splits and cards."""
+    for _ in range(100):
+        path = folder / f"{prefix}{secrets.token_hex(4)}{suffix}"
+        try:
+            return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), path
+        except FileExistsError:
+            continue
+    raise FileExistsError(errno.EEXIST, "no unused temporary name", str(folder / prefix))
+
+
 def write_file(path: str | Path, write) -> Path:
     """Write ``path`` through a unique temporary file beside it (``write(temporary)``), renamed
-    into place when complete. On any error the temporary is removed, so neither a 0-byte nor a
-    half file is left; an OSError (a full disk, a read-only folder) becomes a DatasetError
-    naming ``path`` and the cause."""
+    into place when complete, with the mode of :func:`new_temporary`. On any error the
+    temporary is removed, so neither a 0-byte nor a half file is left; an OSError (a full
+    disk, a read-only folder) becomes a DatasetError naming ``path`` and the cause."""
     path = Path(path)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
+        fd, tmp = new_temporary(path.parent, f".{path.name}.", ".partial")
         os.close(fd)
     except OSError as exc:
         raise DatasetError(f"{path}: cannot write ({exc.strerror or exc})") from None

@@ -10,14 +10,16 @@ run again by the scheduler on another worker (Dask's ``allowed-failures``, 3 by 
 task that raises is retried ``retries`` times and then ends the run with its error.
 """
 
+import asyncio
 import secrets
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 from simlidar.errors import ConfigError, DatasetError
 
 LOCAL = "local"  # --scheduler local: a LocalCluster on this machine
-CONNECT_SECONDS = 10  # how long to wait for a scheduler before calling it unreachable
+CONNECT_SECONDS = 10  # how long to wait for a scheduler's answer before calling it unreachable
 
 
 def _dask():
@@ -31,12 +33,54 @@ def _dask():
     return distributed
 
 
+def _handshake(distributed, address: str, seconds: float) -> None:
+    """Open a connection to ``address`` and exchange Dask's handshake, all within ``seconds``;
+    a ConfigError saying why not otherwise. Dask's own ``Client`` bounds the connection but not the
+    handshake's reply: a plain HTTP server there kept it waiting for ever, and a service that
+    speaks first (an SSH banner) made it read its bytes as a frame count and fail with a
+    MemoryError. Run on a thread of its own, so that a caller's event loop does not matter."""
+
+    async def probe():
+        comm = await asyncio.wait_for(distributed.comm.connect(address, timeout=seconds), seconds)
+        await comm.close()
+
+    failure: list[BaseException] = []
+
+    def run():
+        try:
+            asyncio.run(probe())
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller below
+            failure.append(exc)
+
+    thread = threading.Thread(target=run, name="simlidar-scheduler-probe", daemon=True)
+    thread.start()
+    thread.join(seconds + 5)  # wait_for has ended it by then; never wait without end
+    if thread.is_alive():
+        raise _unreachable(address, TimeoutError())
+    if failure:
+        raise _unreachable(address, failure[0])
+
+
+def _unreachable(address: str, exc: BaseException) -> ConfigError:
+    """The one line for a scheduler that did not answer as one: the address and why."""
+    if isinstance(exc, TimeoutError):
+        cause = f"no Dask answer within {CONNECT_SECONDS} s"
+    elif isinstance(exc, OSError | ValueError | TypeError) and str(exc):
+        cause = str(exc).splitlines()[0]
+    else:  # garbage read as Dask's frames: MemoryError, a decoding error, ...
+        cause = f"it answered, but not in Dask's protocol ({type(exc).__name__})"
+    return ConfigError(
+        f"--scheduler {address}: cannot reach a Dask scheduler ({cause}); expected the "
+        f"address of a running scheduler (tcp://HOST:8786) or {LOCAL!r}"
+    )
+
+
 @contextmanager
 def connect(address: str, workers: int = 2) -> Iterator:
     """A ``dask.distributed.Client`` of the scheduler at ``address`` (``tcp://HOST:PORT``), or
     of a new LocalCluster of ``workers`` processes when ``address`` is ``local``; closed (and
-    the local cluster stopped) on exit. ConfigError, one line, when the scheduler cannot be
-    reached."""
+    the local cluster stopped) on exit. ConfigError, one line naming the address, when no
+    Dask scheduler answers there within ``CONNECT_SECONDS`` (nothing, or another service)."""
     distributed = _dask()
     cluster = None
     try:
@@ -50,15 +94,12 @@ def connect(address: str, workers: int = 2) -> Iterator:
             )
             client = distributed.Client(cluster)
         else:
+            _handshake(distributed, address, CONNECT_SECONDS)
             client = distributed.Client(address, timeout=CONNECT_SECONDS)
     except (OSError, TimeoutError, ValueError, TypeError) as exc:
         if cluster is not None:
             cluster.close()
-        cause = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise ConfigError(
-            f"--scheduler {address}: cannot reach a Dask scheduler ({cause}); expected the "
-            f"address of a running scheduler (tcp://HOST:8786) or {LOCAL!r}"
-        ) from None
+        raise _unreachable(address, exc) from None
     try:
         yield client
     finally:

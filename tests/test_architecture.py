@@ -15,6 +15,7 @@ STAGES = [
         "simlidar.content",
         "simlidar.atomic",
         "simlidar.settings",
+        "simlidar.processes",
         "simlidar.cluster",
     },
     {"simlidar.scene"},

@@ -1,9 +1,17 @@
 """Claiming output names: a dataset that appears mid-run is never replaced without --force,
-temporaries are unique and locked, and dead runs' temporaries are cleaned, live ones kept."""
+temporaries are unique and locked, and dead runs' temporaries are cleaned, live ones kept.
+
+Attack list (issue 35, item 10): a checkpoint written past a real file-size limit
+(``RLIMIT_FSIZE``): torch's own "file write failed" became the message, now the system's cause
+and no partial file; ``preview.png`` and checkpoints, written through a temporary file, were
+0600 beside 0644 splits and cards: now 0666 less the umask, as every other output (tried with
+umask 027 too).
+"""
 
 import fcntl
 import multiprocessing
 import os
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -147,25 +155,59 @@ def test_a_full_disk_stops_generate_at_the_first_error_and_leaves_nothing(tmp_pa
     assert not out.exists()  # created by the run, left empty: removed
 
 
-def test_a_full_disk_while_saving_a_checkpoint_leaves_no_partial_file(
-    tmp_path, monkeypatch, datasets
-):
-    import errno
+@contextmanager
+def _file_size_limit(size: int):
+    """A real file-size limit on this process (a write past it fails with EFBIG; Python
+    ignores SIGXFSZ), lifted on exit."""
+    import resource
 
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (size, hard))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+
+
+def test_a_full_disk_while_saving_a_checkpoint_leaves_no_partial_file(tmp_path, datasets):
     pytest.importorskip("torch")
     from simlidar.bench import train as training
     from simlidar.models.registry import load_recipe
 
     result = training.train(load_recipe("mlp"), datasets[0.1], epochs=1, progress=False)
-
-    def full(obj, f):
-        f.write(b"partial")
-        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-
-    monkeypatch.setattr(training.torch, "save", full)
-    with pytest.raises(DatasetError, match=r"mlp.pt: cannot write the checkpoint \(No space"):
+    (tmp_path / "runs").mkdir()
+    with (
+        _file_size_limit(64 * 1024),  # the MLP's weights take about 450 KB
+        pytest.raises(DatasetError) as caught,
+    ):
         training.save_checkpoint(result, tmp_path / "runs" / "mlp.pt")
+    assert str(caught.value) == (
+        f"{tmp_path / 'runs' / 'mlp.pt'}: cannot write the checkpoint (File too large)"
+    )
     assert list((tmp_path / "runs").iterdir()) == []
+
+
+def test_outputs_written_through_a_temporary_get_the_mode_of_every_other(tmp_path, datasets):
+    pytest.importorskip("torch")
+    from simlidar.bench import train as training
+    from simlidar.models.registry import load_recipe
+    from simlidar.release.preview import write_preview
+
+    def mode(path):
+        return path.stat().st_mode & 0o777
+
+    generated = datasets[0.1]
+    assert mode(generated / "preview.png") == mode(generated / "train.h5")
+    result = training.train(load_recipe("mlp"), generated, epochs=1, progress=False)
+    before = os.umask(0o027)
+    try:
+        picture = write_preview(generated, tmp_path / "grid.png")
+        checkpoint = training.save_checkpoint(result, tmp_path / "mlp.pt")
+        plain = tmp_path / "plain.txt"
+        plain.write_text("as Python writes any file")
+    finally:
+        os.umask(before)
+    assert mode(picture) == mode(checkpoint) == mode(plain) == 0o640
 
 
 def test_train_refuses_an_unwritable_out_before_training(tmp_path, datasets):

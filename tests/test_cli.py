@@ -1,4 +1,9 @@
-"""The command line: happy paths and every error path, with click's CliRunner."""
+"""The command line: happy paths and every error path, with click's CliRunner.
+
+Attack list (issue 35, item 10): numbers in other scripts' digits, which Python's ``int`` and
+``float`` accept (``--noise ٠.٥``, Arabic-Indic, was read as 0.5; ``--seed ١``), and ``1_000``,
+in every numeric option of every command: refused in one line (exit 2), nothing written.
+"""
 
 import json
 from pathlib import Path
@@ -76,6 +81,11 @@ def test_version(run):
         (["generate", "--noise", "1.5"], 2, "1.5 is outside [0, 1]"),
         (["generate", "--noise", "-0.1"], 2, "-0.1 is outside [0, 1]"),
         (["generate", "--noise", "0.1,abc"], 2, "'abc' is not a number"),
+        (["generate", "--noise", "\u0660.\u0665"], 2, "'\u0660.\u0665' is not a number"),
+        (["generate", "--seed", "\u0661"], 2, "'\u0661' is not a whole number in ASCII digits"),
+        (["generate", "--train-size", "1_000"], 2, "'1_000' is not a whole number in ASCII"),
+        (["generate", "--variation", "\u0660.\u0665"], 2, "is not a number in ASCII digits"),
+        (["generate", "--workers", "\u0662"], 2, "'\u0662' is not a whole number"),
         (["generate", "--train-size", "0"], 2, "'--train-size': 0 is not in the range 1<=x<="),
         (["generate", "--train-size", "5"], 2, "train_size=5: expected an integer in [32, "),
         (["generate", "--train-size", str(10**20)], 2, "100000000000000000000 is not in the range"),
@@ -308,3 +318,44 @@ def test_a_usage_error_is_one_line(run):
     assert run("--version").exit_code == 0
     bare = run()  # no command: click's help, as before
     assert bare.exit_code == 2 and "Commands:" in bare.output
+
+
+def _numeric_options():
+    """(command, option) for every option of every command whose value is a number."""
+    import click
+
+    def walk(command, name):
+        if isinstance(command, click.Group):
+            for sub_name, sub in sorted(command.commands.items()):
+                yield from walk(sub, f"{name} {sub_name}")
+            return
+        for param in command.params:
+            types = getattr(param.type, "types", [param.type])  # a tuple option: each value
+            names = {t.name for t in types}
+            if names <= {"integer", "float", "integer range", "float range", "LEVELS", "N|auto"}:
+                yield pytest.param(command, param, id=f"{name.strip()} {param.opts[0]}")
+
+    return list(walk(main, ""))
+
+
+@pytest.mark.parametrize("command, option", _numeric_options())
+def test_every_numeric_option_takes_ascii_digits_only(command, option):
+    import click
+
+    ctx = click.Context(command)
+    types = getattr(option.type, "types", [option.type])
+    integer = all("integer" in t.name or t.name == "N|auto" for t in types)
+    for bad in ("\u0661", "\u0660.\u0665", "1_0", "\uff11"):  # Arabic-Indic, fullwidth
+        if integer or bad != "1_0":  # float("1_0") is 10.0 too
+            value = tuple(bad for _ in types) if len(types) > 1 else bad
+            with pytest.raises(click.BadParameter, match="is not a"):
+                option.type.convert(value, option, ctx)
+    taken = []  # ASCII is still taken: at least one of these is in the option's range
+    for good in ("1", "0.5", "32", "100"):
+        try:
+            taken.append(
+                option.type.convert((good,) * len(types) if len(types) > 1 else good, option, ctx)
+            )
+        except click.BadParameter:
+            pass
+    assert taken

@@ -1,11 +1,23 @@
 """Generation and benchmark cells on a real Dask LocalCluster (2 worker processes, loopback):
-the same bytes as one process, also after a worker is killed mid-shard (issue "Scale out")."""
+the same bytes as one process, also after a worker is killed mid-shard (issue "Scale out").
+
+Attack list (issue 35, item 5), each a real server on loopback:
+
+* ``--scheduler`` at a plain HTTP server (``http.server``): Dask's handshake waited for ever
+  (> 10 min, no output); now one line naming the address within the connect timeout.
+* ``--scheduler`` at a raw TCP service that speaks first (an SSH banner): its bytes read as a
+  frame count, an 82-line MemoryError traceback; now one line naming the address.
+* a closed port and an unknown scheme: one line, nothing written.
+"""
 
 import json
 import os
 import signal
+import socket
 import threading
 import time
+from contextlib import contextmanager
+from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 
 import pytest
 from click.testing import CliRunner
@@ -119,7 +131,10 @@ def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(catalog, tmp_pa
         main, ["generate", "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "d")]
     )
     assert result.exit_code == 2
-    assert "Invalid value for '--scheduler': cannot reach a Dask scheduler" in result.output
+    assert (
+        "Invalid value for '--scheduler': tcp://127.0.0.1:9: cannot reach a Dask scheduler"
+        in result.output
+    )
     assert (
         "expected the address of a running scheduler (tcp://HOST:8786) or 'local'" in result.output
     )
@@ -155,3 +170,90 @@ def test_bench_cells_on_the_cluster_equal_cells_run_here(cluster, datasets, tmp_
         b = json.loads((tmp_path / "there" / "cells" / cell.name).read_text())
         assert a["accuracy"] == b["accuracy"] and a["validation_curve"] == b["validation_curve"]
         assert a["threads"] == b["threads"] == 1
+
+
+class _QuietHandler(SimpleHTTPRequestHandler):
+    def log_message(self, *args):  # its log would mix with the command's stderr
+        pass
+
+
+@contextmanager
+def _http_server():
+    """A plain HTTP server on a free loopback port: its address as tcp://127.0.0.1:PORT."""
+    server = ThreadingHTTPServer(("127.0.0.1", 0), _QuietHandler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"tcp://127.0.0.1:{server.server_address[1]}"
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+@contextmanager
+def _banner_server():
+    """A raw TCP service that speaks first, as SSH does, and then waits."""
+    listener = socket.create_server(("127.0.0.1", 0))
+    listener.settimeout(0.2)
+    stop = threading.Event()
+    held = []
+
+    def serve():
+        while not stop.is_set():
+            try:
+                conn, _ = listener.accept()
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            conn.sendall(b"SSH-2.0-OpenSSH_9.6p1 Ubuntu-3ubuntu13\r\n")
+            held.append(conn)  # kept open, as a real service keeps it
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        yield f"tcp://127.0.0.1:{listener.getsockname()[1]}"
+    finally:
+        stop.set()
+        thread.join()
+        listener.close()
+        for conn in held:
+            conn.close()
+
+
+@pytest.mark.parametrize(
+    "server, cause",
+    [
+        (_http_server, "no Dask answer within 2 s"),
+        (_banner_server, "it answered, but not in Dask's protocol (MemoryError)"),
+    ],
+    ids=["http", "banner"],
+)
+def test_a_service_that_is_not_a_scheduler_is_one_line_naming_it(
+    server, cause, catalog, tmp_path, monkeypatch
+):
+    import simlidar.cluster
+
+    monkeypatch.setattr(simlidar.cluster, "CONNECT_SECONDS", 2)
+    with server() as address:
+        out = tmp_path / "d"
+        args = ["generate", "--scheduler", address, "--out", str(out)]
+        result = []  # run on a thread: a run that hangs fails the test instead of hanging it
+        thread = threading.Thread(target=lambda: result.append(CliRunner().invoke(main, args)))
+        thread.daemon = True
+        thread.start()
+        thread.join(60)
+        assert result, f"--scheduler {address}: no answer within 60 s"
+        (done,) = result
+        assert done.exit_code == 2, done.output
+        assert done.output.count("\n") == 1 and "Traceback" not in done.output
+        assert done.output.startswith(
+            f"Error: Invalid value for '--scheduler': {address}: cannot reach a Dask scheduler "
+            f"({cause}); expected"
+        )
+        assert "expected the address of a running scheduler (tcp://HOST:8786)" in done.output
+        assert not out.exists()
+        with pytest.raises(ConfigError, match=f"--scheduler {address}: cannot reach a Dask"):
+            generate(
+                GeneratorConfig(train_size=32, test_size=32), [0.1], catalog, out, scheduler=address
+            )

@@ -4,6 +4,7 @@ a rerun never reuses a cell made from other inputs (docs/benchmark.md)."""
 
 import hashlib
 import json
+import math
 from pathlib import Path
 
 from simlidar.bench.suite import BUDGET_KEYS
@@ -18,15 +19,27 @@ def cell_id(dataset: Path, model: str, seed: int) -> str:
     return f"{dataset.name}__{model_name(model)}__seed{seed}"
 
 
+def recorded_rules(rules: dict) -> dict:
+    """Training rules (a budget) as a cell records them: no time cap (``max_seconds`` inf) is
+    null, as JSON has no infinity (cells written before wrote a bare ``Infinity``, which
+    Python reads back as inf: this maps those to the same record)."""
+    return {
+        key: None if isinstance(value, float) and math.isinf(value) else value
+        for key, value in rules.items()
+    }
+
+
 def training_rules(model: str, budget: dict) -> dict:
     """The rules a cell trains by: the recipe's [training] with the suite's budget over it
     (epochs, time cap, validation fraction, patience), defaults filled in, and the selection
-    rule's name."""
+    rule's name (:func:`recorded_rules`' form)."""
     training = TrainingConfig.from_table({**load_recipe(model)["training"], **budget}, model)
-    return {
-        **{key: getattr(training, key) for key in BUDGET_KEYS},
-        "selection": selection_rule(training),
-    }
+    return recorded_rules(
+        {
+            **{key: getattr(training, key) for key in BUDGET_KEYS},
+            "selection": selection_rule(training),
+        }
+    )
 
 
 def splits_sha256(dataset: Path) -> str | None:
@@ -74,6 +87,8 @@ def finished(out: Path, dataset: Path, model: str, seed: int, budget: dict) -> b
     recorded = json.loads(path.read_text()).get("inputs")
     if recorded is None:  # made before fingerprints and model selection were recorded
         recorded = {"rules": "none recorded (a run before model selection)"}
+    elif isinstance(recorded.get("rules"), dict):
+        recorded = {**recorded, "rules": recorded_rules(recorded["rules"])}
     for key, value in cell_inputs(dataset, model, budget).items():
         if recorded.get(key) == value:
             continue
@@ -95,4 +110,4 @@ def finished(out: Path, dataset: Path, model: str, seed: int, budget: dict) -> b
 def _rules(rules) -> str:
     if not isinstance(rules, dict):
         return str(rules)
-    return ", ".join(f"{k} {v}" for k, v in rules.items())
+    return ", ".join(f"{k} {'none' if v is None else v}" for k, v in rules.items())

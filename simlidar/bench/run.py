@@ -24,7 +24,13 @@ import torch
 
 from simlidar import __version__
 from simlidar.bench import metrics
-from simlidar.bench.cells import cell_id, cell_inputs, finished, training_rules
+from simlidar.bench.cells import (
+    cell_id,
+    cell_inputs,
+    finished,
+    recorded_rules,
+    training_rules,
+)
 from simlidar.bench.early import early_decisions
 from simlidar.bench.hardware import DEFAULT_THREADS, check_threads, resolve_device, threads
 from simlidar.bench.stepped import stepped_decisions
@@ -49,8 +55,13 @@ _NUMBERS = re.compile(r"\[[-0-9.eE+,\s]*\]")  # a list of numbers spread over li
 
 
 def _write_json(path: Path, data, indent: int | None = 1) -> None:
-    """Write atomically; with ``indent``, lists of numbers stay on one line each."""
-    text = json.dumps(data, indent=indent)
+    """Write atomically; with ``indent``, lists of numbers stay on one line each. Strict JSON:
+    a non-finite number (which Python would write as a bare ``Infinity``, which JSON parsers
+    refuse) is refused in one line instead; the values are made finite where they come in."""
+    try:
+        text = json.dumps(data, indent=indent, allow_nan=False)
+    except ValueError as exc:
+        raise DatasetError(f"{path}: {exc}; expected finite numbers, nothing written") from None
     if indent is not None:
         text = _NUMBERS.sub(
             lambda m: "[" + ", ".join(m[0][1:-1].replace(",", " ").split()) + "]", text
@@ -95,17 +106,17 @@ def claim(out: Path, suite: Suite) -> None:
             owner = json.loads(marker.read_text())
         except (OSError, ValueError):
             owner = {}
-        if owner.get("sha256") == suite.sha256:
-            return
-        if owner.get("name") != suite.name or owner.get("data_sha256") != suite.data_sha256:
-            other = "data" if owner.get("name") == suite.name else "suite"
-            raise DatasetError(
-                f"--out {out}: belongs to suite {owner.get('name', '?')!r} (data sha256 "
-                f"{str(owner.get('data_sha256'))[:12]}), not to {suite.name!r} (data sha256 "
-                f"{suite.data_sha256[:12]}): another {other}; expected a new directory or one "
-                "of this suite"
-            )
-        _write_json(marker, _ownership(suite))  # the same suite and data, the file edited
+        if owner.get("sha256") != suite.sha256:
+            if owner.get("name") != suite.name or owner.get("data_sha256") != suite.data_sha256:
+                other = "data" if owner.get("name") == suite.name else "suite"
+                raise DatasetError(
+                    f"--out {out}: belongs to suite {owner.get('name', '?')!r} (data sha256 "
+                    f"{str(owner.get('data_sha256'))[:12]}), not to {suite.name!r} (data sha256 "
+                    f"{suite.data_sha256[:12]}): another {other}; expected a new --out "
+                    "directory (bench replaces nothing), or this one's own suite"
+                )
+            _write_json(marker, _ownership(suite))  # the same suite and data, the file edited
+        (out / "cells").mkdir(exist_ok=True)  # removed by hand: its cells are run again
         return
     litter = {"cells", ".suite.json.partial"}  # what a claim that failed midway left
     if out.exists() and any(
@@ -155,14 +166,21 @@ def resolve_datasets(suite: Suite, out: Path, dataset: Path | None, progress: bo
         from simlidar.scene.recipe import load_catalog
 
         root = out / "datasets"
-        missing = [
-            n
-            for n in suite.noise
-            if not (root / generated_name(suite.generate.with_noise(n))).is_dir()
-        ]
-        if missing:
-            generate(suite.generate, missing, load_catalog(), root, progress=progress)
         paths = [root / generated_name(suite.generate.with_noise(n)) for n in suite.noise]
+        missing = [n for n, path in zip(suite.noise, paths) if not path.is_dir()]
+        for path in paths:
+            if not path.is_dir() and (path.exists() or path.is_symlink()):
+                raise DatasetError(
+                    f"--out {out}: {path} is in the way of the suite's dataset of that name "
+                    "(not a folder); expected nothing there: remove it (bench replaces nothing)"
+                )
+        try:
+            if missing:
+                generate(suite.generate, missing, load_catalog(), root, progress=progress)
+        except DatasetError:
+            if not all(path.is_dir() for path in paths):
+                raise
+            # another run of this suite made them meanwhile: the same bytes (config and seed)
     return paths  # given ones were checked by run_suite; each cell reads its dataset's splits
 
 
@@ -206,7 +224,7 @@ def run_cell(
         **result.selection(),
         "stopped_by_time": result.stopped == "time",
         "train_seconds": round(result.seconds, 2),
-        "budget": budget,
+        "budget": recorded_rules(budget),
     }
     record.update(
         measure(result.model, recipe, dataset, suite, result.test_predictions, timing, result.spec)
@@ -296,7 +314,7 @@ def remeasure(out: Path, suite: Suite, progress: bool = True) -> dict:
             "expected every cell's weights, as bench saves them"
         )
     for path in tqdm(cells, desc="re-measure", unit="cell", disable=not progress):
-        record = json.loads(path.read_text())
+        record = _read_cell(path)
         dataset = _dataset_of(out, suite, record["dataset"])
         model, data = load_checkpoint(
             out / "checkpoints" / f"{path.stem}.pt", tuple(record["input_shape"]), record["classes"]
@@ -408,18 +426,23 @@ def run_suite(
         disable=not progress,
         dynamic_ncols=True,
     )
-    if scheduler is not None:
-        from simlidar.cluster import connect, run_tasks
+    try:
+        if scheduler is not None:
+            from simlidar.cluster import LOCAL, connect, run_tasks
+            from simlidar.processes import capped_workers
 
-        with connect(scheduler, workers) as client:
-            tasks = [(d, m, s, suite, out, device, thread_count) for d, m, s in todo]
-            names = [f"cell {cell_id(d, m, s)}" for d, m, s in todo]
-            run_tasks(client, _cluster_cell, tasks, names, lambda index, _: bar.update())
-    for d, m, s in todo if scheduler is None else ():
-        bar.set_postfix_str(cell_id(d, m, s))
-        run_and_write(d, m, s, suite, out, device, thread_count)
-        bar.update()
-    bar.close()
+            if scheduler == LOCAL:  # one task a cell: no more processes than cells and cores
+                workers = capped_workers(workers, len(todo), "cells")
+            with connect(scheduler, workers) as client:
+                tasks = [(d, m, s, suite, out, device, thread_count) for d, m, s in todo]
+                names = [f"cell {cell_id(d, m, s)}" for d, m, s in todo]
+                run_tasks(client, _cluster_cell, tasks, names, lambda index, _: bar.update())
+        for d, m, s in todo if scheduler is None else ():
+            bar.set_postfix_str(cell_id(d, m, s))
+            run_and_write(d, m, s, suite, out, device, thread_count)
+            bar.update()
+    finally:
+        bar.close()  # an error then gets a line of its own, not the end of the bar's
     results = collect(out, suite)
     write_report(results, out)
     return results
@@ -465,11 +488,23 @@ def _cluster_cell(
     return run_and_write(dataset, model, seed, suite, out, device, thread_count)
 
 
+def _read_cell(path: Path) -> dict:
+    """A cell's record, the rules of a cell written before null stood for no time cap (a bare
+    ``Infinity``) in today's form (:func:`recorded_rules`)."""
+    record = json.loads(path.read_text())
+    if isinstance(record.get("budget"), dict):
+        record["budget"] = recorded_rules(record["budget"])
+    inputs = record.get("inputs")
+    if isinstance(inputs, dict) and isinstance(inputs.get("rules"), dict):
+        inputs["rules"] = recorded_rules(inputs["rules"])
+    return record
+
+
 def collect(out: Path, suite: Suite) -> dict:
     """results.json from every finished cell in ``out`` (per-sample arrays stay in cells/)."""
     records = []
     for path in sorted((out / "cells").glob("*.json")):
-        record = json.loads(path.read_text())
+        record = _read_cell(path)
         record.pop("per_sample", None)
         records.append(record)
     results = {

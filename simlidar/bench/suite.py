@@ -40,6 +40,9 @@ from simlidar.models.training import TrainingConfig
 
 SUITE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,99}$")
 KEYS = {"name", "description", "models", "seeds", "board_power_w", "generate", "datasets", "budget"}
+# A board's power, watts: 100 kW is a rack of accelerators. Beyond it (inf, 1e308) the energy
+# estimate, power x latency, overflowed to a bare Infinity in results.json.
+MAX_BOARD_POWER_W = 100_000
 BUDGET_KEYS = ("epochs", "max_seconds", "validation", "patience")  # also a cell's rules
 
 
@@ -171,8 +174,8 @@ def load_suite(name_or_path: str | Path) -> Suite:
         else:
             budget["*"].update(_budget(path, {key: value}, "budget"))
     power = data.get("board_power_w")
-    if power is not None and not _number(power, 0):
-        raise _fail(path, "board_power_w", "watts >= 0", power)
+    if power is not None and not (_number(power, 0) and power <= MAX_BOARD_POWER_W):
+        raise _fail(path, "board_power_w", f"watts in [0, {MAX_BOARD_POWER_W}]", power)
     return Suite(
         name=name,
         path=path,

@@ -11,6 +11,7 @@ annealed run picks the luckiest draw of a small validation split, not a better m
 """
 
 import copy
+import io
 import os
 import tempfile
 import time
@@ -21,6 +22,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from simlidar.atomic import new_temporary
 from simlidar.dataset.loaders import load_split, spike_threshold, split_info
 from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.pulses import noisy_delays
@@ -464,15 +466,22 @@ def save_checkpoint(result: TrainResult, path: str | Path) -> Path:
         "history": result.history,
         "silent_from": result.silent_from,
     }
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.partial-", dir=path.parent)
+    buffer = io.BytesIO()  # torch's own writer reports a full disk as "file write failed"
+    torch.save(data, buffer)
+    try:
+        fd, tmp = new_temporary(path.parent, f".{path.name}.partial-")
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot write the checkpoint ({exc.strerror})") from None
     try:
         with os.fdopen(fd, "wb") as f:
-            torch.save(data, f)
+            f.write(buffer.getbuffer())
         os.replace(tmp, path)
-    except (OSError, RuntimeError) as exc:  # torch reports a full disk as a RuntimeError
-        Path(tmp).unlink(missing_ok=True)
-        cause = getattr(exc, "strerror", None) or str(exc).splitlines()[0]
-        raise DatasetError(f"{path}: cannot write the checkpoint ({cause})") from None
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise DatasetError(f"{path}: cannot write the checkpoint ({exc.strerror or exc})") from None
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 

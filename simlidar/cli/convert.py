@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from simlidar.cli.options import DEFAULT_OUT, FiniteRange, setting_option
+from simlidar.cli.options import DEFAULT_OUT, FiniteRange, IntegerRange, setting_option
 from simlidar.convert.options import DvsConfig, KittiConfig
 
 
@@ -52,7 +52,7 @@ def _convert_options(config, command):
 
 @convert.command("kitti")
 @click.argument("root", type=click.Path(path_type=Path))
-@setting_option(KittiConfig, "crop", type=(click.IntRange(1, 4096), click.IntRange(1, 4096)))
+@setting_option(KittiConfig, "crop", type=(IntegerRange(1, 4096), IntegerRange(1, 4096)))
 @setting_option(KittiConfig, "res_h_deg", "--res-h", "res_h")
 @setting_option(KittiConfig, "res_v_deg", "--res-v", "res_v")
 @setting_option(KittiConfig, "max_range_m", "--max-range", "max_range")

@@ -8,6 +8,7 @@ import click
 
 from simlidar.cli.options import (
     DEFAULT_OUT,
+    IntegerRange,
     NoiseLevels,
     OutFolder,
     Workers,
@@ -108,7 +109,7 @@ def catalog_for(scenes, classes: int):
 @scenes_option
 @click.option(
     "--batch-size",
-    type=click.IntRange(1, MAX_BATCH),
+    type=IntegerRange(1, MAX_BATCH),
     default=BATCH,
     show_default=True,
     help="Samples ray-cast together (does not change the data).",
@@ -123,7 +124,7 @@ def catalog_for(scenes, classes: int):
 )
 @click.option(
     "--shard-size",
-    type=click.IntRange(1),
+    type=IntegerRange(1),
     default=SHARD_SAMPLES,
     show_default=True,
     help="A split of more samples is written as shard files of this many samples "
@@ -340,7 +341,7 @@ def profiles(as_json):
 @click.option(
     "--format", "fmt", type=click.Choice(["glb", "ply"]), default="glb", show_default=True
 )
-@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
+@click.option("--seed", type=IntegerRange(0, 2**63 - 1), default=0, show_default=True)
 @sensor_option
 def scenes(scenes, export_dir, fmt, seed, sensor):
     """List the scene catalog, or export sampled scenes as mesh files (as --sensor sees them:

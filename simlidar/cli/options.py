@@ -6,7 +6,7 @@ bad model recipe given to --model), 1 for anything else (a bad scene recipe, a p
 a dataset, an existing dataset, ...). ``--debug`` shows the traceback instead.
 """
 
-import os
+import re
 import sys
 from pathlib import Path
 
@@ -55,6 +55,36 @@ class Group(click.Group):
         sys.exit(code if isinstance(code, int) else 0)
 
 
+_INTEGER = re.compile(r"[+-]?[0-9]+")
+_DECIMAL = re.compile(
+    r"[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|inf|infinity|nan)", re.IGNORECASE
+)
+
+
+def plain_number(text: str, integer: bool = False) -> bool:
+    """Whether ``text`` is a number written as people type one: ASCII digits, a sign, a point,
+    an exponent (``inf``, ``nan`` for decimals). Python's ``int`` and ``float`` also take
+    other scripts' digits (``float("٠.٥")`` is 0.5) and ``1_000``: a value that reads as
+    something else where it is stored or shown."""
+    return (_INTEGER if integer else _DECIMAL).fullmatch(text.strip()) is not None
+
+
+def _refuse_unplain(kind: click.ParamType, value, integer: bool, param, ctx) -> None:
+    """Every numeric option's first check (:func:`plain_number`): a usage error naming the
+    value."""
+    if isinstance(value, str) and not plain_number(value, integer):
+        what = "a whole number" if integer else "a number"
+        kind.fail(f"{value!r} is not {what} in ASCII digits (0-9)", param, ctx)
+
+
+class IntegerRange(click.IntRange):
+    """click's IntRange, for ASCII digits only (:func:`plain_number`)."""
+
+    def convert(self, value, param, ctx):
+        _refuse_unplain(self, value, True, param, ctx)
+        return super().convert(value, param, ctx)
+
+
 class NoiseLevels(click.ParamType):
     """A comma-separated list of noise levels in [0, 1], e.g. ``0.1,0.2,0.33,0.5``."""
 
@@ -66,6 +96,8 @@ class NoiseLevels(click.ParamType):
         levels = []
         for part in str(value).split(","):
             try:
+                if not plain_number(part):
+                    raise ValueError(part)
                 level = float(part)
             except ValueError:
                 self.fail(f"{part!r} is not a number; expected levels like 0.1,0.2", param, ctx)
@@ -91,13 +123,13 @@ class Workers(click.ParamType):
         if isinstance(value, int) and not isinstance(value, bool):
             number = value
         elif str(value).strip().lower() == "auto":
-            return (
-                len(os.sched_getaffinity(0))
-                if hasattr(os, "sched_getaffinity")
-                else (os.cpu_count() or 1)
-            )
+            from simlidar.processes import usable_cores
+
+            return usable_cores()
         else:
             try:
+                if not plain_number(str(value), integer=True):
+                    raise ValueError(value)
                 number = int(str(value))
             except ValueError:
                 self.fail(f"{value!r} is not a whole number; expected N >= 1 or auto", param, ctx)
@@ -118,8 +150,8 @@ class Scheduler(click.ParamType):
 
         try:
             check_scheduler(str(value))
-        except ConfigError as exc:
-            self.fail(str(exc).removeprefix(f"--scheduler {value}: "), param, ctx)
+        except ConfigError as exc:  # the address, then why (no "--scheduler" twice)
+            self.fail(str(exc).replace(f"--scheduler {value}: ", f"{value}: ", 1), param, ctx)
         return str(value)
 
 
@@ -136,9 +168,11 @@ def scheduler_option(what: str):
 
 
 class FiniteRange(click.FloatRange):
-    """A FloatRange that also refuses nan (which compares False with both bounds)."""
+    """A FloatRange for ASCII numbers only (:func:`plain_number`) that also refuses nan (which
+    compares False with both bounds)."""
 
     def convert(self, value, param, ctx):
+        _refuse_unplain(self, value, False, param, ctx)
         number = super().convert(value, param, ctx)
         if number != number:
             self.fail(
@@ -181,7 +215,7 @@ def click_type(rule):
         return click.Choice([str(v) for v in rule.values])
     if not isinstance(rule, Range):
         return None
-    kind = click.IntRange if rule.integer else FiniteRange
+    kind = IntegerRange if rule.integer else FiniteRange
     return kind(rule.low, rule.high, min_open=rule.low_open, max_open=rule.high_open)
 
 

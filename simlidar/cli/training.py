@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from simlidar.cli.options import Workers, scheduler_option, setting_option
+from simlidar.cli.options import IntegerRange, Workers, scheduler_option, setting_option
 from simlidar.errors import ConfigError, SimlidarError
 from simlidar.models.training import TrainingConfig
 from simlidar.settings import help_of
@@ -32,7 +32,7 @@ def _override(name: str, **options):
 
 _selection_options = [
     _override("validation"),
-    _override("patience", type=click.IntRange(1, MAX_EPOCHS)),
+    _override("patience", type=IntegerRange(1, MAX_EPOCHS)),
 ]
 
 
@@ -48,7 +48,7 @@ def _hardware(command):
 
     command = click.option(
         "--threads",
-        type=click.IntRange(1, MAX_THREADS),
+        type=IntegerRange(1, MAX_THREADS),
         default=DEFAULT_THREADS,
         show_default=True,
         help="Torch (and spiking-kernel) threads of a run; a cell's figures depend on it, so it "
@@ -115,8 +115,8 @@ def _chosen(result) -> str:
     show_default=True,
     help="Folder for the checkpoint.",
 )
-@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True)
-@_override("epochs", type=click.IntRange(1, MAX_EPOCHS))
+@click.option("--seed", type=IntegerRange(0, 2**63 - 1), default=0, show_default=True)
+@_override("epochs", type=IntegerRange(1, MAX_EPOCHS))
 @_override("max_seconds")
 @_selection
 @_hardware
@@ -153,7 +153,7 @@ def train(
             "or lower --epochs",
             err=True,
         )
-    path = save_checkpoint(result, out / f"{recipe['name']}-seed{seed}.pt")
+    path = out / f"{recipe['name']}-seed{seed}.pt"
     record = {
         "model": recipe["name"],
         "dataset": str(dataset),
@@ -162,7 +162,7 @@ def train(
         "epochs": result.epochs,
         **result.selection(),
         "seconds": round(result.seconds, 1),
-        "checkpoint": str(path),
+        "checkpoint": None,  # set once written
         "spec": result.spec.table(),
         "device": result.device,
         "threads": threads,
@@ -181,21 +181,27 @@ def train(
         record["stepped"] = stepped_decisions(
             result.model, torch.from_numpy(x)[:, None], y, result.spec, result.silent_from
         )
-    if as_json:
-        click.echo(json.dumps(record))
-        return
-    click.echo(
-        f"{recipe['name']}: test accuracy {result.test_accuracy:.4f}, {_chosen(result)}, "
-        f"{result.seconds:.0f} s; wrote {path}"
-    )
-    if "early" in record:
-        from simlidar.bench.early import format_early
+    if not as_json:  # the result first: a checkpoint that cannot be written loses nothing else
+        click.echo(
+            f"{recipe['name']}: test accuracy {result.test_accuracy:.4f}, {_chosen(result)}, "
+            f"{result.seconds:.0f} s"
+        )
+        if "early" in record:
+            from simlidar.bench.early import format_early
 
-        click.echo(format_early(record["early"]))
-    if "stepped" in record:
-        from simlidar.bench.stepped import format_stepped
+            click.echo(format_early(record["early"]))
+        if "stepped" in record:
+            from simlidar.bench.stepped import format_stepped
 
-        click.echo(format_stepped(record["stepped"]))
+            click.echo(format_stepped(record["stepped"]))
+    try:
+        save_checkpoint(result, path)
+    except SimlidarError:
+        if as_json:  # the result all the same, with no checkpoint
+            click.echo(json.dumps(record))
+        raise
+    record["checkpoint"] = str(path)
+    click.echo(json.dumps(record) if as_json else f"wrote {path}")
 
 
 @click.command()
@@ -223,7 +229,7 @@ def train(
     default=None,
     help="Output directory (default: bench/<suite name>).",
 )
-@_override("epochs", type=click.IntRange(1, MAX_EPOCHS))
+@_override("epochs", type=IntegerRange(1, MAX_EPOCHS))
 @_override("max_seconds")
 @_selection
 @click.option(

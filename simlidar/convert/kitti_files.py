@@ -24,6 +24,10 @@ LABEL_COLUMNS = (
     "type truncated occluded alpha bbox_left bbox_top bbox_right bbox_bottom h w l x y z rotation_y"
 )
 _CALIB_SIZES = {"R0_rect": 9, "Tr_velo_to_cam": 12}
+# A box's sizes and bottom centre, metres: 10 km is 10 times the farthest delay-1 range the
+# converter takes (1 km). Beyond it a label means nothing, and 1e308 overflowed the corners'
+# arithmetic and the float32 columns (numpy warnings, inf written).
+BOX_LIMIT_M = 10_000.0
 
 
 @dataclass(frozen=True)
@@ -117,10 +121,19 @@ def read_labels(path: Path, data: bytes) -> tuple[Label, ...]:
         truncated, occluded, box = values[0], values[1], tuple(values[7:14])
         if occluded not in (0, 1, 2, 3):
             raise DatasetError(f"{path} line {line}: occluded {fields[2]!r}, expected 0..3")
-        if min(box[:3]) <= 0:
+        if not 0.0 <= truncated <= 1.0:
+            raise DatasetError(
+                f"{path} line {line}: truncated {fields[1]!r}, expected 0..1 (0: in the image)"
+            )
+        if min(box[:3]) <= 0 or max(box[:3]) > BOX_LIMIT_M:
             raise DatasetError(
                 f"{path} line {line}: box size h w l = {' '.join(fields[8:11])}, expected "
-                "positive metres"
+                f"positive metres up to {BOX_LIMIT_M:g}"
+            )
+        if max(abs(v) for v in box[3:6]) > BOX_LIMIT_M:
+            raise DatasetError(
+                f"{path} line {line}: box location x y z = {' '.join(fields[11:14])}, expected "
+                f"metres within +-{BOX_LIMIT_M:g}"
             )
         labels.append(Label(kind, truncated, int(occluded), box, line))
     return tuple(labels)

@@ -33,6 +33,7 @@ from simlidar.generator.card import generated_card, generated_croissant
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.pulses import split_rows
 from simlidar.generator.simulate import class_plan, simulate
+from simlidar.processes import capped_workers, die_with_parent
 from simlidar.release.card import write_card
 from simlidar.release.checksums import write_sums
 from simlidar.release.croissant import write_croissant
@@ -47,13 +48,20 @@ _SHARED: tuple | None = None  # (config, catalog) of the batches the worker proc
 
 
 def _one_blas_thread() -> None:
-    """A worker's initializer: numpy's BLAS on one thread. A process left to itself spreads
-    the scene transforms' matrix products over every core, spinning more than it gains
-    (``--workers 1`` spends 1.4 cores' time for 10 % less wall time); N workers doing that on
-    N cores fight for them (``--workers 2`` was 1.3x the samples/s of 1, 1.8x with this)."""
+    """numpy's BLAS on one thread in a worker. A process left to itself spreads the scene
+    transforms' matrix products over every core, spinning more than it gains (``--workers 1``
+    spends 1.4 cores' time for 10 % less wall time); N workers doing that on N cores fight for
+    them (``--workers 2`` was 1.3x the samples/s of 1, 1.8x with this)."""
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(1, user_api="blas")
+
+
+def _start_worker(parent: int) -> None:
+    """A forked worker's initializer: it ends with its parent ``parent``, whatever kills that
+    (:mod:`simlidar.processes`), and runs BLAS on one thread."""
+    die_with_parent(parent)
+    _one_blas_thread()
 
 
 def _simulate_job(job: tuple[str, int, int]):
@@ -66,9 +74,12 @@ class Batches:
     processes simulate them (the scene catalog is shared by the fork: its compiled expressions
     do not pickle), at most two batches a worker ahead of the consumer, so memory stays flat in
     the number of samples. A worker's error is raised by ``next``; a worker that dies (killed,
-    out of memory) ends the run with a DatasetError, never a wait without end. The workers are
-    forked when this object is made: make it before opening any file or lock they must not
-    hold (a forked child shares the parent's HDF5 file locks). ``close`` stops them."""
+    out of memory) ends the run with a DatasetError, never a wait without end; a worker whose
+    parent dies (``kill -9``) dies with it. The workers are forked when this object is made,
+    from the calling thread, which must outlive them: make it before opening any file or lock
+    they must not hold (a forked child shares the parent's HDF5 file locks). ``close`` stops
+    them. ``workers`` is capped at the batches and the cores (a one-line warning then says
+    so)."""
 
     def __init__(self, config: GeneratorConfig, catalog: Catalog, jobs: list, workers: int = 1):
         global _SHARED
@@ -76,11 +87,12 @@ class Batches:
         self.todo = iter(jobs)
         self.pending: deque = deque()
         self.pool = None
-        if workers > 1 and len(jobs) > 1:
+        workers = capped_workers(workers, len(jobs), "batches") if workers > 1 else 1
+        if workers > 1:
             _SHARED = (config, catalog)
             context = multiprocessing.get_context("fork")
             self.pool = ProcessPoolExecutor(
-                workers, mp_context=context, initializer=_one_blas_thread
+                workers, mp_context=context, initializer=_start_worker, initargs=(os.getpid(),)
             )
             for job in islice(self.todo, 2 * workers):  # forks every worker now
                 self.pending.append((job, self.pool.submit(_simulate_job, job)))
@@ -310,8 +322,10 @@ def generate(
     shards = split_shards(config, shard_samples)
     with ExitStack() as stack:
         if scheduler is not None:
-            from simlidar.cluster import connect
+            from simlidar.cluster import LOCAL, connect
 
+            if scheduler == LOCAL:  # one task a file: no more processes than files and cores
+                workers = capped_workers(workers, len(shards), "split files")
             client = stack.enter_context(connect(scheduler, workers))
         else:  # batches never straddle two files; forked before any file or lock is open
             jobs = [job for shard in shards for job in shard.batches(batch_size)]

@@ -132,6 +132,11 @@ class Sensor:
             raise ConfigError(f"mount_height_m={self.mount_height_m}: expected a positive height")
         if not -30.0 <= self.pitch_deg <= 30.0:
             raise ConfigError(f"pitch_deg={self.pitch_deg}: expected a value in [-30, 30]")
+        if not self.wavelength_nm > 0.0:  # informational, but stored in every dataset
+            raise ConfigError(
+                f"wavelength_nm={self.wavelength_nm}: expected a positive wavelength in "
+                "nanometres (903 for the VLP-16)"
+            )
         if not self.range_resolution_m > 0.0:
             raise ConfigError(
                 f"range_resolution_m={self.range_resolution_m}: expected a positive step"

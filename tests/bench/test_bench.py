@@ -1,6 +1,22 @@
-"""simlidar bench end to end on small datasets: suites, cells, reruns, reports, bad input."""
+"""simlidar bench end to end on small datasets: suites, cells, reruns, reports, bad input.
+
+Attack list (issue 35, item 10):
+
+* ``--max-seconds inf`` and a suite's ``board_power_w`` of inf or 1e308: a bare ``Infinity`` in
+  results.json and the cells (not JSON: strict parsers refuse it). Now no time cap is recorded
+  as null (older cells' ``Infinity`` read as the same rules) and the power is refused above
+  100 kW, in one line; every file bench writes parses as strict JSON.
+* ``bench/<suite>/cells/`` deleted by hand: every later bench failed writing a cell; now the
+  folder is made again and its cells run again.
+* a file (or a dangling link) where the suite's generated dataset goes: the error suggested
+  ``--force``, which bench does not have; now it says what is in the way and to remove it.
+* a full disk while a cell is written (a real ``RLIMIT_FSIZE`` on a real process): the error
+  was glued onto the progress bar's line; now it has a line of its own.
+* an ``--out`` of another suite: the message says what to do, and names no option bench lacks.
+"""
 
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -185,12 +201,15 @@ def test_one_cell_is_seeded(tiny_suite, tmp_path, datasets):
     assert [c["confusion"] for c in one] == [c["confusion"] for c in two]
 
 
+GENERATED = (
+    'models = ["cnn"]\n[generate]\nnoise = [0.2]\ntrain_size = 32\n'
+    "test_size = 32\n[budget]\nepochs = 1\n"
+)
+
+
 def test_generated_datasets_are_made_once(tmp_path):
     path = tmp_path / "gen.toml"
-    text = (
-        'models = ["cnn"]\n[generate]\nnoise = [0.2]\ntrain_size = 32\n'
-        "test_size = 32\n[budget]\nepochs = 1\n"
-    )
+    text = GENERATED
     path.write_text(text)
     out = tmp_path / "out"
     # one sample a class: nothing to hold out for validation; refused before anything is made
@@ -242,6 +261,15 @@ def test_generated_datasets_are_made_once(tmp_path):
         ('name = ".hidden"\nmodels = ["cnn"]\ndatasets = ["x"]', "key 'name'"),
         ('models = ["cnn"]\n[generate]\nnoise = [0.1]\nprofile = "nope"', "profile 'nope'"),
         ('models = ["cnn"]\n[generate]\nnoise = [0.1]\nprofile = 3', "key 'generate.profile'"),
+        (
+            'models = ["cnn"]\ndatasets = ["x"]\nboard_power_w = inf',
+            r"key 'board_power_w': expected watts in \[0, 100000\], got inf",
+        ),
+        (
+            'models = ["cnn"]\ndatasets = ["x"]\nboard_power_w = 1e308',
+            r"key 'board_power_w': expected watts in \[0, 100000\], got 1e\+308",
+        ),
+        ('models = ["cnn"]\ndatasets = ["x"]\nboard_power_w = nan', "key 'board_power_w'"),
     ],
 )
 def test_bad_suites_are_named(tmp_path, text, message):
@@ -296,6 +324,8 @@ def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets):
         "cannot read as HDF5",
     )
     fails(["--suite", "quick", "--out", str(out)], 1, "belongs to suite 'tiny'")
+    other = runner.invoke(main, ["bench", "--suite", "quick", "--out", str(out)])
+    assert "--force" not in other.output and "expected a new --out directory" in other.output
     fails(["--suite", str(tiny_suite), "--epochs", "0"], 2, "'--epochs': 0 is not in the range")
     fails(["--suite", str(tiny_suite), "--max-seconds", "-1"], 2, "'--max-seconds'")
     fails(["--suite", str(tiny_suite), "--max-seconds", "nan"], 2, "'--max-seconds'")
@@ -323,29 +353,32 @@ def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets):
     )
     assert (out / "results.json").read_bytes() == results  # nothing touched
     assert (not_schema / "train.h5").read_text() == "not hdf5"
-    longer = runner.invoke(
-        main,
-        [
-            "bench",
-            "--suite",
-            str(tiny_suite),
-            "--models",
-            "cnn",
-            "--dataset",
-            str(datasets[0.1]),
-            "--out",
-            str(tmp_path / "e2"),
-            "--epochs",
-            "2",
-            "--max-seconds",
-            "inf",
-            "--json",
-        ],
-    )
+
+    def longer_args(where):
+        return [
+            *["--suite", str(tiny_suite), "--models", "cnn", "--dataset", str(datasets[0.1])],
+            *["--out", str(where), "--epochs", "2", "--max-seconds", "inf", "--json"],
+        ]
+
+    longer = runner.invoke(main, ["bench", *longer_args(tmp_path / "e2")])
     assert longer.exit_code == 0, longer.output
     cell = json.loads(longer.stdout)["cells"][0]
-    assert cell["budget"] == {"epochs": 2, "max_seconds": float("inf")}
+    assert cell["budget"] == {"epochs": 2, "max_seconds": None}  # no time cap
+    assert cell["inputs"]["rules"]["max_seconds"] is None
     assert len(cell["validation_curve"]) == cell["epochs_run"] <= 2
+    written = [tmp_path / "e2" / "results.json", *(tmp_path / "e2" / "cells").iterdir()]
+    for path in written:  # strict JSON, as JavaScript's parser reads it
+        json.loads(
+            path.read_text(), parse_constant=lambda word, p=path: pytest.fail(f"{p}: {word}")
+        )
+    # a cell written before, with a bare Infinity, is the same rules: kept, not refused
+    (cell_file,) = (tmp_path / "e2" / "cells").iterdir()
+    cell_file.write_text(
+        cell_file.read_text().replace('"max_seconds": null', '"max_seconds": Infinity')
+    )
+    again = runner.invoke(main, ["bench", *longer_args(tmp_path / "e2")])
+    assert again.exit_code == 0, again.output
+    assert "Infinity" in cell_file.read_text()  # not run again
 
 
 def test_a_cell_from_other_inputs_is_refused_not_reused(tiny_suite, tmp_path, datasets, catalog):
@@ -382,7 +415,7 @@ def test_a_cell_from_other_inputs_is_refused_not_reused(tiny_suite, tmp_path, da
     assert cell.read_bytes() == made
     # a time cap the suite leaves to the recipe is a training rule of the cell
     recipe.write_text(recipe.read_text() + "max_seconds = 5\n")
-    with pytest.raises(DatasetError, match="other training rules .*max_seconds inf.*"):
+    with pytest.raises(DatasetError, match="other training rules .*max_seconds none.*"):
         run_suite(suite, out, [str(recipe)], datasets[0.1], progress=False)
     recipe.write_text(recipe.read_text().replace("max_seconds = 5\n", ""))
     recipe.write_text(recipe.read_text().replace("dense = [8]", "dense = [9]"))
@@ -497,3 +530,55 @@ def test_suite_json_names_a_shipped_suite_by_its_repository_path(tiny_suite):
 
     assert _shown(load_suite("quick")) == "benchmark/quick.toml"  # not the install path
     assert _shown(load_suite(tiny_suite)) == str(tiny_suite)
+
+
+def test_a_deleted_cells_folder_is_made_again(tiny_suite, tmp_path, datasets):
+    suite, out = load_suite(tiny_suite), tmp_path / "out"
+    first = run_suite(suite, out, ["cnn"], datasets[0.1], progress=False)
+    shutil.rmtree(out / "cells")
+    again = run_suite(suite, out, ["cnn"], datasets[0.1], progress=False)
+    assert [c["accuracy"] for c in again["cells"]] == [c["accuracy"] for c in first["cells"]]
+    assert len(list((out / "cells").iterdir())) == 1
+
+
+@pytest.mark.parametrize("blocker", ["file", "dangling link"])
+def test_something_in_the_way_of_a_generated_dataset_is_named(tmp_path, blocker):
+    path = tmp_path / "gen.toml"
+    path.write_text(GENERATED + "validation = 0\n")
+    out = tmp_path / "out"
+    run_suite(load_suite(path), out, progress=False)
+    dataset = out / "datasets" / "simlidar-32c-noise0.2-paper-v2.0.0"
+    shutil.rmtree(dataset)
+    if blocker == "file":
+        dataset.write_text("not a dataset")
+    else:
+        dataset.symlink_to(tmp_path / "nowhere")
+    done = CliRunner().invoke(main, ["bench", "--suite", str(path), "--out", str(out)])
+    assert done.exit_code == 1 and done.stderr.count("\n") == 1, done.output
+    assert done.stderr == (
+        f"Error: --out {out}: {dataset} is in the way of the suite's dataset of that name (not "
+        "a folder); expected nothing there: remove it (bench replaces nothing)\n"
+    )
+
+
+def test_a_full_disk_while_a_cell_is_written_gets_a_line_of_its_own(tiny_suite, datasets, tmp_path):
+    """A real file-size limit on a real `simlidar bench` with its progress bar: the cell's
+    checkpoint (about 450 KB for the MLP) cannot be written."""
+    import resource
+    import subprocess
+    import sys
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (64 * 1024, resource.RLIM_INFINITY))
+
+    args = [sys.executable, "-m", "simlidar.cli", "bench", "--suite", str(tiny_suite)]
+    args += ["--models", "mlp", "--dataset", str(datasets[0.1]), "--out", str(tmp_path / "b")]
+    done = subprocess.run(
+        [*args, "--epochs", "1"], capture_output=True, text=True, timeout=600, preexec_fn=limit
+    )
+    assert done.returncode == 1, done.stderr
+    lines = done.stderr.replace("\r", "\n").splitlines()
+    errors = [line for line in lines if "Error" in line]
+    assert len(errors) == 1 and errors[0].startswith("Error: "), done.stderr
+    assert errors[0].endswith("cannot write the checkpoint (File too large)")
+    assert "bench tiny" in done.stderr  # the bar was there, on lines of its own

@@ -1,6 +1,14 @@
 """KITTI -> front-view pulse crops, checked against what can be derived without the converter:
 the label files, the calibration and the raw scans, read and transformed here independently
-(forward, Velodyne -> camera, where the converter goes backwards)."""
+(forward, Velodyne -> camera, where the converter goes backwards). The format checks run on a
+KITTI folder built from a simulated sweep in every clone (``built_kitti``), and again on the
+real sample where it is found; the real frames' own numbers are checked on it alone.
+
+Attack list: malformed label and calibration files (too few columns, an unknown type, a word
+where a number goes, a calibration key without its numbers or missing), a scan whose size is
+not a multiple of 16 bytes, and (issue 35, item 10) numbers that parse but mean nothing: a box
+of 1e308 m or 1e308 m away, a truncation of 1e308, an infinite size; each is one line naming
+the file and line, with no numpy overflow warning and nothing written."""
 
 import json
 import math
@@ -20,6 +28,7 @@ from simlidar.release.verify import verify
 C_M_PER_S = 299_792_458.0
 COLUMNS = 2000  # 360 deg / 0.18 deg
 CLASSES = ("Car", "Van", "Truck", "Pedestrian", "Person_sitting", "Cyclist", "Tram", "Misc")
+SPLITS = ("train", "test")
 
 
 def calibration(path):
@@ -90,8 +99,21 @@ def test_a_crop_keeps_the_nearest_point_and_wraps_around():
     np.testing.assert_array_equal(crop, expected)
 
 
-def test_the_truck_of_frame_1_is_63_to_69_m_ahead(kitti_dataset, kitti_sample):
-    truck = next(s for s in samples(kitti_dataset) if s["frame"] == 1 and s["labels"] == 2)
+def split_sizes(path):
+    """{split: crops} of a converted dataset, read from its files."""
+    return {s: len(h5py.File(path / f"{s}.h5", "r")["labels"]) for s in ("train", "test")}
+
+
+def test_the_real_sample_gives_its_six_crops(real_kitti_dataset):
+    found = samples(real_kitti_dataset)
+    assert len(found) == 6  # 1 + 3 + 2 labelled objects, DontCare skipped
+    frames = {split: sorted({s["frame"] for s in found if s["split"] == split}) for split in SPLITS}
+    assert frames == {"train": [0, 1], "test": [2]}  # seed 0
+    assert split_sizes(real_kitti_dataset) == {"train": 4, "test": 2}
+
+
+def test_the_truck_of_frame_1_is_63_to_69_m_ahead(real_kitti_dataset, kitti_sample):
+    truck = next(s for s in samples(real_kitti_dataset) if s["frame"] == 1 and s["labels"] == 2)
     base = kitti_sample / "training"
     _, h, w, length, x, y, z, ry = objects(base / "label_2" / "000001.txt")[0]
     points = np.fromfile(base / "velodyne" / "000001.bin", "<f4").reshape(-1, 4)[:, :3]
@@ -110,12 +132,13 @@ def test_the_truck_of_frame_1_is_63_to_69_m_ahead(kitti_dataset, kitti_sample):
     assert np.median(range_m) + length / 2 == pytest.approx(69.71, abs=0.3)
 
 
-def test_velodyne_points_inside_each_box_fall_inside_its_crop(kitti_dataset, kitti_sample):
-    base = kitti_sample / "training"
+def test_velodyne_points_inside_each_box_fall_inside_its_crop(kitti_dataset, kitti_root):
+    base = kitti_root / "training"
     found = samples(kitti_dataset)
-    assert len(found) == 6  # 1 + 3 + 2 labelled objects, DontCare skipped
-    for frame in (0, 1, 2):
-        labels = objects(base / "label_2" / f"{frame:06d}.txt")
+    frames = sorted(int(p.stem) for p in (base / "label_2").glob("*.txt"))
+    labelled = {frame: objects(base / "label_2" / f"{frame:06d}.txt") for frame in frames}
+    assert len(found) == sum(map(len, labelled.values())) > 0  # DontCare skipped
+    for frame, labels in labelled.items():
         crops = [s for s in found if s["frame"] == frame]
         assert [s["labels"] for s in crops] == [CLASSES.index(o[0]) for o in labels]
         points = np.fromfile(base / "velodyne" / f"{frame:06d}.bin", "<f4").reshape(-1, 4)[:, :3]
@@ -151,10 +174,10 @@ def test_frames_split_apart_and_the_dataset_verifies(kitti_dataset):
     ]
 
 
-def test_the_cards_call_gives_the_same_bytes(kitti_dataset, kitti_sample, tmp_path):
+def test_the_cards_call_gives_the_same_bytes(kitti_dataset, kitti_root, tmp_path):
     text = (kitti_dataset / "README.md").read_text()
     call = text.split("## Regenerate")[1].split("```python\n")[1].split("```")[0]
-    call = call.replace("'ROOT', 'data'", f"{str(kitti_sample)!r}, {str(tmp_path)!r}")
+    call = call.replace("'ROOT', 'data'", f"{str(kitti_root)!r}, {str(tmp_path)!r}")
     exec(call.replace("seed=0,", "seed=0, progress=False,"), {})
     again = tmp_path / kitti_dataset.name
     for name in read_sums(kitti_dataset):
@@ -233,6 +256,30 @@ def test_more_frames_without_objects_than_an_object_header_holds(synthetic_kitti
             "000000.txt line 1: 'x' is not a number",
         ),
         (
+            "label_2",
+            "000000",
+            lambda t: t.replace("1.50 1.60 4.00", "1e308 1e308 1e308"),
+            "000000.txt line 1: box size h w l = 1e308 1e308 1e308, expected positive metres",
+        ),
+        (
+            "label_2",
+            "000000",
+            lambda t: t.replace("1.60 4.00 0.00", "1.60 4.00 1e308"),
+            "000000.txt line 1: box location x y z = 1e308 1.00 -10.00, expected metres within",
+        ),
+        (
+            "label_2",
+            "000000",
+            lambda t: t.replace("Car 0.00", "Car 1e308"),
+            "000000.txt line 1: truncated '1e308', expected 0..1",
+        ),
+        (
+            "label_2",
+            "000000",
+            lambda t: t.replace("1.60", "inf"),
+            "000000.txt line 1: 'inf': expected a finite number",
+        ),
+        (
             "calib",
             "000001",
             lambda t: t.replace("0 -1 0 0 0 0 -1 0 1 0 0 0", "0 -1 0"),
@@ -252,6 +299,7 @@ def test_more_frames_without_objects_than_an_object_header_holds(synthetic_kitti
         ),
     ],
 )
+@pytest.mark.filterwarnings("error")  # numpy's overflow warnings: the input got through
 def test_malformed_files_are_named_and_nothing_is_written(
     synthetic_kitti, tmp_path, folder, stem, damage, words
 ):
@@ -306,13 +354,17 @@ def test_the_card_and_croissant_are_made_from_the_files(kitti_dataset, caplog):
     card = DatasetCard.load(kitti_dataset / "README.md")
     assert card.data.license == "cc-by-nc-sa-3.0"
     splits = {s["name"]: s["num_examples"] for s in card.data.to_dict()["dataset_info"]["splits"]}
-    assert splits == {"train": 4, "test": 2}
+    assert splits == split_sizes(kitti_dataset)
+    found = samples(kitti_dataset)
+    frames = {split: len({s["frame"] for s in found if s["split"] == split}) for split in SPLITS}
+    empty = len(found[0]["attrs"]["frames_without_objects"])
     for words in (
         "@inproceedings{geiger2012kitti",
         "@article{wang2020temporal",
         "convert_kitti('ROOT', 'data', crop=(50, 118)",
         "667.128 ns: the delay 1.0",
-        "frames | train 2, test 1 (0 without objects, in neither)",
+        f"frames | train {frames['train']}, test {frames['test']} ({empty} without objects, "
+        "in neither)",
     ):
         assert words in text, words
     dataset = mlc.Dataset(jsonld=kitti_dataset / "croissant.json")
@@ -325,13 +377,15 @@ def test_simlidar_verify_and_info_take_a_converted_dataset(kitti_dataset):
 
     from simlidar.cli import main
 
+    sizes = split_sizes(kitti_dataset)
     done = CliRunner().invoke(main, ["verify", str(kitti_dataset)])
-    assert done.exit_code == 0 and "OK (dataset version 1.0.0, train 4, test 2" in done.output
+    assert done.exit_code == 0, done.output
+    assert f"OK (dataset version 1.0.0, train {sizes['train']}, test {sizes['test']}" in done.output
     done = CliRunner().invoke(main, ["info", str(kitti_dataset)])
     assert done.exit_code == 0 and "Truck" in done.output
 
 
-def test_cli_converts_the_sample_and_benches_it_end_to_end(kitti_sample, tmp_path):
+def test_cli_converts_the_sample_and_benches_it_end_to_end(kitti_root, kitti_dataset, tmp_path):
     """`simlidar convert kitti` then `simlidar bench --dataset`: the paper's KITTI pair (the
     spiking CNN, here narrowed, and the CNN) trains and scores on the real crops."""
     from click.testing import CliRunner
@@ -340,11 +394,11 @@ def test_cli_converts_the_sample_and_benches_it_end_to_end(kitti_sample, tmp_pat
 
     runner = CliRunner()
     done = runner.invoke(
-        main, ["convert", "kitti", str(kitti_sample), "--out", str(tmp_path / "data"), "--json"]
+        main, ["convert", "kitti", str(kitti_root), "--out", str(tmp_path / "data"), "--json"]
     )
     assert done.exit_code == 0, done.output
     record = json.loads(done.output)
-    assert record["splits"] == {"train": 4, "test": 2}
+    assert record["splits"] == split_sizes(kitti_dataset)
     scnn = tmp_path / "scnn_small.toml"
     scnn.write_text(
         'model = "scnn"\n[architecture]\nconv = [[4, 5, 2], [4, 5, 2]]\n'
@@ -356,7 +410,7 @@ def test_cli_converts_the_sample_and_benches_it_end_to_end(kitti_sample, tmp_pat
         f'models = ["cnn", "{scnn}"]\ndatasets = ["{record["path"]}"]\n[budget]\nepochs = 1\n'
     )
     args = ["bench", "--suite", str(suite), "--out", str(tmp_path / "b"), "--json"]
-    few = runner.invoke(main, args)  # 4 crops: nothing to hold out for model selection
+    few = runner.invoke(main, args)  # a few crops: nothing to hold out for model selection
     assert few.exit_code == 2 and not (tmp_path / "b").exists()
     assert few.output.count("\n") == 1 and "recipe cnn: key 'training.validation': " in few.output
     assert "--validation 0" in few.output
@@ -366,8 +420,8 @@ def test_cli_converts_the_sample_and_benches_it_end_to_end(kitti_sample, tmp_pat
     assert {c["model"] for c in cells} == {"cnn", "scnn_small"}
     for c in cells:
         assert c["source"] == "kitti" and c["input_shape"] == [1, 50, 118]
-        assert c["classes"] == 8 and c["test_size"] == 2
-        assert sum(map(sum, c["confusion"])) == 2
+        assert c["classes"] == 8 and c["test_size"] == record["splits"]["test"]
+        assert sum(map(sum, c["confusion"])) == c["test_size"]
     report = (tmp_path / "b" / "report.md").read_text()
     assert "The paper on KITTI" in report and "scnn 96.62 %" in report
 

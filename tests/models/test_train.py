@@ -1,4 +1,9 @@
-"""Training runs for real (a tiny budget): it learns, it is seeded, checkpoints reload."""
+"""Training runs for real (a tiny budget): it learns, it is seeded, checkpoints reload.
+
+Attack list (issue 35, item 10): ``simlidar train`` on a full disk (a real file-size limit,
+``RLIMIT_FSIZE``, on a real process): torch's internal message and no test accuracy at all;
+now the accuracy is printed first, then one line with the system's cause, no file left.
+"""
 
 import copy
 import json
@@ -261,3 +266,43 @@ def test_the_train_command_says_what_a_cosine_schedule_kept(datasets, tmp_path):
     plain = ["train", "--model", "mlp", "--dataset", str(datasets[0.1]), "--out", str(tmp_path)]
     capped = CliRunner().invoke(main, [*plain, "--epochs", "5", "--max-seconds", "0"])
     assert capped.exit_code == 0 and "warning" not in capped.stderr  # constant rate: no schedule
+
+
+def _limit_file_size(size: int):
+    """A child's pre-exec hook: writes past ``size`` bytes fail (EFBIG; Python ignores
+    SIGXFSZ)."""
+    import resource
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (size, resource.RLIM_INFINITY))
+
+    return limit
+
+
+def test_train_on_a_full_disk_prints_the_result_then_one_line(datasets, tmp_path):
+    import subprocess
+    import sys
+
+    runs = tmp_path / "runs"
+    for as_json in (False, True):
+        args = [sys.executable, "-m", "simlidar.cli", "train", "--model", "mlp", "--epochs", "1"]
+        args += ["--dataset", str(datasets[0.1]), "--out", str(runs)] + ["--json"] * as_json
+        done = subprocess.run(
+            args,
+            capture_output=True,
+            text=True,
+            timeout=600,
+            preexec_fn=_limit_file_size(64 * 1024),  # the MLP's checkpoint takes about 450 KB
+        )
+        assert done.returncode == 1, done.stderr
+        checkpoint = runs / "mlp-seed0.pt"
+        assert done.stderr.strip().splitlines()[-1] == (
+            f"Error: {checkpoint}: cannot write the checkpoint (File too large)"
+        )
+        assert "Traceback" not in done.stderr
+        if as_json:
+            record = json.loads(done.stdout)
+            assert record["checkpoint"] is None and 0 <= record["test_accuracy"] <= 1
+        else:
+            assert done.stdout.startswith("mlp: test accuracy 0.")
+        assert list(runs.iterdir()) == []

@@ -1,5 +1,10 @@
 """Sensor files (sensors/*.toml): the shipped models against their manuals, the stored form,
-and one-line errors for bad files."""
+and one-line errors for bad files.
+
+Attack list: every key of a sensor file out of range or of the wrong kind, among them (issue
+35, item 10) a negative or zero ``wavelength_nm``, which was accepted and stored in every
+dataset file.
+"""
 
 import json
 import math
@@ -125,6 +130,7 @@ def test_rows_run_from_the_highest_elevation_down(name):
         ({"firing_slots": (1, 0) + tuple(range(2, 16))}, "beams out of order"),
         ({"firing_slots": (0, 2) + tuple(range(2, 16))}, "beams out of order"),
         ({"rot_corrections_deg": (0.0,) * 3}, "rot_corrections_deg: 3 values: expected 16"),
+        ({"wavelength_nm": 0.0}, "wavelength_nm=0.0: expected a positive wavelength"),
     ],
 )
 def test_bad_sensor_values_are_named(changes, word):
@@ -173,6 +179,7 @@ def test_a_copied_sensor_file_loads_under_its_own_name(tmp_path):
         ({"firing_slots": [0.5]}, "key 'firing_slots': expected a list of integers"),
         ({"firing_slots": [0, 1, 3, 2, *range(4, 16)]}, "beams out of order"),
         ({"model": ""}, "key 'model': expected a non-empty string"),
+        ({"wavelength_nm": -5}, "wavelength_nm=-5.0: expected a positive wavelength"),
     ],
 )
 def test_bad_sensor_files_get_one_line_naming_file_and_key(tmp_path, changes, word):
