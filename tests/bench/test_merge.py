@@ -1,4 +1,5 @@
-"""The published cell schema (simlidar/bench/cell.schema.json).
+"""The published cell schema (simlidar/bench/cell.schema.json) and `simlidar report`, which
+merges the cells of several benchmark runs into one report.
 
 Attack list, one test (or parameter) each:
 * the schema itself: not draft 2020-12, a required key that a committed cell lacks, a key every
@@ -9,6 +10,18 @@ Attack list, one test (or parameter) each:
   negative seed or count, a bad digest, a boolean where an integer is, an early accuracy 2, a
   `stopped` word of no rule, NaN (valid for Python's json, invisible to a schema's ranges);
   the outside models' optional keys (`spec`, `device`, `threads`, `stepped`) of the wrong type;
+* merging the committed paper run with a folder a tiny `simlidar bench` made: one report with
+  both, the paper's row, a model trained on other data shown once per run rather than averaged;
+* a folder whose dataset of the same name holds other data (the tiny bench on a small dataset
+  named as the paper's): refused in one line, exit 1, nothing written;
+* a dataset without a digest (null) beside another folder's cells of that name: refused;
+* two different cells of the same (dataset, model, seed) in two folders: refused naming both;
+  identical copies, and a folder given twice: kept once;
+* the seeds of one model split over two folders (same recipe, rules and data): one row;
+* a broken cell among good ones, a folder without cells, a path that is no folder, a cell that
+  is not JSON: one line, exit 1, nothing written;
+* --out: a non-empty folder that no report wrote, an input folder (refused, untouched), a
+  file and '' (exit 2, as every --out), an earlier report (replaced).
 """
 
 import json
@@ -16,10 +29,17 @@ import math
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner
 
 from simlidar.bench.merge import SCHEMA, check_cell, read_cell
+from simlidar.bench.run import run_suite
+from simlidar.bench.suite import load_suite
 from simlidar.bench.train import STOPS
+from simlidar.cli import main
 from simlidar.errors import ResultsError
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.generate import generate
+from simlidar.generator.profiles import load_profile
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "benchmark" / "results"
@@ -31,6 +51,16 @@ SCRIPT_CELLS = {
     "scan-timing": "benchmark/scan_timing.py",
     "early-tradeoff": "benchmark/early_tradeoff.py",
 }
+TINY = """
+name = "tiny"
+description = "a tiny run to merge with the paper's"
+models = [{models}]
+seeds = [0]
+datasets = ["{dataset}"]
+
+[budget]
+epochs = 1
+"""
 
 
 def schema() -> dict:
@@ -49,6 +79,29 @@ def bench_cells() -> list[Path]:
 
 def paper_cell(name: str = "simlidar-32c-noise0.1-paper-v2.0.0__cnn__seed0") -> dict:
     return json.loads((PAPER / "cells" / f"{name}.json").read_text())
+
+
+def folder_of(root: Path, cells: dict, suite: str | None = "copied") -> Path:
+    """A run folder holding ``cells`` (file stem -> cell) and, with ``suite``, a suite.json."""
+    (root / "cells").mkdir(parents=True)
+    for stem, cell in cells.items():
+        (root / "cells" / f"{stem}.json").write_text(json.dumps(cell))
+    if suite is not None:
+        (root / "suite.json").write_text(json.dumps({"name": suite}))
+    return root
+
+
+def report(*args):
+    return CliRunner().invoke(main, ["report", *map(str, args)])
+
+
+def refused(result, text: str, code: int = 1) -> str:
+    """The one error line of a refused command, which must hold ``text``."""
+    assert result.exit_code == code, result.output
+    assert "Traceback" not in result.output
+    errors = [line for line in result.output.splitlines() if line.startswith("Error")]
+    assert len(errors) == 1 and text in errors[0], result.output
+    return errors[0]
 
 
 def test_the_schema_is_draft_2020_12_and_requires_what_every_committed_cell_has():
@@ -139,3 +192,161 @@ def test_spiking_cells_and_the_outside_models_keys_are_typed_not_forbidden(tmp_p
     no_cap = dict(spiking, budget={"epochs": 2, "max_seconds": math.inf})  # json writes Infinity
     (tmp_path / "inf.json").write_text(json.dumps(no_cap))
     assert read_cell(tmp_path / "inf.json")["budget"]["max_seconds"] == math.inf
+
+
+@pytest.fixture(scope="module")
+def tiny_runs(tmp_path_factory, catalog):
+    """Two folders that a tiny `simlidar bench` wrote on small datasets of the paper profile:
+    ``mine``, the spiking network and the CNN on 8 classes (a dataset name of its own), and
+    ``clash``, the CNN on 32 classes at noise 0.1, a dataset named as the paper suite's but
+    holding other data (64 / 32 samples, not 3000 / 600)."""
+    root = tmp_path_factory.mktemp("tiny")
+    paper = load_profile("paper")
+    made = {}
+    for name, classes, train, test in (("mine", 8, 48, 16), ("clash", 32, 64, 32)):
+        config = GeneratorConfig.from_profile(
+            paper, classes=classes, train_size=train, test_size=test
+        )
+        (made[name],) = generate(config, [0.1], catalog, root / "data", progress=False)
+    assert made["clash"].path.name == "simlidar-32c-noise0.1-paper-v2.0.0"
+    runs = {}
+    for name, models in (("mine", '"snn_simlidar", "cnn"'), ("clash", '"cnn"')):
+        suite = root / f"{name}.toml"
+        suite.write_text(TINY.format(models=models, dataset=made[name].path))
+        run_suite(load_suite(suite), root / name, progress=False)
+        runs[name] = root / name
+    return runs
+
+
+def test_the_paper_run_and_a_tiny_bench_merge_into_one_report(tiny_runs, tmp_path):
+    out = tmp_path / "merged"
+    result = report(PAPER, tiny_runs["mine"], "--out", out)
+    assert result.exit_code == 0, result.output
+    assert f"86 cells of 2 runs in {out}" in result.output
+    results = json.loads((out / "results.json").read_text())
+    assert [s["cells"] for s in results["merged_from"]] == [84, 2]
+    assert [s["suite"] for s in results["merged_from"]] == ["paper", "tiny"]
+    assert results["suite"]["name"] == "paper + tiny"
+    cells = results["cells"]
+    assert len(cells) == 86 and not any("per_sample" in c for c in cells)
+    for cell in cells:
+        check_cell(cell, "merged")  # still cells of the schema
+    mine = [c for c in cells if c["origin"] == str(tiny_runs["mine"])]
+    assert {c["dataset"] for c in mine} == {"simlidar-8c-noise0.1-paper-v2.0.0"}
+    # the paper's cnn and snn_simlidar trained on the 32-class data at noise 0.1, the tiny
+    # run's on 8 classes: each shown once per run, never averaged into one row
+    assert {c["model"] for c in mine} == {"snn_simlidar (tiny)", "cnn (tiny)"}
+    text = (out / "report.md").read_text()
+    assert text.startswith("# Benchmark report: suite paper + tiny")
+    assert "| *paper: SNN 256-400-32* | 99.83 | 96.16 | 82.66 | 68.16 |" in text
+    assert "| cnn (paper) | 100.00 ± 0.00 (3) | 96.28 ± 0.42 (3) |" in text
+    assert "| cnn (tiny) | " in text and "| snn_simlidar (tiny) | " in text
+    assert "| snn_simlidar_tuned | 99.28 ± 0.25 (3) | 95.83 ± 0.33 (3) |" in text  # one run's
+    assert (
+        "cnn, snn_simlidar are shown once per run (paper, tiny): their cells differ in "
+        "training rules and datasets at noise 0.1 (simlidar-32c-noise0.1-paper-v2.0.0, "
+        "simlidar-8c-noise0.1-paper-v2.0.0)." in text
+    )
+    assert "## simlidar-8c-noise0.1-paper-v2.0.0" in text
+    assert "## simlidar-32c-noise0.5-paper-v2.0.0" in text
+    for picture in ("accuracy_vs_noise.png", "decisions.png", "confusion.png"):
+        assert (out / picture).stat().st_size > 1000 and f"]({picture})" in text
+    assert sorted(p.name for p in out.parent.iterdir()) == ["merged"]  # no temporaries left
+
+    # a second report into the same --out replaces the first
+    again = report(tiny_runs["mine"], "--out", out)
+    assert again.exit_code == 0, again.output
+    assert len(json.loads((out / "results.json").read_text())["cells"]) == 2
+    assert "cnn (paper)" not in (out / "report.md").read_text()
+
+
+def test_a_folder_whose_dataset_holds_other_data_is_refused(tiny_runs, tmp_path):
+    out = tmp_path / "new" / "merged"
+    line = refused(
+        report(PAPER, tiny_runs["clash"], "--out", out),
+        "dataset simlidar-32c-noise0.1-paper-v2.0.0: ",
+    )
+    assert "were made from different data of that name" in line
+    assert str(PAPER / "cells") in line and str(tiny_runs["clash"] / "cells") in line
+    assert not (tmp_path / "new").exists()  # nothing written, not even --out's parent
+
+
+def test_a_cell_without_a_data_digest_is_refused_beside_another_folders(tmp_path):
+    name = "simlidar-32c-noise0.1-paper-v2.0.0__cnn__seed0"
+    blind = paper_cell()
+    blind["inputs"]["splits_sha256"] = None
+    blind["seed"] = 7
+    check_cell(blind, "null digest")  # a dataset without SHA256SUMS: valid on its own
+    a = folder_of(tmp_path / "a", {name: paper_cell()})
+    b = folder_of(tmp_path / "b", {name.replace("seed0", "seed7"): blind})
+    line = refused(report(a, b, "--out", tmp_path / "out"), "records no data digest")
+    assert "seed7.json" in line and "seed0.json" in line
+    assert not (tmp_path / "out").exists()
+    assert report(b, "--out", tmp_path / "out").exit_code == 0  # alone it is fine
+
+
+def test_two_different_cells_of_one_dataset_model_and_seed_are_refused(tmp_path):
+    name = "simlidar-32c-noise0.1-paper-v2.0.0__cnn__seed0"
+    a = folder_of(tmp_path / "a", {name: paper_cell()})
+    b = folder_of(tmp_path / "b", {name: dict(paper_cell(), accuracy=0.5)})
+    line = refused(
+        report(a, b, "--out", tmp_path / "out"),
+        "cell (simlidar-32c-noise0.1-paper-v2.0.0, cnn, seed 0) is in",
+    )
+    assert f"{a / 'cells' / name}.json and in {b / 'cells' / name}.json" in line
+    assert "(key 'accuracy')" in line and not (tmp_path / "out").exists()
+    copy = folder_of(tmp_path / "copy", {name: paper_cell()})  # identical: kept once
+    merged = report(a, copy, a, "--out", tmp_path / "out")
+    assert merged.exit_code == 0, merged.output
+    assert "1 cells of 2 runs" in merged.output
+
+
+def test_one_models_seeds_from_two_folders_share_one_row(tmp_path):
+    cells = {p.stem: json.loads(p.read_text()) for p in (PAPER / "cells").glob("*__cnn__*")}
+    first = {k: v for k, v in cells.items() if not k.endswith("seed2")}
+    second = {k: v for k, v in cells.items() if k.endswith("seed2")}
+    a = folder_of(tmp_path / "a", first, suite="paper")
+    b = folder_of(tmp_path / "b", second, suite="paper")
+    result = report(a, b, "--out", tmp_path / "out")
+    assert result.exit_code == 0, result.output
+    text = (tmp_path / "out" / "report.md").read_text()
+    # the committed report's row, from two folders
+    row = "| cnn | 100.00 ± 0.00 (3) | 96.28 ± 0.42 (3) | 86.22 ± 1.55 (3) | 70.83 ± 0.50 (3) |"
+    assert row in text and row in (PAPER / "report.md").read_text()
+    assert "shown once per run" not in text
+    assert "suite a + b" in text.splitlines()[0]  # two runs of one suite: named by folder
+
+
+def test_bad_folders_and_cells_are_refused_in_one_line_with_nothing_written(tmp_path):
+    name = "simlidar-32c-noise0.1-paper-v2.0.0__cnn__seed0"
+    good = folder_of(tmp_path / "good", {name: paper_cell()})
+    out = tmp_path / "out"
+    broken = folder_of(
+        tmp_path / "broken", {name.replace("cnn", "x"): dict(paper_cell(), accuracy=1.5)}
+    )
+    line = refused(report(good, broken, "--out", out), "key 'accuracy': 1.5 is greater")
+    assert line.startswith(f"Error: {broken / 'cells'}")
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    refused(report(good, empty, "--out", out), "no finished cells (cells/*.json)")
+    refused(report(tmp_path / "missing", "--out", out), "not a folder; expected a benchmark")
+    junk = folder_of(tmp_path / "junk", {})
+    (junk / "cells" / "x.json").write_text("{not json")
+    refused(report(junk, "--out", out), "x.json: cannot be read (Expecting property name")
+    (junk / "cells" / "x.json").write_text("[1, 2]")
+    refused(report(junk, "--out", out), "x.json: the cell: [1, 2] is not of type 'object'")
+    assert not out.exists()
+
+    # --out: a folder of other files is refused and left as it was; a file too; '' is usage
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    refused(report(good, "--out", other), "not empty and not a folder written by simlidar report")
+    assert [p.name for p in other.iterdir()] == ["notes.txt"]
+    refused(report(good, "--out", good), "not empty and not a folder written by simlidar report")
+    (tmp_path / "file").write_text("x")
+    refused(report(good, "--out", tmp_path / "file"), "is a file", code=2)  # as every --out
+    refused(report(good, "--out", ""), "'' is empty", code=2)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "broken", "empty", "file", "good", "junk", "other",
+    ]  # fmt: skip
