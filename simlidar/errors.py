@@ -20,3 +20,8 @@ class RecipeError(SimlidarError):
 
 class DatasetError(SimlidarError):
     """A path is not a simlidar dataset, or a dataset cannot be written where asked."""
+
+
+class ResultsError(SimlidarError):
+    """Benchmark results cannot be read or merged: a cell that does not follow the published
+    cell schema, or cells of several runs that disagree (``simlidar report``)."""

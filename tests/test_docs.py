@@ -45,3 +45,16 @@ def test_the_cli_page_states_the_defaults_the_generate_options_have():
         assert written.strip().strip("`") == str(option.default), flag
         checked.append(flag)
     assert {"--classes", "--noise", "--train-size", "--width", "--batch-size"} <= set(checked)
+
+
+def test_the_cli_page_lists_every_command():
+    """Every command of `simlidar` has a row in docs/cli.md's command table (a new command, such
+    as `report`, cannot ship undocumented)."""
+    import re
+
+    from simlidar.cli import main
+
+    table = (DOCS / "cli.md").read_text().split("| command | what it does |")[1].split("\n\n")[0]
+    listed = set(re.findall(r"^\| `([a-z-]+)", table, re.M))
+    assert set(main.commands) <= listed, sorted(set(main.commands) - listed)
+    assert "report" in main.commands

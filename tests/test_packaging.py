@@ -1,7 +1,7 @@
 """A non-editable install into a fresh virtual environment can run `simlidar generate`.
 
 The content folders (scenes/, baselines/, benchmark/, profiles/, sensors/) must ship inside
-the wheel. The venv
+the wheel, and so must the cell schema (simlidar/bench/cell.schema.json). The venv
 reuses the running interpreter's installed dependencies (its site-packages, added by a `.pth`
 file: this works whether pytest runs in a venv or not, unlike `system_site_packages`, which
 reaches the base interpreter), but simlidar itself comes only from the wheel (pip install
@@ -45,6 +45,7 @@ def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
         shipped = {n.split("/")[-1] for n in names if n.startswith(f"simlidar/_content/{folder}/")}
         assert {p.name for p in (ROOT / folder).glob("*.toml")} <= shipped
     assert not [n for n in names if "benchmark/results" in n]
+    assert "simlidar/bench/cell.schema.json" in names  # simlidar report checks cells with it
 
     env_dir = tmp_path / "venv"
     venv.EnvBuilder(with_pip=False).create(env_dir)
@@ -68,7 +69,10 @@ def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
     check = (
         "import simlidar, simlidar.content as c;"
         "assert str(simlidar.__file__).startswith(sys.argv[1]), simlidar.__file__;"
-        "assert '_content' in str(c.content_dir('scenes'))"
+        "assert '_content' in str(c.content_dir('scenes'));"
+        "import importlib.resources as r, json;"
+        "schema = json.loads(r.files('simlidar.bench').joinpath('cell.schema.json').read_text());"
+        "assert 'accuracy' in schema['required']"
     )
     subprocess.run([str(python), "-c", "import sys;" + check, str(env_dir)], cwd=work, check=True)
     done = subprocess.run(

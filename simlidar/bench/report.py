@@ -307,16 +307,16 @@ def plot_accuracy(cells: list[dict], paper: dict, path: Path) -> bool:
     return True
 
 
-def plot_decisions(out: Path, path: Path) -> bool:
-    """Histograms of decision times and input spikes consumed (dense spiking networks)."""
+def plot_decisions(cells: list[dict], path: Path) -> bool:
+    """Histograms of decision times and input spikes consumed (dense spiking networks), from
+    the cells that carry ``per_sample``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     runs = defaultdict(lambda: {"decision_time_ns": [], "input_spikes": []})
-    for file in sorted((out / "cells").glob("*.json")):
-        cell = json.loads(file.read_text())
+    for cell in cells:
         if "per_sample" in cell and "early" in cell:  # event-driven runs: times in ns
             key = f"{cell['model']} @ {cell['dataset']}"
             for name in runs[key]:
@@ -371,8 +371,12 @@ def _machine(m: dict) -> str:
     return f"{m['cpu']} ({m['cores']} cores, torch {m['torch']}, {m['torch_threads']} threads)"
 
 
-def write_report(results: dict, out: Path) -> Path:
-    """Write ``<out>/report.md`` and its pictures from results.json's content."""
+def write_report(results: dict, out: Path, sampled: list[dict] | None = None) -> Path:
+    """Write ``<out>/report.md`` and its pictures from results.json's content; ``sampled``:
+    the cells with their per-sample arrays, which results.json leaves out (default: those of
+    ``<out>/cells/``)."""
+    if sampled is None:
+        sampled = [json.loads(f.read_text()) for f in sorted((out / "cells").glob("*.json"))]
     paper = paper_numbers()
     cells = results["cells"]
     m = results["machine"]
@@ -406,7 +410,7 @@ def write_report(results: dict, out: Path) -> Path:
         ),
         (
             "decisions.png",
-            plot_decisions(out, out / "decisions.png"),
+            plot_decisions(sampled, out / "decisions.png"),
             "decision times and input spikes consumed",
         ),
         ("confusion.png", plot_confusions(cells, out / "confusion.png"), "confusion matrices"),

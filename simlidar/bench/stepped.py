@@ -139,7 +139,7 @@ def stepped_decisions(
     if per_sample:
         summary["per_sample"] = {
             "decision_step": [int(s) + 1 if s >= 0 else None for s in steps],
-            "input_spikes": [float(c) for c in consumed],
+            "input_spikes": [int(c) for c in consumed],
         }
     return summary
 

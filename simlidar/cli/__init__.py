@@ -15,6 +15,7 @@ from simlidar.cli.convert import convert
 from simlidar.cli.generate import generate, profiles, scenes, sensors, sweep
 from simlidar.cli.options import Group
 from simlidar.cli.release import card, fetch, info, pack, preview, verify
+from simlidar.cli.report import report
 from simlidar.cli.training import bench, train
 
 
@@ -32,5 +33,5 @@ def main(ctx: click.Context, debug: bool) -> None:
 
 
 for command in (generate, sweep, profiles, sensors, scenes, info, preview, card, verify, pack,
-                fetch, train, bench, convert):  # fmt: skip
+                fetch, train, bench, report, convert):  # fmt: skip
     main.add_command(command)
