@@ -13,8 +13,8 @@ from contextlib import contextmanager
 from simlidar.errors import ConfigError
 
 DEVICES = ("auto", "cpu", "cuda")
-# one thread a cell: measured fastest for the shipped cells on this project's 2-core machines
-# (docs/benchmark.md, "Threads"), and what two cells side by side want
+# one thread a cell: 0.19 times the wall time of two for a CNN cell on this project's shared
+# 2-core machine (docs/benchmark.md, "Devices and threads"), and what two cells side by side want
 DEFAULT_THREADS = 1
 MAX_THREADS = 1024
 
