@@ -322,28 +322,31 @@ def _users_folder(out: Path) -> Path:
 
 
 @pytest.mark.parametrize("force", [False, True])
-def test_an_archive_cannot_replace_a_folder_it_names(server, datasets, tmp_path, force):
+@pytest.mark.parametrize(
+    "rewrite_croissant, words",
+    [
+        (False, "croissant.json names the dataset 'simlidar-"),  # only the folder renamed
+        (True, "Documents exists and is not a simlidar dataset"),  # a consistent "Documents"
+    ],
+)
+def test_an_archive_cannot_replace_a_users_folder(
+    server, datasets, tmp_path, force, rewrite_croissant, words
+):
     url, root = server
-    folder = _renamed_dataset(datasets, tmp_path, "Documents", rewrite_croissant=False)
+    folder = _renamed_dataset(datasets, tmp_path, "Documents", rewrite_croissant)
     served, digest = _serve_folder(root, folder, "Documents.tar.gz")
     documents = _users_folder(tmp_path / "home")
-    with pytest.raises(FetchError, match="install: .*croissant.json names the dataset 'simlidar-"):
-        fetch(f"{url}/{served}", sha256=digest, out=tmp_path / "home", force=force, progress=False)
-    assert (documents / "thesis.tex").read_text() == "years of work"
-    assert sorted(p.name for p in (tmp_path / "home").iterdir()) == ["Documents"]
-
-
-@pytest.mark.parametrize("force", [False, True])
-def test_force_replaces_only_a_dataset_of_that_name(server, datasets, tmp_path, force):
-    url, root = server
-    folder = _renamed_dataset(datasets, tmp_path, "Documents", rewrite_croissant=True)
-    served, digest = _serve_folder(root, folder, "Documents.tar.gz")
-    documents = _users_folder(tmp_path / "home")
-    with pytest.raises(FetchError, match="install: .*Documents exists and is not a simlidar") as e:
+    with pytest.raises(FetchError, match=f"install: .*{words}") as e:
         fetch(f"{url}/{served}", sha256=digest, out=tmp_path / "home", force=force, progress=False)
     assert "pass --force" not in str(e.value)
     assert (documents / "thesis.tex").read_text() == "years of work"
     assert sorted(p.name for p in (tmp_path / "home").iterdir()) == ["Documents"]
+
+
+def test_a_dataset_named_by_its_croissant_and_url_installs_under_it(server, datasets, tmp_path):
+    url, root = server
+    folder = _renamed_dataset(datasets, tmp_path, "Documents", rewrite_croissant=True)
+    served, digest = _serve_folder(root, folder, "Documents.tar.gz")
     # where nothing is in the way it installs under the name it and the URL agree on
     installed = fetch(f"{url}/{served}", sha256=digest, out=tmp_path / "free", progress=False)
     assert installed == tmp_path / "free" / "Documents"
