@@ -89,6 +89,14 @@ def _row_chunks(rows: int, per_row: int, device: torch.device) -> list[slice]:
     return [slice(i, min(rows, i + step)) for i in range(0, rows, step)]
 
 
+def _scratch(parts: list[slice], per_row: int, like: torch.Tensor, *dtypes: torch.dtype):
+    """One flat buffer of each dtype, large enough for the largest chunk's (r, ..., ...) tensor:
+    allocated once a call and reused by every chunk (on a CPU a fresh multi-MB tensor a pass
+    costs more than the pass: its pages are faulted in and zeroed, measured 3x on a mul)."""
+    size = max((p.stop - p.start for p in parts), default=0) * per_row
+    return [torch.empty(size, dtype=dtype, device=like.device) for dtype in dtypes]
+
+
 def _first_spikes(z: torch.Tensor, w: torch.Tensor):
     """Forward of the torch form. z (R, N) float64 with inf = silent, w (N, M) float64.
 
@@ -107,20 +115,26 @@ def _first_spikes(z: torch.Tensor, w: torch.Tensor):
     z_out = z.new_full((rows, n_out), torch.inf)
     z_last = z.new_full((rows, n_out), -torch.inf)
     excess = z.new_ones((rows, n_out))
-    for part in _row_chunks(rows, n_in * n_out, z.device):
+    parts = _row_chunks(rows, n_in * n_out, z.device)
+    bufs = _scratch(parts, n_in * n_out, z, z.dtype, z.dtype, torch.bool, torch.bool)
+    for part in parts:
         spiking = int(torch.isfinite(z[part]).sum(dim=1).max())  # the one host sync
         if spiking == 0:
             continue  # every row of the chunk silent: so are its outputs
         zs, order = torch.sort(z[part], dim=1)
         zs, order = zs[:, :spiking], order[:, :spiking]  # (r, K)
-        ws = w.index_select(0, order.flatten()).view(*zs.shape, n_out)  # (r, K, M)
-        ex = ws.cumsum(dim=1).sub_(1.0)  # sum of the first k + 1 weights - 1
+        shape = (*zs.shape, n_out)  # (r, K, M)
+        ws, cand, valid, test = (b[: zs.numel() * n_out].view(shape) for b in bufs)
+        torch.index_select(w, 0, order.flatten(), out=ws.view(-1, n_out))
         zs0 = torch.where(torch.isfinite(zs), zs, 0.0)
-        cand = ws.mul_(zs0[..., None]).cumsum_(dim=1).div_(ex)  # candidate z_out
+        torch.mul(ws, zs0[..., None], out=cand)
+        ws[:, 0] -= 1.0  # so that the cumulative sums are sum w - 1
+        ex = ws.cumsum_(dim=1)  # the excess of every prefix
+        cand.cumsum_(dim=1).div_(ex)  # candidate z_out
         nxt = torch.cat([zs[:, 1:], torch.full_like(zs[:, :1], torch.inf)], dim=1)
-        valid = ex > MIN_EXCESS
-        valid &= cand >= zs[..., None]  # not before the prefix's last input (silent: never)
-        valid &= cand < nxt[..., None]  # strictly before the next input
+        torch.gt(ex, MIN_EXCESS, out=valid)
+        valid &= torch.ge(cand, zs[..., None], out=test)  # not before the prefix's last input
+        valid &= torch.lt(cand, nxt[..., None], out=test)  # strictly before the next input
         fired, last = valid.view(torch.uint8).max(dim=1)  # the first valid prefix (r, M)
         fired = fired.bool()
         pick = last[:, None, :]
@@ -136,19 +150,25 @@ def _spike_gradients(z, w, z_out, z_last, excess, grad_out, need_z: bool, need_w
     neuron's causal set iff its time is at or before ``z_last`` (a firing prefix never ends
     inside a group of equal times, so this is the prefix of the forward pass)."""
     rows, n_in = z.shape
+    n_out = w.shape[1]
     fired = torch.isfinite(z_out)
     g = torch.where(fired, grad_out, 0.0).div_(excess)  # (R, M); excess is 1 where silent
     z0 = torch.where(torch.isfinite(z), z, 0.0)
     zo = torch.where(fired, z_out, 0.0)
     grad_z = torch.zeros_like(z) if need_z else None
     grad_w = torch.zeros_like(w) if need_w else None
-    for part in _row_chunks(rows, n_in * w.shape[1], z.device):
-        causal = z[part, :, None] <= z_last[part, None, :]  # (r, N, M); silent: none
-        coeff = causal.to(z.dtype).mul_(g[part, None, :])
+    parts = _row_chunks(rows, n_in * n_out, z.device)
+    bufs = _scratch(parts, n_in * n_out, z, torch.bool, z.dtype, z.dtype)
+    for part in parts:
+        shape = (part.stop - part.start, n_in, n_out)
+        causal, coeff, tmp = (b[: shape[0] * n_in * n_out].view(shape) for b in bufs)
+        torch.le(z[part, :, None], z_last[part, None, :], out=causal)  # silent: none
+        coeff.copy_(causal).mul_(g[part, None, :])
         if need_z:
-            grad_z[part] = torch.linalg.vecdot(coeff, w, dim=2)
+            grad_z[part] = torch.mul(coeff, w, out=tmp).sum(dim=2)
         if need_w:
-            grad_w += coeff.mul_(z0[part, :, None] - zo[part, None, :]).sum(dim=0)
+            torch.sub(z0[part, :, None], zo[part, None, :], out=tmp)
+            grad_w += tmp.mul_(coeff).sum(dim=0)
     return grad_z, grad_w
 
 

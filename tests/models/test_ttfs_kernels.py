@@ -59,7 +59,8 @@ def test_the_kernels_give_the_reference_spikes_and_gradients(rows, n_in, n_out, 
 def test_float32_inputs_get_float64_decisions(seed):
     """The kernels sum in float64: on float32 inputs their spikes are the float64 ones rounded
     to float32, where float32 sums lose digits near the threshold (seed 3: one neuron of
-    24,000 fires in float64 and is silent with float32 sums; test_ttfs_torch.py shows it)."""
+    24,000 fired in float64 and was silent in the float32 batched reference that the torch
+    form replaced; test_ttfs_torch.py finds such batches for the torch form's own sums)."""
     z, w = _batch(60, 256, 400, seed, torch.float32)
     fast = _run(ttfs.dense, z, w, seed)
     exact = _run(ttfs.dense_torch, z.double(), w.double(), seed)

@@ -74,18 +74,23 @@ def test_the_dense_torch_form_equals_the_kernels(dtype, rows, n_in, n_out):
 
 
 def test_float32_decisions_are_made_in_float64():
-    """Seed 3's 60 x 256 -> 400 float32 batch has a neuron that fires in float64 and is silent
-    when the prefix sums run in float32 (``_first_spikes`` on float32 tensors shows it): the
-    torch form fires it, as the kernels do."""
-    z, w = _batch(60, 256, 400, 3, torch.float32)
-    in_float32 = ttfs._first_spikes(z, w)[0]
-    in_float64 = ttfs._first_spikes(z.double(), w.double())[0]
-    assert (torch.isfinite(in_float32) != torch.isfinite(in_float64)).sum() == 1
-    with ttfs.torch_form():
-        out = ttfs.dense(z, w)
-    assert out.dtype == torch.float32
-    assert torch.equal(torch.isfinite(out), torch.isfinite(in_float64))
-    assert torch.equal(torch.isfinite(out), torch.isfinite(ttfs.dense(z, w)))  # the kernels'
+    """Float32 60 x 256 -> 400 batches on which prefix sums run in float32 (``_first_spikes`` on
+    float32 tensors) fire or silence a neuron otherwise than in float64 (one of 24,000, in some
+    of the seeds): the torch form decides as float64 does, as the kernels do."""
+    hard = 0
+    for seed in range(8):
+        z, w = _batch(60, 256, 400, seed, torch.float32)
+        in_float32 = torch.isfinite(ttfs._first_spikes(z, w)[0])
+        in_float64 = torch.isfinite(ttfs._first_spikes(z.double(), w.double())[0])
+        if torch.equal(in_float32, in_float64):
+            continue
+        hard += 1
+        with ttfs.torch_form():
+            out = ttfs.dense(z, w)
+        assert out.dtype == torch.float32
+        assert torch.equal(torch.isfinite(out), in_float64)
+        assert torch.equal(torch.isfinite(ttfs.dense(z, w)), in_float64)  # the kernels'
+    assert hard >= 1
 
 
 def test_mixed_dtypes_promote_as_the_kernels_do():
