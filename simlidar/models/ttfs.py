@@ -121,7 +121,7 @@ def _first_spikes(z: torch.Tensor, w: torch.Tensor):
         spiking = int(torch.isfinite(z[part]).sum(dim=1).max())  # the one host sync
         if spiking == 0:
             continue  # every row of the chunk silent: so are its outputs
-        zs, order = torch.sort(z[part], dim=1)
+        zs, order = torch.sort(z[part], dim=1, stable=True)  # ties: the same order every run
         zs, order = zs[:, :spiking], order[:, :spiking]  # (r, K)
         shape = (*zs.shape, n_out)  # (r, K, M)
         ws, cand, valid, test = (b[: zs.numel() * n_out].view(shape) for b in bufs)
