@@ -118,7 +118,7 @@ def _first_spikes(z: torch.Tensor, w: torch.Tensor):
     parts = _row_chunks(rows, n_in * n_out, z.device)
     bufs = _scratch(parts, n_in * n_out, z, z.dtype, z.dtype, torch.bool, torch.bool)
     for part in parts:
-        spiking = int(torch.isfinite(z[part]).sum(dim=1).max())  # the one host sync
+        spiking = int(torch.isfinite(z[part]).sum(dim=1).max())  # one host sync a chunk
         if spiking == 0:
             continue  # every row of the chunk silent: so are its outputs
         zs, order = torch.sort(z[part], dim=1, stable=True)  # ties: the same order every run
