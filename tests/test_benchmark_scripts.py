@@ -62,6 +62,22 @@ def test_ttfs_speed_prints_both_ratios():
         assert ratio > 0 and ("target <= 5" in line or "target <= 3" in line)
 
 
+def test_ttfs_torch_speed_times_both_forms_in_one_run():
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "benchmark" / "ttfs_torch_speed.py"), "--steps", "1"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    )
+    (line,) = done.stdout.splitlines()[1:]
+    assert line.startswith("snn_simlidar (batch 60 x 1 x 16 x 16): kernels ")
+    kernels, torch_form = (float(line.split(f"{k} ")[1].split()[0]) for k in ("kernels", "form"))
+    ratio = float(line.split("ratio ")[1].split()[0])
+    assert kernels > 0 and torch_form > 0 and "target <= 20" in line
+    assert abs(ratio - torch_form / kernels) <= 0.05 + 0.01 * ratio  # printed to 0.1 ms
+
+
 def test_generation_workers_compares_the_counts_on_the_same_bytes():
     done = subprocess.run(
         [

@@ -25,11 +25,18 @@ Gradients (hand-written backward, checked by ``torch.autograd.gradcheck``), for 
 ``dz_out/dz_i = w_i / (sum_C w - 1)`` and ``dz_out/dw_i = (z_i - z_out) / (sum_C w - 1)``;
 zero for inputs outside C and for neurons that do not fire.
 
-Two implementations compute the same spikes and gradients: :func:`dense` runs the compiled
-kernels of :mod:`simlidar.models.ttfs_kernels` (each row's inputs walked in time order until
-every neuron has fired; docs/performance.md), and :func:`dense_reference`, the batched tensor
-form below, is their oracle in the tests.
+Two implementations compute the same spikes and gradients, and :func:`dense` and
+:func:`conv2d` pick one by the tensors' device: on the CPU the compiled kernels of
+:mod:`simlidar.models.ttfs_kernels` (each row's inputs walked in time order until every neuron
+has fired; docs/performance.md), on any other device the torch form (:func:`dense_torch`:
+tensor operations over every prefix of a chunk of rows, on the tensors' own device), which is
+also the kernels' oracle in the tests. :func:`torch_form` makes the CPU run the torch form.
+Both sum in float64 whatever the inputs' dtype, so their spikes agree to float64 rounding
+(tests/models/test_ttfs_torch.py).
 """
+
+import contextlib
+import contextvars
 
 import torch
 import torch.nn.functional as F
@@ -48,64 +55,150 @@ def encode(delays: torch.Tensor, scale: float, no_return: float = 1.0) -> torch.
     return torch.where(spike, torch.exp(scale * torch.where(spike, delays, 0.0)), torch.inf)
 
 
+# Elements of one (rows, inputs, outputs) prefix tensor the torch form holds at a time: on a
+# CPU a few MB, so that its dozen passes over it stay in cache (docs/performance.md); elsewhere
+# a bound on memory (512 MB a tensor in float64), one chunk for the paper's networks' batches.
+CHUNK_ELEMENTS = {"cpu": 1 << 19}
+CHUNK_ELEMENTS_ELSEWHERE = 1 << 26
+
+_TORCH_FORM = contextvars.ContextVar("simlidar_ttfs_torch_form", default=False)
+
+
+@contextlib.contextmanager
+def torch_form(enabled: bool = True):
+    """Within this block :func:`dense` and :func:`conv2d` run the torch form on CPU tensors too
+    (``enabled=False``: the compiled kernels again); for tests and benchmarks. Which form a
+    layer ran is chosen at its forward pass: its backward follows it."""
+    token = _TORCH_FORM.set(enabled)
+    try:
+        yield
+    finally:
+        _TORCH_FORM.reset(token)
+
+
+def uses_kernels(*tensors: torch.Tensor) -> bool:
+    """True where :func:`dense` and :func:`conv2d` run the compiled kernels: every tensor on
+    the CPU, outside :func:`torch_form`."""
+    return all(t.device.type == "cpu" for t in tensors) and not _TORCH_FORM.get()
+
+
+def _row_chunks(rows: int, per_row: int, device: torch.device) -> list[slice]:
+    """Slices of at most ``CHUNK_ELEMENTS`` / ``per_row`` rows (at least one) covering ``rows``."""
+    budget = CHUNK_ELEMENTS.get(device.type, CHUNK_ELEMENTS_ELSEWHERE)
+    step = max(1, budget // max(per_row, 1))
+    return [slice(i, min(rows, i + step)) for i in range(0, rows, step)]
+
+
+def _scratch(parts: list[slice], per_row: int, like: torch.Tensor, *dtypes: torch.dtype):
+    """One flat buffer of each dtype, large enough for the largest chunk's (r, ..., ...) tensor:
+    allocated once a call and reused by every chunk (on a CPU a fresh multi-MB tensor a pass
+    costs more than the pass: its pages are faulted in and zeroed, measured 3x on a mul)."""
+    size = max((p.stop - p.start for p in parts), default=0) * per_row
+    return [torch.empty(size, dtype=dtype, device=like.device) for dtype in dtypes]
+
+
 def _first_spikes(z: torch.Tensor, w: torch.Tensor):
-    """Forward of the dense layer. z (B, N) with inf = silent, w (N, M).
+    """Forward of the torch form. z (R, N) float64 with inf = silent, w (N, M) float64.
 
-    returns z_out (B, M) (inf = silent), and what the backward needs: the time order of the
-    inputs (B, K), K <= N (only the inputs that can be in a causal set), the index of the last
-    input of the causal set (B, M) (-1 if silent) and its weight excess sum_C w - 1 (B, M)
-    (1 if silent).
+    returns z_out (R, M) (inf: silent), z_last (R, M), the time of the causal set's last input
+    (-inf: silent; the set is the inputs at or before it) and excess (R, M), sum_C w - 1 (1:
+    silent).
 
-    Work is done in place on the (B, K, M) prefix tensors (the layer's cost). Silent inputs sort
-    last and their weights are not masked: a prefix that reaches one is never valid (its
-    ``zs`` is inf), so what they add to the sums is never used.
+    Chunk by chunk of rows: sort each row once, gather the weights in time order (r, K, M) (K
+    the chunk's largest spike count: silent inputs sort last and no firing prefix reaches
+    them), cumulative sums of w and w z over the prefixes, and each neuron's first valid
+    prefix. Silent inputs' weights are not masked: a prefix that reaches one is never valid
+    (its time is inf), so what they add to the sums is never used.
     """
-    # silent inputs (inf) sort last; prefixes past the last spike of every row are never
-    # valid, so only the first K of the order matter, K the batch's largest spike count
-    spiking = int(torch.isfinite(z).sum(dim=1).max()) if z.shape[0] else 0
-    order = torch.argsort(z, dim=1)[:, : max(spiking, 1)]  # (B, K)
-    zs = torch.gather(z, 1, order)  # (B, K)
-    zs0 = torch.where(torch.isfinite(zs), zs, 0.0)
-    ws = w[order]  # (B, K, M)
-    excess = torch.cumsum(ws, dim=1).sub_(1.0)  # sum of the first k+1 weights - 1
-    cand = torch.cumsum(ws.mul_(zs0[..., None]), dim=1).div_(excess)  # candidate z_out
-    nxt = torch.cat([zs[:, 1:], torch.full_like(zs[:, :1], torch.inf)], dim=1)  # (B, K)
-    valid = excess > MIN_EXCESS
-    valid &= cand >= zs[..., None]  # not before the prefix's last input (silent: never)
-    valid &= cand < nxt[..., None]  # strictly before the next input
-    last = torch.argmax(valid.view(torch.uint8), dim=1)  # first valid prefix (0 if none)
-    pick = last[:, None, :]
-    fired = torch.gather(valid, 1, pick).squeeze(1)  # (B, M)
-    z_out = torch.where(fired, torch.gather(cand, 1, pick).squeeze(1), torch.inf)
-    excess_at = torch.where(fired, torch.gather(excess, 1, pick).squeeze(1), 1.0)
-    return z_out, order, torch.where(fired, last, -1), excess_at
+    rows, n_in = z.shape
+    n_out = w.shape[1]
+    z_out = z.new_full((rows, n_out), torch.inf)
+    z_last = z.new_full((rows, n_out), -torch.inf)
+    excess = z.new_ones((rows, n_out))
+    parts = _row_chunks(rows, n_in * n_out, z.device)
+    bufs = _scratch(parts, n_in * n_out, z, z.dtype, z.dtype, torch.bool, torch.bool)
+    for part in parts:
+        spiking = int(torch.isfinite(z[part]).sum(dim=1).max())  # one host sync a chunk
+        if spiking == 0:
+            continue  # every row of the chunk silent: so are its outputs
+        zs, order = torch.sort(z[part], dim=1, stable=True)  # ties: the same order every run
+        zs, order = zs[:, :spiking], order[:, :spiking]  # (r, K)
+        shape = (*zs.shape, n_out)  # (r, K, M)
+        ws, cand, valid, test = (b[: zs.numel() * n_out].view(shape) for b in bufs)
+        torch.index_select(w, 0, order.flatten(), out=ws.view(-1, n_out))
+        zs0 = torch.where(torch.isfinite(zs), zs, 0.0)
+        torch.mul(ws, zs0[..., None], out=cand)
+        ws[:, 0] -= 1.0  # so that the cumulative sums are sum w - 1
+        ex = ws.cumsum_(dim=1)  # the excess of every prefix
+        cand.cumsum_(dim=1).div_(ex)  # candidate z_out
+        nxt = torch.cat([zs[:, 1:], torch.full_like(zs[:, :1], torch.inf)], dim=1)
+        torch.gt(ex, MIN_EXCESS, out=valid)
+        valid &= torch.ge(cand, zs[..., None], out=test)  # not before the prefix's last input
+        valid &= torch.lt(cand, nxt[..., None], out=test)  # strictly before the next input
+        fired, last = valid.view(torch.uint8).max(dim=1)  # the first valid prefix (r, M)
+        fired = fired.bool()
+        pick = last[:, None, :]
+        z_out[part] = torch.where(fired, cand.gather(1, pick).squeeze(1), torch.inf)
+        z_last[part] = torch.where(fired, zs.gather(1, last), -torch.inf)
+        excess[part] = torch.where(fired, ex.gather(1, pick).squeeze(1), 1.0)
+    return z_out, z_last, excess
 
 
-class _DenseTTFSReference(torch.autograd.Function):
+def _spike_gradients(z, w, z_out, z_last, excess, grad_out, need_z: bool, need_w: bool):
+    """Backward of the torch form, all float64 (shapes as :func:`_first_spikes`): the input
+    gradient (R, N) and the weight gradient (N, M) (None where not needed). An input is in a
+    neuron's causal set iff its time is at or before ``z_last`` (a firing prefix never ends
+    inside a group of equal times, so this is the prefix of the forward pass)."""
+    rows, n_in = z.shape
+    n_out = w.shape[1]
+    fired = torch.isfinite(z_out)
+    g = torch.where(fired, grad_out, 0.0).div_(excess)  # (R, M); excess is 1 where silent
+    z0 = torch.where(torch.isfinite(z), z, 0.0)
+    zo = torch.where(fired, z_out, 0.0)
+    grad_z = torch.zeros_like(z) if need_z else None
+    grad_w = torch.zeros_like(w) if need_w else None
+    parts = _row_chunks(rows, n_in * n_out, z.device)
+    bufs = _scratch(parts, n_in * n_out, z, torch.bool, z.dtype, z.dtype)
+    for part in parts:
+        shape = (part.stop - part.start, n_in, n_out)
+        causal, coeff, tmp = (b[: shape[0] * n_in * n_out].view(shape) for b in bufs)
+        torch.le(z[part, :, None], z_last[part, None, :], out=causal)  # silent: none
+        coeff.copy_(causal).mul_(g[part, None, :])
+        if need_z:
+            grad_z[part] = torch.mul(coeff, w, out=tmp).sum(dim=2)
+        if need_w:
+            torch.sub(z0[part, :, None], zo[part, None, :], out=tmp)
+            grad_w += tmp.mul_(coeff).sum(dim=0)
+    return grad_z, grad_w
+
+
+class _DenseTTFSTorch(torch.autograd.Function):
+    """The dense layer as tensor operations on the tensors' own device, in float64 whatever
+    their dtype, as the kernels sum (:func:`_first_spikes`, :func:`_spike_gradients`)."""
+
     @staticmethod
     def forward(ctx, z, w):
-        z_out, order, last, excess = _first_spikes(z, w)
-        ctx.save_for_backward(z, w, z_out, order, last, excess)
-        return z_out
+        dtype = torch.promote_types(z.dtype, w.dtype)  # the kernels' output dtype
+        z_out, z_last, excess = _first_spikes(z.detach().double(), w.detach().double())
+        ctx.save_for_backward(z, w, z_out, z_last, excess)
+        return z_out.to(dtype)
 
     @staticmethod
     def backward(ctx, grad_out):
-        z, w, z_out, order, last, excess = ctx.saved_tensors
-        fired = last >= 0
-        g = torch.where(fired, grad_out, 0.0) / excess  # (B, M), excess is 1 when silent
-        rank = torch.full(z.shape, z.shape[1], dtype=order.dtype, device=z.device).scatter_(
-            1, order, torch.arange(order.shape[1], device=z.device).expand_as(order)
-        )  # each input's place in time order; N for those left out (never causal)
-        causal = rank[:, :, None] <= last[:, None, :]  # (B, N, M): input in C (none if silent)
-        coeff = torch.where(causal, g[:, None, :], 0.0)
-        grad_z = grad_w = None
-        if ctx.needs_input_grad[0]:
-            grad_z = (coeff * w).sum(dim=2)
-        if ctx.needs_input_grad[1]:
-            z0 = torch.where(torch.isfinite(z), z, 0.0)
-            zo = torch.where(fired, z_out, 0.0)
-            grad_w = coeff.mul_(z0[:, :, None] - zo[:, None, :]).sum(dim=0)
-        return grad_z, grad_w
+        z, w, z_out, z_last, excess = ctx.saved_tensors
+        grad_z, grad_w = _spike_gradients(
+            z.detach().double(),
+            w.detach().double(),
+            z_out,
+            z_last,
+            excess,
+            grad_out.double(),
+            *ctx.needs_input_grad,
+        )
+        return (
+            grad_z.to(z.dtype) if grad_z is not None else None,
+            grad_w.to(w.dtype) if grad_w is not None else None,
+        )
 
 
 class _DenseTTFS(torch.autograd.Function):
@@ -151,8 +244,13 @@ def dense(z: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
     z : (B, N) input spikes in the z domain, inf = no spike
     w : (N, M) weights
     returns : (B, M) output spikes in the z domain, inf = no spike
+
+    On CPU tensors the compiled kernels run (:mod:`simlidar.models.ttfs_kernels`), on any other
+    device (or within :func:`torch_form`) the torch form, :func:`dense_torch`.
     """
-    return _DenseTTFS.apply(z, w)
+    if uses_kernels(z, w):
+        return _DenseTTFS.apply(z, w)
+    return _DenseTTFSTorch.apply(z, w)
 
 
 class _ConvTTFS(torch.autograd.Function):
@@ -207,10 +305,12 @@ class _ConvTTFS(torch.autograd.Function):
         )
 
 
-def dense_reference(z: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
-    """:func:`dense` as batched tensor operations over every prefix of every row: the oracle
-    of the compiled kernels (and of any faster form to come)."""
-    return _DenseTTFSReference.apply(z, w)
+def dense_torch(z: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
+    """:func:`dense` as tensor operations on the tensors' own device, whatever it is: each row
+    sorted once, cumulative sums over its prefixes, each neuron's first valid prefix picked
+    (:func:`_first_spikes`); float64 inside, as the kernels. What :func:`dense` runs off the CPU,
+    and the kernels' oracle in the tests."""
+    return _DenseTTFSTorch.apply(z, w)
 
 
 def conv2d(
@@ -222,11 +322,14 @@ def conv2d(
     z : (B, C_in, H, W) input spikes in the z domain, inf = no spike
     w : (C_out, C_in, k, k) weights
     returns : (B, C_out, H_out, W_out); padding adds "no spike" (inf), never an early spike
-    layer : None (the event-driven kernels), or a dense layer run on every receptive field
-        (e.g. :func:`dense_reference`, the oracle)
+    layer : None (the event-driven kernels on CPU tensors, :func:`dense_torch` on every
+        receptive field elsewhere or within :func:`torch_form`), or a dense layer run on every
+        receptive field
     """
     if layer is None:
-        return _ConvTTFS.apply(z, w, stride, padding)
+        if uses_kernels(z, w):
+            return _ConvTTFS.apply(z, w, stride, padding)
+        layer = dense_torch
     batch, channels = z.shape[:2]
     c_out, _, k, _ = w.shape
     if padding:

@@ -1,5 +1,5 @@
 """Compiled (numba) kernels of the dense TTFS layer: the same first spikes and gradients as the
-batched reference (:func:`simlidar.models.ttfs.dense_reference`), row by row.
+torch form (:func:`simlidar.models.ttfs.dense_torch`), row by row.
 
 The reference materialises every prefix of every row: (rows, inputs, outputs) cumulative sums,
 whatever the prefix at which the neurons fire. These kernels sort a row's spiking inputs and

@@ -1,5 +1,6 @@
-"""The compiled TTFS kernels (simlidar.models.ttfs_kernels) against the batched reference
-(ttfs.dense_reference): the same spikes (the same neurons silent, the same causal sets) and
+"""The compiled TTFS kernels (simlidar.models.ttfs_kernels) against the torch form, their
+oracle (ttfs.dense_torch; tests/models/test_ttfs_torch.py holds it to them through the
+dispatch, in float32 too): the same spikes (the same neurons silent, the same causal sets) and
 gradients to float rounding, on random batches with ties, silent inputs, all-silent rows and
 empty batches, for dense and convolutional layers."""
 
@@ -43,7 +44,7 @@ def _run(layer, z, w, seed: int):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_the_kernels_give_the_reference_spikes_and_gradients(rows, n_in, n_out, seed):
     z, w = _batch(rows, n_in, n_out, seed)
-    ref = _run(ttfs.dense_reference, z, w, seed)
+    ref = _run(ttfs.dense_torch, z, w, seed)
     fast = _run(ttfs.dense, z, w, seed)
     assert torch.equal(torch.isfinite(ref[0]), torch.isfinite(fast[0]))  # the same silent set
     fired = torch.isfinite(ref[0])
@@ -56,12 +57,13 @@ def test_the_kernels_give_the_reference_spikes_and_gradients(rows, n_in, n_out, 
 
 @pytest.mark.parametrize("seed", [0, 3])
 def test_float32_inputs_get_float64_decisions(seed):
-    """The kernels sum in float64: on float32 inputs their spikes are the float64 reference's
-    rounded to float32, where the float32 reference loses digits near the threshold (seed 3:
-    one neuron of 24,000 fires in float64 and is silent in the float32 reference)."""
+    """The kernels sum in float64: on float32 inputs their spikes are the float64 ones rounded
+    to float32, where float32 sums lose digits near the threshold (seed 3: one neuron of
+    24,000 fired in float64 and was silent in the float32 batched reference that the torch
+    form replaced; test_ttfs_torch.py finds such batches for the torch form's own sums)."""
     z, w = _batch(60, 256, 400, seed, torch.float32)
     fast = _run(ttfs.dense, z, w, seed)
-    exact = _run(ttfs.dense_reference, z.double(), w.double(), seed)
+    exact = _run(ttfs.dense_torch, z.double(), w.double(), seed)
     assert torch.equal(torch.isfinite(fast[0]), torch.isfinite(exact[0]))
     fired = torch.isfinite(exact[0])
     assert torch.allclose(fast[0][fired].double(), exact[0][fired], rtol=1e-7)
@@ -88,7 +90,7 @@ def test_the_convolution_matches_its_reference(fast, batch, stride, padding, ker
     def conv(layer):
         return lambda a, b: ttfs.conv2d(a, b, stride=stride, padding=padding, layer=layer)
 
-    ref, got = _run(conv(ttfs.dense_reference), z, w, 4), _run(conv(fast), z, w, 4)
+    ref, got = _run(conv(ttfs.dense_torch), z, w, 4), _run(conv(fast), z, w, 4)
     assert torch.equal(torch.isfinite(ref[0]), torch.isfinite(got[0]))
     fired = torch.isfinite(ref[0])
     assert torch.allclose(ref[0][fired], got[0][fired], rtol=1e-12)
