@@ -20,3 +20,12 @@ class RecipeError(SimlidarError):
 
 class DatasetError(SimlidarError):
     """A path is not a simlidar dataset, or a dataset cannot be written where asked."""
+
+
+def shown(value, limit: int = 100) -> str:
+    """``repr(value)`` for a one-line error message, cut to ``limit`` characters."""
+    try:
+        text = repr(value)
+    except (ValueError, RecursionError):  # an integer of too many digits, a deep structure
+        return "a value too large or too deeply nested to print"
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
