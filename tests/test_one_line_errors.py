@@ -1,5 +1,10 @@
 """Bad input ends in one line and exit code 1 (2 for a bad option value), never a traceback,
-and leaves nothing behind: one test per case that used to crash or give a wrong result."""
+and leaves nothing behind: one test per case that used to crash or give a wrong result.
+
+Attack list of cases 10 and 14 (issue 35, items 6 and 8): a malformed SHA256SUMS given to
+``card`` (which must write nothing); an archive, served over HTTP on loopback, whose dataset
+carries ``payload/run_me.sh``: fetch fails at its verify step and installs nothing.
+"""
 
 import os
 import shutil
@@ -207,3 +212,45 @@ def test_7_generate_refuses_an_empty_out(tmp_path, monkeypatch):
     (line,) = _error_lines(result)
     assert "Invalid value for '--out': '' is empty" in line
     assert list(tmp_path.iterdir()) == []
+
+
+# 10. card with a malformed SHA256SUMS: one line, and nothing written (neither the card nor
+# the checksums).
+def test_10_card_with_malformed_checksums_writes_nothing(datasets, tmp_path):
+    copy = _copy(datasets, tmp_path)
+    (copy / "README.md").write_text((copy / "README.md").read_text() + "edited\n")
+    (copy / SUMS).write_text("not a checksum line\n")
+    before = {p.name: p.read_bytes() for p in copy.iterdir()}
+    result = _run("card", copy)
+    assert result.exit_code == 1
+    (line,) = _error_lines(result)
+    assert line == (
+        f"Error: {copy / SUMS}: line 1 is not '<sha256>  <file name>'; nothing written "
+        "(simlidar verify names the rest)"
+    )
+    assert {p.name: p.read_bytes() for p in copy.iterdir()} == before
+
+
+# 14. A fetched dataset carrying a subfolder (payload/run_me.sh): refused at fetch's verify
+# step, nothing installed (it used to install and verify OK).
+def test_14_a_dataset_carrying_a_subfolder_is_not_installed(server, datasets, tmp_path):
+    import hashlib
+    import io
+
+    url, root = server
+    name = datasets[0.1].name
+    buffer = io.BytesIO()
+    with tarfile.open(fileobj=buffer, mode="w:gz") as tar:
+        tar.add(datasets[0.1], arcname=name)
+        script = b"#!/bin/sh\necho owned\n"
+        info = tarfile.TarInfo(f"{name}/payload/run_me.sh")
+        info.size, info.mode = len(script), 0o755
+        tar.addfile(info, io.BytesIO(script))
+    (root / f"{name}.tar.gz").write_bytes(buffer.getvalue())
+    digest = hashlib.sha256(buffer.getvalue()).hexdigest()
+    out = tmp_path / "data"
+    result = _run("fetch", f"{url}/{name}.tar.gz", "--sha256", digest, "--out", out)
+    assert result.exit_code == 1, result.output
+    (line,) = _error_lines(result)
+    assert line.startswith("Error: fetch failed at verify: ") and "payload: is a folder" in line
+    assert not out.exists() or not any(out.iterdir())

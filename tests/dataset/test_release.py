@@ -1,4 +1,12 @@
-"""What makes a dataset publishable: card, Croissant metadata, checksums, verify, versions."""
+"""What makes a dataset publishable: card, Croissant metadata, checksums, verify, versions.
+
+Attack list of the hostile-directory tests below (each built by the test from a real dataset):
+links and folders in the dataset directory (issue 35, items 7 and 8): ``notes.txt -> secret``
+listed in SHA256SUMS, a link to a split file, ``payload/run_me.sh``, an empty folder, a named
+pipe, a ``.DS_Store`` folder; SHA256SUMS or README.md a link to a file outside, for ``simlidar
+card`` (which must refuse and leave the target untouched) and ``write_sums`` (which must
+replace a link, never write through it).
+"""
 
 import json
 import shutil
@@ -194,3 +202,99 @@ def test_front_matter_errors_are_named(copy):
     with pytest.raises(DatasetError, match="README.md: missing"):
         read_front_matter(copy)
     assert np.isfinite(1.0)
+
+
+def test_a_link_listed_in_the_checksums_fails_verify_and_pack(copy, tmp_path):
+    from simlidar.release.archive import pack
+    from simlidar.release.checksums import write_sums
+
+    secret = tmp_path / "secret"
+    secret.write_text("the secret")
+    secret.chmod(0o600)
+    (copy / "notes.txt").symlink_to(secret)
+    sums = copy / SUMS
+    digest = __import__("hashlib").sha256(b"the secret").hexdigest()
+    sums.write_text(sums.read_text() + f"{digest}  notes.txt\n")  # listed, and it matches
+    problems = verify(copy)
+    assert problems == [
+        f"{copy / 'notes.txt'}: is a link to {secret}, expected a regular file (a dataset "
+        "directory holds only its own files, listed in SHA256SUMS)"
+    ]
+    with pytest.raises(DatasetError, match="notes.txt: is a link"):
+        pack(copy, tmp_path / "out")
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+    with pytest.raises(DatasetError, match="notes.txt: expected a regular file"):
+        write_sums(copy, ["notes.txt"])  # never hashed through the link
+    write_sums(copy)  # all: the link is not a file of the dataset
+    assert "notes.txt" not in read_sums(copy)
+
+
+def test_a_split_file_that_is_a_link_fails_verify(copy, tmp_path):
+    (copy / "test.h5").rename(tmp_path / "test.h5")
+    (copy / "test.h5").symlink_to(tmp_path / "test.h5")
+    assert any("test.h5: is a link to" in p for p in verify(copy))
+
+
+@pytest.mark.parametrize(
+    "make, kind",
+    [
+        (lambda d: (d / "payload").mkdir() or (d / "payload" / "run_me.sh").write_text("x"), ""),
+        (lambda d: (d / "empty").mkdir(), ""),
+        (lambda d: (d / ".DS_Store").mkdir(), ""),
+        (lambda d: __import__("os").mkfifo(d / "pipe"), "named pipe"),
+    ],
+)
+def test_anything_but_a_regular_file_in_a_dataset_fails_verify(copy, tmp_path, make, kind):
+    from simlidar.release.archive import pack
+
+    make(copy)
+    entry = next(p for p in copy.iterdir() if not p.is_file() or p.is_fifo())
+    kind = kind or "folder"
+    problems = verify(copy)
+    assert problems == [
+        f"{entry}: is a {kind}, expected a regular file (a dataset directory holds only its "
+        "own files, listed in SHA256SUMS)"
+    ]
+    with pytest.raises(DatasetError, match=f"is a {kind}"):
+        pack(copy, tmp_path / "out")
+
+
+@pytest.mark.parametrize("name", [SUMS, "README.md"])
+def test_card_refuses_a_link_and_never_writes_through_it(copy, tmp_path, name):
+    from click.testing import CliRunner
+
+    from simlidar.cli import main
+
+    target = tmp_path / "elsewhere"
+    target.write_bytes((copy / name).read_bytes())
+    (copy / name).unlink()
+    (copy / name).symlink_to(target)
+    before = target.read_bytes()
+    result = CliRunner().invoke(main, ["card", str(copy)])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert result.stderr.strip() == (
+        f"Error: {copy / name}: is not a regular file (a link or a folder); expected the "
+        "dataset's own file: remove it and run simlidar card again"
+    )
+    assert target.read_bytes() == before and (copy / name).is_symlink()
+
+
+def test_write_sums_replaces_a_link_instead_of_writing_through_it(copy, tmp_path):
+    from simlidar.release.checksums import write_sums
+
+    target = tmp_path / "elsewhere"
+    target.write_text("not yours\n")
+    (copy / SUMS).unlink()
+    (copy / SUMS).symlink_to(target)
+    write_sums(copy)
+    assert target.read_text() == "not yours\n"
+    assert not (copy / SUMS).is_symlink() and check_sums(copy) == []
+    assert (copy / SUMS).stat().st_mode & 0o777 == 0o666 & ~_umask()
+
+
+def _umask() -> int:
+    import os
+
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
