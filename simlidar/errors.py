@@ -22,6 +22,10 @@ class DatasetError(SimlidarError):
     """A path is not a simlidar dataset, or a dataset cannot be written where asked."""
 
 
+class ResourceError(SimlidarError):
+    """The machine cannot hold what was asked: more memory or disk space than there is."""
+
+
 def shown(value, limit: int = 100) -> str:
     """``repr(value)`` for a one-line error message, cut to ``limit`` characters."""
     try:
