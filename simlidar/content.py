@@ -7,10 +7,11 @@ editable install) they are the top-level folders beside the package.
 
 import math
 import re
+import stat
 import tomllib
 from pathlib import Path
 
-from simlidar.errors import ConfigError
+from simlidar.errors import ConfigError, shown
 
 _PACKAGE = Path(__file__).resolve().parent
 
@@ -24,6 +25,26 @@ def content_dir(name: str) -> Path:
 
 
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_.-]{0,63}$")
+# A name that is used as a file name inside a folder (a scene catalog's layouts, objects and
+# surfaces): no folder part, no dots, so "../x/open_road" can never name a file elsewhere
+PLAIN_NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_-]{0,63}$")
+PLAIN_NAME_RULE = "letters, digits, '_' or '-' (at most 64; a file name without folders)"
+
+_FILE_KINDS = (
+    (stat.S_ISREG, "a regular file"),
+    (stat.S_ISDIR, "a folder"),
+    (stat.S_ISLNK, "a link"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISFIFO, "a named pipe"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def file_kind(mode: int) -> str:
+    """What a ``stat`` mode says an entry is, with its article: "a regular file", "a folder",
+    "a link" (from ``lstat``), "a named pipe", ..."""
+    return next((name for test, name in _FILE_KINDS if test(mode)), "a special file")
 
 
 def read_named_toml(path: Path, where: str, what: str, max_bytes: int) -> dict:
@@ -54,7 +75,7 @@ def read_named_toml(path: Path, where: str, what: str, max_bytes: int) -> dict:
 
 def key_error(where: str, key: str, expected: str, got) -> ConfigError:
     """The one-line error for a bad ``key`` of a content file: what was expected, what came."""
-    return ConfigError(f"{where}: key '{key}': expected {expected}, got {got!r}")
+    return ConfigError(f"{where}: key '{key}': expected {expected}, got {shown(got)}")
 
 
 def finite_number(value) -> bool:

@@ -25,3 +25,16 @@ class DatasetError(SimlidarError):
 class ResultsError(SimlidarError):
     """Benchmark results cannot be read or merged: a cell that does not follow the published
     cell schema, or cells of several runs that disagree (``simlidar report``)."""
+
+
+class ResourceError(SimlidarError):
+    """The machine cannot hold what was asked: more memory or disk space than there is."""
+
+
+def shown(value, limit: int = 100) -> str:
+    """``repr(value)`` for a one-line error message, cut to ``limit`` characters."""
+    try:
+        text = repr(value)
+    except (ValueError, RecursionError):  # an integer of too many digits, a deep structure
+        return "a value too large or too deeply nested to print"
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"

@@ -54,3 +54,19 @@ def catalog_copy(tmp_path):
     root = tmp_path / "scenes"
     shutil.copytree(content_dir("scenes"), root)
     return root
+
+
+@pytest.fixture
+def address_limit():
+    """``address_limit(n)``: a ``preexec_fn`` that runs a child process under an address-space
+    limit of ``n`` bytes (``ulimit -v``; never above a limit this process already has), so that
+    a regression that allocates what a hostile input declares fails in the child with a
+    MemoryError instead of taking the machine's memory."""
+    import resource
+
+    def limit(nbytes: int):
+        hard = resource.getrlimit(resource.RLIMIT_AS)[1]
+        soft = nbytes if hard == resource.RLIM_INFINITY else min(nbytes, hard)
+        return lambda: resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+
+    return limit

@@ -14,6 +14,7 @@ STAGES = [
         "simlidar.errors",
         "simlidar.content",
         "simlidar.atomic",
+        "simlidar.resources",
         "simlidar.settings",
         "simlidar.processes",
         "simlidar.cluster",

@@ -1,5 +1,15 @@
 """`train` and `bench --dataset` refuse a dataset that `verify` rejects, in one line, before
-any training: broken values, shapes, labels, swapped files, checksums and cards."""
+any training: broken values, shapes, labels, swapped files, checksums and cards.
+
+Attack list of the attribute fuzz (`test_every_parsed_attribute_...`): every attribute a reader
+parses (`ATTRIBUTES` in simlidar/dataset/schema.py, listed again here by hand so that a rule
+dropped there is caught), set in train.h5 to a value of the wrong type, a 2-D array, a string
+that is not JSON, a huge float, the largest uint64, a negative number, NaN, an HDF5 empty
+(null) value and opaque bytes that are not UTF-8, and every attribute a split must carry
+deleted; SHA256SUMS is rewritten so that the attribute is the only problem. Each of `verify`,
+`info`, `card`, `preview`, `train` (and `bench --dataset`, once an attribute) must exit non-zero
+with one line naming the attribute, never a traceback, and write nothing.
+"""
 
 import shutil
 
@@ -9,6 +19,8 @@ import pytest
 from click.testing import CliRunner
 
 from simlidar.cli import main
+from simlidar.dataset.schema import ATTRIBUTES, REQUIRED_ATTRS, SOURCE_ATTRS
+from simlidar.release.checksums import write_sums
 
 
 def _replace(path, name, values):
@@ -134,3 +146,78 @@ def test_a_failed_bench_claim_is_undone(tmp_path, monkeypatch, datasets):
     (out / "cells").mkdir()  # what an older simlidar left behind
     run.claim(out, suite)  # the rerun claims it
     assert (out / "suite.json").is_file()
+
+
+# Every attribute a reader parses, by hand (the test of the rules' table, not a copy of it);
+# TEXT: those a string is right for, whatever it holds
+PARSED = {
+    "dataset_version", "simlidar_version", "source", "split", "config", "seed", "noise",
+    "classes", "class_mode", "class_names", "layout_names", "object_names", "surface_names",
+    "sensor", "catalog", "catalog_sha256", "row_laser_ids", "row_elevation_deg",
+    "column_azimuth_deg", "tof_max_ns", "delay_unit_ns", "time_window_us", "no_return_delay",
+    "min_object_hits", "profile", "noise_on", "input_spikes", "timing", "shard", "shards",
+    "input_sha256", "simulated_from", "frames_without_objects",
+}  # fmt: skip
+TEXT = {"simlidar_version", "class_mode", "catalog_sha256", "profile", "input_sha256"}
+NUMBERS = {"seed", "noise", "classes", "tof_max_ns", "delay_unit_ns", "time_window_us",
+           "no_return_delay", "min_object_hits", "shard", "shards"}  # fmt: skip
+HOSTILE = {
+    "wrong type": lambda name: "seven" if name in NUMBERS else 7,
+    "2-D": lambda name: np.zeros((2, 3)),
+    "not JSON": lambda name: "{not json",
+    "huge": lambda name: np.float64(1e308),
+    "huge integer": lambda name: np.uint64(2**64 - 1),
+    "negative": lambda name: np.int64(-1),
+    "NaN": lambda name: np.float64("nan"),
+    "empty": lambda name: h5py.Empty("f8"),
+    "not UTF-8": lambda name: np.void(b"\xff\xfe"),
+}
+
+
+def test_the_fuzz_covers_every_rule():
+    assert set(ATTRIBUTES) == PARSED
+
+
+def _one_line(result, name):
+    assert "Traceback" not in result.output, result.output
+    assert result.exception is None or isinstance(result.exception, SystemExit), repr(
+        result.exception
+    )
+    assert result.exit_code == 1, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("Error: ") and f"'{name}'" in lines[0], lines
+
+
+@pytest.mark.parametrize("name", sorted(PARSED))
+def test_every_parsed_attribute_refused_in_one_line_by_every_reading_command(
+    name, datasets, tmp_path
+):
+    copy = tmp_path / "d"
+    shutil.copytree(datasets[0.1], copy)
+    cases = {k: v for k, v in HOSTILE.items() if not (k == "not JSON" and name in TEXT)}
+    if name in REQUIRED_ATTRS or name in SOURCE_ATTRS["simlidar-generator"]:
+        cases["missing"] = None
+    runner = CliRunner()
+    before = sorted(p.name for p in copy.iterdir())
+    for number, (case, make) in enumerate(cases.items()):
+        with h5py.File(copy / "train.h5", "a") as f:
+            if name in f.attrs:
+                del f.attrs[name]
+            if make is not None:
+                f.attrs[name] = make(name)
+        write_sums(copy, ["train.h5"])  # the attribute is the only problem
+        result = runner.invoke(main, ["verify", str(copy)])
+        assert "Traceback" not in result.output and result.exit_code == 1, (case, result.output)
+        assert isinstance(result.exception, SystemExit), (case, repr(result.exception))
+        failed = [line for line in result.stderr.splitlines() if line.startswith("FAILED")]
+        assert any(f"'{name}'" in line for line in failed), (case, result.output)
+        for command in (
+            ["info", str(copy)],
+            ["card", str(copy)],
+            ["preview", str(copy), "--out", str(tmp_path / "p.png")],
+            ["train", "--model", "mlp", "--dataset", str(copy), "--out", str(tmp_path / "r")],
+            ["bench", "--models", "mlp", "--dataset", str(copy), "--out", str(tmp_path / "b")],
+        )[: 4 + (number == 0)]:
+            _one_line(runner.invoke(main, command), name)
+        assert sorted(p.name for p in copy.iterdir()) == before, case
+        assert not any((tmp_path / n).exists() for n in ("p.png", "r", "b")), case

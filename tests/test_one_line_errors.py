@@ -1,5 +1,16 @@
 """Bad input ends in one line and exit code 1 (2 for a bad option value), never a traceback,
-and leaves nothing behind: one test per case that used to crash or give a wrong result."""
+and leaves nothing behind: one test per case that used to crash or give a wrong result.
+
+Attack list of cases 8-13 (issue 35, items 3 and 6; the class of each, every attribute a
+reader parses, is fuzzed in tests/test_broken_datasets.py): a ``config`` attribute that is not
+JSON (verify, info, preview, train, bench, card; pack must refuse it); 2-D labels (info,
+card); a malformed SHA256SUMS (card, which must write nothing); ``seeds =
+[99999999999999999999999]`` in a suite that generates its datasets (refused before any is
+written); an HDF5 bomb given to train and bench; a split read by a process that cannot hold
+it (a real process under an address-space limit just above its own size). Case 14 (item 8):
+an archive, served over HTTP on loopback, whose dataset carries ``payload/run_me.sh``: fetch
+fails at its verify step and installs nothing.
+"""
 
 import os
 import shutil
@@ -12,7 +23,9 @@ import warnings
 
 import convert.conftest as kitti_fixtures
 import dataset.test_archive as archive_tests
+import dataset.test_release as release_tests
 import h5py
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -207,3 +220,185 @@ def test_7_generate_refuses_an_empty_out(tmp_path, monkeypatch):
     (line,) = _error_lines(result)
     assert "Invalid value for '--out': '' is empty" in line
     assert list(tmp_path.iterdir()) == []
+
+
+def _damaged(datasets, tmp_path, damage):
+    """A copy of the small dataset damaged by ``damage(train.h5 open for writing)``, its
+    checksums rewritten so that the damage is the only problem."""
+    copy = _copy(datasets, tmp_path)
+    with h5py.File(copy / "train.h5", "a") as f:
+        damage(f)
+    write_sums(copy)
+    return copy
+
+
+def _reading_commands(copy, tmp_path):
+    return {
+        "info": ["info", copy],
+        "preview": ["preview", copy, "--out", tmp_path / "p.png"],
+        "card": ["card", copy],
+        "train": ["train", "--model", "mlp", "--dataset", copy, "--out", tmp_path / "r"],
+        "bench": ["bench", "--models", "mlp", "--dataset", copy, "--out", tmp_path / "b"],
+    }
+
+
+# 8. A config attribute that is not JSON: one line from every reading command; pack (which
+# verifies first) publishes nothing.
+def test_8_a_config_that_is_not_json_is_one_line_everywhere(datasets, tmp_path):
+    def damage(f):
+        f.attrs["config"] = "{not json"
+
+    copy = _damaged(datasets, tmp_path, damage)
+    message = f"{copy / 'train.h5'}: attribute 'config' is '{{not json'; expected a JSON object"
+    result = _run("verify", copy)
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert f"FAILED {message}" in result.output
+    for name, command in _reading_commands(copy, tmp_path).items():
+        result = _run(*command)
+        assert result.exit_code == 1, (name, result.output)
+        (line,) = _error_lines(result)
+        assert line.startswith(f"Error: {message}"), (name, line)
+    out = tmp_path / "out"
+    result = _run("pack", copy, "--out", out)
+    assert result.exit_code == 1
+    (line,) = _error_lines(result)
+    assert line.startswith(f"Error: {message}")
+    assert not out.exists() or not any(out.iterdir())
+    assert not any((tmp_path / n).exists() for n in ("p.png", "r", "b"))
+
+
+# 9. 2-D labels: info and card name the file and the shape.
+def test_9_two_dimensional_labels_are_one_line(datasets, tmp_path):
+    def damage(f):
+        labels = f["labels"][:]
+        del f["labels"]
+        f["labels"] = np.stack([labels, labels], axis=1)
+
+    copy = _damaged(datasets, tmp_path, damage)
+    card = (copy / "README.md").read_bytes()
+    for command in (["info", copy], ["info", copy, "--json"], ["card", copy]):
+        result = _run(*command)
+        assert result.exit_code == 1, result.output
+        (line,) = _error_lines(result)
+        assert line == (
+            f"Error: {copy / 'train.h5'}: 'labels' is int64 of shape (96, 2), expected integer "
+            "class indices of shape (96,)"
+        )
+    assert (copy / "README.md").read_bytes() == card
+
+
+# 10. card with a malformed SHA256SUMS: one line, and nothing written (neither the card nor
+# the checksums).
+def test_10_card_with_malformed_checksums_writes_nothing(datasets, tmp_path):
+    copy = _copy(datasets, tmp_path)
+    (copy / "README.md").write_text((copy / "README.md").read_text() + "edited\n")
+    (copy / SUMS).write_text("not a checksum line\n")
+    before = {p.name: p.read_bytes() for p in copy.iterdir()}
+    result = _run("card", copy)
+    assert result.exit_code == 1
+    (line,) = _error_lines(result)
+    assert line == (
+        f"Error: {copy / SUMS}: line 1 is not '<sha256>  <file name>'; nothing written "
+        "(simlidar verify names the rest)"
+    )
+    assert {p.name: p.read_bytes() for p in copy.iterdir()} == before
+
+
+# 11. A training seed beyond 64 bits in a suite that generates its datasets: refused by the
+# suite reader, before any dataset is written (it used to fail after writing them).
+def test_11_a_seed_beyond_64_bits_is_refused_before_anything_is_written(tmp_path):
+    suite = tmp_path / "s.toml"
+    suite.write_text(
+        'models = ["mlp"]\nseeds = [99999999999999999999999]\n[generate]\nnoise = [0.1]\n'
+        "train_size = 64\ntest_size = 32\n[budget]\nepochs = 1\nvalidation = 0\n"
+    )
+    out = tmp_path / "out"
+    result = _run("bench", "--suite", suite, "--out", out)
+    assert result.exit_code == 2, result.output
+    (line,) = _error_lines(result)
+    assert line == (
+        f"Error: Invalid value for '--suite': suite {suite}: key 'seeds': expected a "
+        "non-empty list of integers in "
+        "[0, 2**63), got [99999999999999999999999]"
+    )
+    assert not out.exists()
+
+
+# 12. An HDF5 bomb (20,000,000 samples declared in a file of a few hundred KB): train and
+# bench refuse it in one line instead of "Unable to allocate 19.1 GiB". Real processes under
+# an 8 GiB address-space limit, so that a regression fails here instead of taking the machine.
+def test_12_train_and_bench_refuse_an_hdf5_bomb(datasets, tmp_path, address_limit):
+    copy = _copy(datasets, tmp_path)
+    release_tests._bomb(copy, rows=256)
+    commands = _reading_commands(copy, tmp_path)
+    limit = 8 * 2**30
+    for name in ("train", "bench"):
+        result = subprocess.run(
+            [sys.executable, "-m", "simlidar.cli", *map(str, commands[name])],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            preexec_fn=address_limit(limit),
+        )
+        assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr
+        (line,) = result.stderr.strip().splitlines()
+        assert line.startswith("Error: ") and "Unable to allocate" not in line, line
+        assert "declares (20000000,) int32 (76.3 MiB) but stores 0 B" in line, line
+    assert not (tmp_path / "r").exists() and not (tmp_path / "b").exists()
+
+
+# 13. A split larger than the memory the process can still take: one line naming both sizes
+# before reading (it was an HDF5 "memory allocation failed" traceback). A real process under
+# an address-space limit (ulimit -v) of its own size plus 16 KiB.
+def test_13_a_split_that_does_not_fit_in_memory_is_refused_before_reading(datasets):
+    script = (
+        "import resource, sys\n"
+        "from simlidar.data import load_split\n"
+        "from simlidar.dataset.reader import dataset_splits\n"
+        "from simlidar.errors import SimlidarError\n"
+        "dataset_splits(sys.argv[1])\n"
+        "status = open('/proc/self/status').read().splitlines()\n"
+        "vm = next(int(s.split()[1]) * 1024 for s in status if s.startswith('VmSize:'))\n"
+        "hard = resource.getrlimit(resource.RLIMIT_AS)[1]\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (vm + 16384, hard))\n"
+        "try:\n"
+        "    load_split(sys.argv[1])\n"
+        "except SimlidarError as exc:\n"
+        "    print(exc)\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", script, str(datasets[0.1])], capture_output=True, text=True
+    )
+    assert result.returncode == 0 and result.stderr == "", result.stderr
+    path = datasets[0.1] / "train.h5"
+    assert result.stdout.startswith(
+        f"{path}: 'delays' (96, 16, 16) float32, 'labels' (96,) int64: 96.8 KiB to hold in memory, "
+    ), result.stdout
+    assert result.stdout.rstrip().endswith(
+        "available; expected data that fits (a smaller split, or a machine with more memory)"
+    )
+
+
+# 14. A fetched dataset carrying a subfolder (payload/run_me.sh): refused at fetch's verify
+# step, nothing installed (it used to install and verify OK).
+def test_14_a_dataset_carrying_a_subfolder_is_not_installed(server, datasets, tmp_path):
+    import hashlib
+    import io
+
+    url, root = server
+    name = datasets[0.1].name
+    buffer = io.BytesIO()
+    with tarfile.open(fileobj=buffer, mode="w:gz") as tar:
+        tar.add(datasets[0.1], arcname=name)
+        script = b"#!/bin/sh\necho owned\n"
+        info = tarfile.TarInfo(f"{name}/payload/run_me.sh")
+        info.size, info.mode = len(script), 0o755
+        tar.addfile(info, io.BytesIO(script))
+    (root / f"{name}.tar.gz").write_bytes(buffer.getvalue())
+    digest = hashlib.sha256(buffer.getvalue()).hexdigest()
+    out = tmp_path / "data"
+    result = _run("fetch", f"{url}/{name}.tar.gz", "--sha256", digest, "--out", out)
+    assert result.exit_code == 1, result.output
+    (line,) = _error_lines(result)
+    assert line.startswith("Error: fetch failed at verify: ") and "payload: is a folder" in line
+    assert not out.exists() or not any(out.iterdir())

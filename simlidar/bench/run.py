@@ -39,7 +39,7 @@ from simlidar.bench.train import (
     predictions,
     save_checkpoint,
     train,
-    validation_split,
+    validation_count,
 )
 from simlidar.content import content_dir
 from simlidar.dataset.loaders import load_split, spike_threshold
@@ -50,6 +50,7 @@ from simlidar.models.protocol import STEPPED_SPIKES, ModelSpec, encode, spec_of
 from simlidar.models.registry import load_recipe
 from simlidar.models.training import TrainingConfig
 from simlidar.release.verify import check_trainable
+from simlidar.resources import check_memory
 
 _NUMBERS = re.compile(r"\[[-0-9.eE+,\s]*\]")  # a list of numbers spread over lines
 
@@ -355,19 +356,23 @@ def _dataset_of(out: Path, suite: Suite, name: str) -> Path:
 def check_validation(suite: Suite, models: list[str], dataset: Path | None) -> None:
     """Every model's validation fraction leaves every class of every dataset of the run a
     training and a validation sample; a ConfigError naming the suite or recipe key otherwise
-    (before anything is written: generated datasets label sample i as i mod classes)."""
+    (before anything is written). Checked on the per-class counts: generated datasets label
+    sample i as i mod classes, so theirs come from the suite's sizes, never from an array of
+    ``train_size`` labels."""
     if dataset is None and suite.generate is not None:
         from simlidar.generator.simulate import class_plan
         from simlidar.scene.recipe import load_catalog
 
         plan = class_plan(load_catalog(), suite.generate.classes)
-        labelled = [(np.arange(suite.generate.train_size) % plan.classes, plan.names)]
+        size, classes = suite.generate.train_size, plan.classes
+        counted = [([size // classes + (k < size % classes) for k in range(classes)], plan.names)]
     else:
-        labelled = []
+        counted = []
         for path in [dataset] if dataset is not None else suite.datasets:
             info = dataset_splits(path)["train"]
+            names = [str(n) for n in info.attrs["class_names"]]
             labels = info.read(("labels",))["labels"]
-            labelled.append((labels, [str(n) for n in info.attrs["class_names"]]))
+            counted.append((np.bincount(labels, minlength=len(names)).tolist(), names))
     for model in models:
         fraction = training_rules(model, suite.budget_for(model))["validation"]
         where = (
@@ -375,11 +380,35 @@ def check_validation(suite: Suite, models: list[str], dataset: Path | None) -> N
             if "validation" in suite.budget_for(model)
             else f"recipe {model}: key 'training.validation'"
         )
-        for labels, names in labelled:
+        for counts, names in counted if fraction else ():
             try:
-                validation_split(labels, fraction, 0, names)
+                for count, name in zip(counts, names):
+                    if count:
+                        validation_count(count, fraction, name)
             except ConfigError as exc:
                 raise ConfigError(f"{where}: {exc}") from None
+
+
+def check_fits(suite: Suite, out: Path, dataset: Path | None) -> None:
+    """A suite's generated datasets fit on the disk of ``out`` (those not generated yet) and a
+    cell's splits fit in memory (a cell loads its dataset's delays and labels); a
+    ResourceError before anything is written. Given datasets are checked as they are read."""
+    config = suite.generate
+    if dataset is not None or config is None:
+        return
+    from simlidar.generator.generate import check_disk_space, generated_name
+
+    samples = config.train_size + config.test_size
+    row_bytes = config.sensor.beams * config.width * np.dtype(np.float32).itemsize + 8
+    check_memory(
+        samples * row_bytes,
+        f"suite {suite.path}: [generate] train_size={config.train_size}, "
+        f"test_size={config.test_size}: a cell's delays and labels",
+    )
+    root = out / "datasets"
+    todo = [n for n in suite.noise if not (root / generated_name(config.with_noise(n))).is_dir()]
+    if todo:
+        check_disk_space(config, len(todo), root)
 
 
 def run_suite(
@@ -415,6 +444,7 @@ def run_suite(
     for path in [dataset] if dataset is not None else suite.datasets:
         check_trainable(path)  # every given dataset is sound, before anything is written
     check_validation(suite, models, dataset)
+    check_fits(suite, out, dataset)
     claim(out, suite)
     datasets = resolve_datasets(suite, out, dataset, progress)
     cells = [(d, m, s) for d in datasets for m in models for s in suite.seeds]

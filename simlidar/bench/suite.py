@@ -32,11 +32,12 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from simlidar.content import content_dir
-from simlidar.errors import ConfigError
+from simlidar.errors import ConfigError, shown
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.profiles import DEFAULT_PROFILE, load_profile
 from simlidar.models.registry import load_recipe
 from simlidar.models.training import TrainingConfig
+from simlidar.settings import Range
 
 SUITE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,99}$")
 KEYS = {"name", "description", "models", "seeds", "board_power_w", "generate", "datasets", "budget"}
@@ -44,6 +45,7 @@ KEYS = {"name", "description", "models", "seeds", "board_power_w", "generate", "
 # estimate, power x latency, overflowed to a bare Infinity in results.json.
 MAX_BOARD_POWER_W = 100_000
 BUDGET_KEYS = ("epochs", "max_seconds", "validation", "patience")  # also a cell's rules
+SEED = Range(0, 2**63, "an integer", high_open=True)  # a training seed (as train's --seed)
 
 
 @dataclass(frozen=True)
@@ -77,7 +79,7 @@ def suite_names() -> list[str]:
 
 
 def _fail(path: Path, key: str, expected: str, got) -> ConfigError:
-    return ConfigError(f"suite {path}: key '{key}': expected {expected}, got {got!r}")
+    return ConfigError(f"suite {path}: key '{key}': expected {expected}, got {shown(got)}")
 
 
 def _number(value, low: float, integer: bool = False) -> bool:
@@ -126,8 +128,8 @@ def load_suite(name_or_path: str | Path) -> Suite:
     for model in models:
         load_recipe(model)  # an unknown recipe is named here, before any work
     seeds = data.get("seeds", [0])
-    if not isinstance(seeds, list) or not seeds or not all(_number(s, 0, True) for s in seeds):
-        raise _fail(path, "seeds", "a non-empty list of integers >= 0", seeds)
+    if not isinstance(seeds, list) or not seeds or not all(map(SEED.accepts, seeds)):
+        raise _fail(path, "seeds", "a non-empty list of integers in [0, 2**63)", seeds)
     for key, values in (("models", models), ("seeds", seeds)):
         if len(set(values)) != len(values):
             raise _fail(path, key, "distinct values", values)

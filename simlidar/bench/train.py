@@ -112,6 +112,21 @@ def _loss(
     return loss, total
 
 
+def validation_count(n: int, fraction: float, name: str) -> int:
+    """The rows :func:`validation_split` holds out of a class ``name`` of ``n`` training
+    samples, ``max(1, round(fraction * n))``; a ConfigError when none would be left to train
+    on. Needs the counts only: a suite's generated datasets are checked from their sizes."""
+    take = max(1, int(np.floor(fraction * n + 0.5)))
+    if take >= n:
+        raise ConfigError(
+            f"validation fraction {fraction} leaves class {name!r} ({n} training "
+            "sample(s)) with no sample to train on; expected a fraction that keeps at least "
+            "one sample of every class for training and one for validation, or 0 (no "
+            "validation; on the command line --validation 0)"
+        )
+    return take
+
+
 def validation_split(
     labels: np.ndarray, fraction: float, seed: int, class_names
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -131,15 +146,7 @@ def validation_split(
         mine = rows[labels == label]
         if len(mine) == 0:
             continue
-        take = max(1, int(np.floor(fraction * len(mine) + 0.5)))
-        if take >= len(mine):
-            raise ConfigError(
-                f"validation fraction {fraction} leaves class {name!r} ({len(mine)} training "
-                "sample(s)) with no sample to train on; expected a fraction that keeps at least "
-                "one sample of every class for training and one for validation, or 0 (no "
-                "validation; on the command line --validation 0)"
-            )
-        held.append(rng.permutation(mine)[:take])
+        held.append(rng.permutation(mine)[: validation_count(len(mine), fraction, name)])
     validation = np.sort(np.concatenate(held)) if held else rows[:0]
     return np.setdiff1d(rows, validation), validation
 

@@ -56,16 +56,9 @@ def preview(path, out, split):
 @click.argument("path", type=click.Path(path_type=Path))
 def card(path):
     """Rewrite a dataset's card (README.md) from its files, and its line in SHA256SUMS."""
-    from simlidar.dataset.reader import dataset_splits
-    from simlidar.release.card import CARD, write_card
-    from simlidar.release.checksums import SUMS, write_sums
-    from simlidar.sources import render_card
+    from simlidar.sources import rewrite_card
 
-    dataset_splits(path)  # a dataset, or a one-line error
-    written = write_card(path, render_card(path))
-    if (path / SUMS).exists():
-        write_sums(path, [CARD])
-    click.echo(f"wrote {written}")
+    click.echo(f"wrote {rewrite_card(path)}")
 
 
 @click.command()

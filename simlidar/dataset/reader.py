@@ -1,6 +1,7 @@
 """Reading split files: the schema and version checks every reader goes through."""
 
 import json
+import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -8,10 +9,19 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from simlidar.dataset.schema import REQUIRED_ATTRS, SPLITS, split_source
+from simlidar.dataset.schema import (
+    ATTRIBUTES,
+    CONVERTED_SCHEMAS,
+    REQUIRED_ATTRS,
+    SOURCE_ATTRS,
+    SPLITS,
+    generated_schema,
+    split_source,
+)
 from simlidar.dataset.shards import find_split_files, shard_of
 from simlidar.dataset.version import GENERATOR, PHYSICAL_VERSION, SCAN_VERSION, SOURCES, major
-from simlidar.errors import DatasetError
+from simlidar.errors import ConfigError, DatasetError, shown
+from simlidar.resources import check_memory, size_text
 
 
 @dataclass(frozen=True)
@@ -50,34 +60,170 @@ class SplitInfo:
 
 
 def _decode(value):
+    """An attribute's value as plain Python: str, int, float, lists (arrays), dicts (JSON in a
+    string). Never raises: a string that is not JSON stays a string, bytes that are not UTF-8
+    stay bytes, for the rules (:data:`~simlidar.dataset.schema.ATTRIBUTES`) to refuse."""
     if isinstance(value, bytes):
-        value = value.decode()
+        try:
+            value = value.decode()
+        except UnicodeDecodeError:
+            return value
     if isinstance(value, str) and value[:1] in "{[":
-        return json.loads(value)
+        try:
+            return json.loads(value)
+        except (ValueError, RecursionError):  # not JSON, or nested too deeply
+            return value
     if isinstance(value, np.ndarray):
-        return [_decode(v) for v in value]
+        return _decode(value.item()) if value.ndim == 0 else [_decode(v) for v in value]
     if isinstance(value, np.generic):
-        return value.item()
-    return value  # str, int, float
+        return _decode(value.item())
+    return value  # str, int, float, or something no rule accepts (h5py.Empty, ...)
+
+
+def _first_line(exc: Exception) -> str:
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+
+
+def read_attrs(f: h5py.File) -> tuple[dict, list[str]]:
+    """The decoded attributes of an open split file, and the problems of those that cannot be
+    read at all (a type h5py cannot convert)."""
+    attrs, problems = {}, []
+    try:
+        names = list(f.attrs)
+    except (OSError, RuntimeError, ValueError, TypeError) as exc:
+        return {}, [f"{f.filename}: attributes unreadable ({_first_line(exc)})"]
+    for name in names:
+        try:
+            attrs[name] = _decode(f.attrs[name])
+        except (OSError, RuntimeError, ValueError, TypeError) as exc:
+            problems.append(f"{f.filename}: attribute {name!r} unreadable ({_first_line(exc)})")
+    return attrs, problems
+
+
+def check_attributes(path: Path, attrs: dict) -> list[str]:
+    """The problems of a split's decoded attributes: each one a reader parses
+    (:data:`~simlidar.dataset.schema.ATTRIBUTES`) must hold what its rule accepts, the class
+    names must be as many as ``classes`` says, and a generated split's ``sensor`` must be a
+    sensor. Checked before any reader uses them, so that a hostile or damaged attribute is one
+    line naming it, never a traceback."""
+    problems, bad = [], set()
+    for name in SOURCE_ATTRS.get(
+        split_source(attrs) if isinstance(attrs.get("source", ""), str) else "", ()
+    ):
+        if name not in attrs:
+            problems.append(f"{path}: attribute '{name}' missing")
+    for name, rule in ATTRIBUTES.items():
+        if name in attrs and not rule.accepts(attrs[name]):
+            bad.add(name)
+            problems.append(
+                f"{path}: attribute '{name}' is {shown(attrs[name])}; expected {rule.expected()}"
+            )
+    names, classes = attrs.get("class_names"), attrs.get("classes")
+    if not {"class_names", "classes"} & bad and names is not None and classes is not None:
+        if len(names) != classes:
+            problems.append(f"{path}: {len(names)} class_names for {classes} classes")
+    if not {"sensor", "source"} & bad and "sensor" in attrs and split_source(attrs) == GENERATOR:
+        from simlidar.sensor.model import Sensor
+
+        try:
+            Sensor.from_dict(attrs["sensor"])
+        except ConfigError as exc:
+            problems.append(f"{path}: attribute 'sensor': {exc}")
+    return problems
+
+
+def datasets_of(path: Path, f: h5py.File) -> tuple[dict[str, h5py.Dataset], list[str]]:
+    """The datasets of an open split file by name, and the problems of its other members: a
+    soft or external link (which would read another file's data) and, under a name the
+    schemas use, a group."""
+    datasets, problems = {}, []
+    names = set(generated_schema("scan")) | {n for s in CONVERTED_SCHEMAS.values() for n in s}
+    for name in f:
+        link = f.get(name, getlink=True)
+        if not isinstance(link, h5py.HardLink):
+            what = type(link).__name__  # SoftLink, ExternalLink
+            problems.append(f"{path}: '{name}' is an HDF5 {what}, expected a dataset in the file")
+        elif isinstance(f[name], h5py.Dataset):
+            datasets[name] = f[name]
+        elif name in names:
+            problems.append(f"{path}: '{name}' is a group, expected a dataset")
+    return datasets, problems
+
+
+def check_datasets(path: Path, f: h5py.File) -> list[str]:
+    """The problems of the two datasets every reader uses, ``delays`` (N, H, W) and
+    ``labels`` (N,) of integers, of the file's other members (:func:`datasets_of`) and of
+    every dataset's storage (:func:`unbacked`)."""
+    datasets, problems = datasets_of(path, f)
+    delays, labels = datasets.get("delays"), datasets.get("labels")
+    if delays is None or labels is None:
+        return problems
+    if delays.ndim != 3:
+        problems.append(f"{path}: 'delays' has shape {delays.shape}, expected (N, H, W)")
+    elif labels.shape != delays.shape[:1] or labels.dtype.kind not in "iu":
+        problems.append(
+            f"{path}: 'labels' is {labels.dtype} of shape {labels.shape}, expected integer "
+            f"class indices of shape ({delays.shape[0]},)"
+        )
+    problems += [f"{path}: {p}" for p in map(unbacked, datasets.values()) if p is not None]
+    return problems
+
+
+# deflate (gzip) compresses at most about 1032 : 1 (long runs of one byte); the files this
+# package writes stay far below it (labels about 40 : 1, surface labels about 10 : 1)
+MAX_COMPRESSION = 1032
+
+
+def unbacked(dataset: h5py.Dataset) -> str | None:
+    """Why a dataset's declared size is not backed by bytes in its file, or None.
+
+    A small file can declare millions of samples (an HDF5 "bomb": a chunked dataset whose
+    chunks were never written reads as fill values), and reading it would allocate all that
+    was declared. The writers of this package (:class:`~simlidar.dataset.writer.SplitWriter`)
+    write every chunk, gzip-compressed; so a dataset is refused unless every chunk is stored
+    (a contiguous one: all its bytes) and the declared bytes are at most
+    :data:`MAX_COMPRESSION` times the stored ones.
+    """
+    declared = dataset.size * dataset.dtype.itemsize
+    if declared == 0:
+        return None
+    stored = dataset.id.get_storage_size()
+    if dataset.chunks is not None:
+        chunks = math.prod(-(-n // c) for n, c in zip(dataset.shape, dataset.chunks))
+        written = dataset.id.get_num_chunks()
+        held = f" in {written} of {chunks} chunks"
+        complete = written >= chunks and declared <= stored * MAX_COMPRESSION
+    else:
+        held, complete = "", stored >= declared
+    if complete:
+        return None
+    return (
+        f"'{dataset.name.lstrip('/')}' declares {dataset.shape} {dataset.dtype} "
+        f"({size_text(declared)}) but stores {size_text(stored)}{held}; expected a dataset "
+        "whose bytes are in the file (every chunk written)"
+    )
 
 
 def read_split_info(path: Path) -> SplitInfo:
-    """Open a split file and check it carries the simlidar schema."""
+    """Open a split file and check it carries the simlidar schema: the required attributes
+    and datasets, every attribute a reader parses (:func:`check_attributes`), ``delays`` and
+    ``labels`` and the storage of every dataset (:func:`check_datasets`), and the version."""
     try:
         with h5py.File(path, "r") as f:
+            attrs, problems = read_attrs(f)
             missing = [k for k in REQUIRED_ATTRS if k not in f.attrs]
             missing += [k for k in ("delays", "labels") if k not in f]
             if missing:
-                raise DatasetError(f"{path}: not a simlidar split (missing {', '.join(missing)})")
-            if f["delays"].ndim != 3:
-                raise DatasetError(
-                    f"{path}: 'delays' has shape {f['delays'].shape}, expected (N, H, W)"
-                )
-            attrs = {k: _decode(v) for k, v in f.attrs.items()}
+                named = ", ".join(f"'{k}'" for k in missing)
+                raise DatasetError(f"{path}: not a simlidar split (missing {named})")
+            problems += check_attributes(path, attrs) + check_datasets(path, f)
+            if problems:
+                more = f" (and {len(problems) - 1} more: simlidar verify)" * (len(problems) > 1)
+                raise DatasetError(problems[0] + more)
             size, height, width = f["delays"].shape
             info = SplitInfo(path, size, width, attrs, height)
     except OSError as exc:
-        raise DatasetError(f"{path}: cannot read as HDF5 ({exc})") from None
+        raise DatasetError(f"{path}: cannot read as HDF5 ({_first_line(exc)})") from None
     check_version(path, attrs["dataset_version"], info.source, written_version(attrs))
     return info
 
@@ -185,9 +331,19 @@ def dataset_splits(path: str | Path) -> dict[str, SplitInfo]:
 
 
 def load_arrays(path: Path, names: tuple[str, ...], rows=slice(None)) -> dict[str, np.ndarray]:
-    """Read some datasets (all rows by default) of one split file."""
+    """Read some datasets (all rows by default) of one split file; a ResourceError before
+    reading when this process cannot hold them."""
     with h5py.File(path, "r") as f:
-        return {n: f[n][rows] for n in names}
+        datasets = [f[n] for n in names]
+        count = len(range(*rows.indices(len(datasets[0])))) if isinstance(rows, slice) else None
+        needed = [
+            (len(rows) if count is None else count) * math.prod(d.shape[1:]) * d.dtype.itemsize
+            for d in datasets
+        ]
+        if sum(needed):
+            shapes = ", ".join(f"'{n}' {d.shape} {d.dtype}" for n, d in zip(names, datasets))
+            check_memory(sum(needed), f"{path}: {shapes}")
+        return {n: d[rows] for n, d in zip(names, datasets)}
 
 
 def read_rows(files, sizes, names: tuple[str, ...], rows=slice(None)) -> dict[str, np.ndarray]:
@@ -199,6 +355,9 @@ def read_rows(files, sizes, names: tuple[str, ...], rows=slice(None)) -> dict[st
     wanted = np.arange(total)[rows] if isinstance(rows, slice) else np.asarray(rows)
     if not len(wanted):
         return load_arrays(files[0], names, slice(0, 0))
+    with h5py.File(files[0], "r") as f:  # the parts, then their concatenation
+        row = sum(math.prod(f[n].shape[1:]) * f[n].dtype.itemsize for n in names)
+    check_memory(2 * len(wanted) * row, f"{files[0].parent}: {len(wanted)} rows of {names}")
     starts = np.concatenate([[0], np.cumsum(sizes)])
     parts: dict[str, list] = {n: [] for n in names}
     for file, start, stop in zip(files, starts[:-1], starts[1:]):

@@ -4,8 +4,12 @@ Every dataset and attribute is described in ``docs/dataset-format.md`` (the gene
 ``docs/converters.md`` (converted real data); keep them in step.
 """
 
-from simlidar.dataset.version import GENERATOR
+import re
+from dataclasses import dataclass
+
+from simlidar.dataset.version import GENERATOR, SOURCES
 from simlidar.errors import DatasetError
+from simlidar.settings import Choice, Range
 
 CHUNK_SAMPLES = 256
 SPLITS = ("train", "test")
@@ -45,6 +49,115 @@ REQUIRED_ATTRS = (
     "class_mode",
     "sensor",
 )
+
+
+@dataclass(frozen=True)
+class Text:
+    """A string attribute; with ``pattern``, one that matches it (described by ``what``)."""
+
+    pattern: str | None = None
+    what: str = "a string"
+
+    def accepts(self, value) -> bool:
+        return isinstance(value, str) and (
+            self.pattern is None or re.fullmatch(self.pattern, value) is not None
+        )
+
+    def expected(self) -> str:
+        return self.what
+
+
+@dataclass(frozen=True)
+class JsonObject:
+    """A string attribute holding a JSON object (decoded by the reader), with string values
+    under ``keys``."""
+
+    keys: tuple[str, ...] = ()
+
+    def accepts(self, value) -> bool:
+        return isinstance(value, dict) and all(isinstance(value.get(k), str) for k in self.keys)
+
+    def expected(self) -> str:
+        where = f" with strings under {list(self.keys)}" if self.keys else ""
+        return f"a JSON object in a string{where}"
+
+
+@dataclass(frozen=True)
+class ListOf:
+    """A one-dimensional array attribute, each value accepted by ``item``."""
+
+    item: object  # a rule: Text, Range, ...
+    distinct: bool = False
+    nonempty: bool = False
+
+    def accepts(self, value) -> bool:
+        return (
+            isinstance(value, list)
+            and (bool(value) or not self.nonempty)
+            and all(self.item.accepts(v) for v in value)
+            and (not self.distinct or len(set(value)) == len(value))
+        )
+
+    def expected(self) -> str:
+        what = "a non-empty list" if self.nonempty else "a list"
+        return (
+            f"{what} of {'distinct ' if self.distinct else ''}values, each {self.item.expected()}"
+        )
+
+
+_INDEX = Range(0, 2**63, "an integer", high_open=True)
+_NS = Range(0, 1e9, "nanoseconds", low_open=True)  # at most a second (a rotation: 0.2 s)
+_US = Range(0, 1e9, "microseconds", low_open=True)
+_DEGREES = Range(-360, 360, "degrees")
+_NAMES = ListOf(Text(), distinct=True, nonempty=True)
+
+# Every attribute a reader parses, generated or converted, and what it must hold (decoded:
+# numbers as Python numbers, string arrays as lists, JSON strings as objects). The reader
+# (simlidar.dataset.reader.check_attributes) and verify check a split's attributes against
+# these rules before anything uses them; an attribute not listed here is never read.
+ATTRIBUTES = {
+    "dataset_version": Text(r"\d{1,9}\.\d{1,9}\.\d{1,9}", "a version MAJOR.MINOR.PATCH"),
+    "simlidar_version": Text(),
+    "source": Choice(tuple(SOURCES)),
+    "split": Choice(SPLITS),
+    "config": JsonObject(),
+    "seed": _INDEX,
+    "noise": Range(0, 1, "a level"),
+    "classes": Range(1, 2**31, "an integer"),
+    "class_mode": Text(),
+    "class_names": _NAMES,
+    "layout_names": _NAMES,
+    "object_names": _NAMES,
+    "surface_names": _NAMES,
+    "sensor": JsonObject(),
+    "catalog": JsonObject(),
+    "catalog_sha256": Text(),
+    "row_laser_ids": ListOf(_INDEX, nonempty=True),
+    "row_elevation_deg": ListOf(_DEGREES, nonempty=True),
+    "column_azimuth_deg": ListOf(_DEGREES, nonempty=True),
+    "tof_max_ns": _NS,
+    "delay_unit_ns": _NS,
+    "time_window_us": _US,
+    "no_return_delay": Range(0, 1, "a delay"),
+    "min_object_hits": Range(0, 2**31, "an integer"),
+    "profile": Text(),
+    "noise_on": Choice(("all", "returns")),
+    "input_spikes": Choice(("all", "returns")),
+    "timing": Choice(("flash", "scan")),
+    "shard": Range(0, 2**31, "an integer"),
+    "shards": Range(1, 2**31, "an integer"),
+    "input_sha256": Text(),
+    "simulated_from": JsonObject(("sweep", "sensor_model")),
+    "frames_without_objects": ListOf(_INDEX),
+}
+
+# The attributes a split of each source always carries besides REQUIRED_ATTRS (its card
+# reads them)
+SOURCE_ATTRS = {
+    GENERATOR: ("classes", "layout_names", "object_names", "catalog", "catalog_sha256"),
+    "kitti": ("classes", "input_sha256"),
+    "dvs-barrel": ("classes", "input_sha256"),
+}
 
 # Converted real data (simlidar.convert), by the split's `source` attribute:
 # name -> (dtype, shape), a shape's letters being N samples, E events, H rows, W columns.
@@ -92,7 +205,10 @@ def generated_shapes(
 def split_source(attrs) -> str:
     """The ``source`` of a split from its attributes; the generator's files carry none."""
     value = attrs.get("source", GENERATOR)
-    return value.decode() if isinstance(value, bytes) else value
+    try:
+        return value.decode() if isinstance(value, bytes) else value
+    except UnicodeDecodeError:  # the ATTRIBUTES rule names it
+        return value
 
 
 def expected_shapes(

@@ -8,13 +8,15 @@ samples is one file, ``train.h5``, as before (docs/dataset-format.md, "Sharded s
 """
 
 import re
+from itertools import islice
 from pathlib import Path
 
 from simlidar.dataset.schema import SPLITS
 from simlidar.errors import DatasetError
 
 SHARD_SAMPLES = 250_000  # samples a shard file holds by default (about 330 MB at 16 x 16)
-_SHARD = re.compile(r"^(?P<split>[a-z]+)-(?P<index>\d{5,})-of-(?P<count>\d{5,})\.h5$")
+# at least five digits, as Hugging Face writes them; at most 18, so that a number always fits
+_SHARD = re.compile(r"^(?P<split>[a-z]+)-(?P<index>\d{5,18})-of-(?P<count>\d{5,18})\.h5$")
 
 
 def shard_name(split: str, index: int, count: int) -> str:
@@ -83,7 +85,9 @@ def find_split_files(path: str | Path, split: str) -> list[Path]:
         )
     count = counts[0]
     present = {index for index, _, _ in shards}
-    missing = [shard_name(split, i, count) for i in range(count) if i not in present]
+    # the count comes from a file name (train-00000-of-9999999999.h5): look only as far as
+    # the files on disk reach, never build a list of every index it claims
+    missing = [shard_name(split, i, count) for i in islice(_absent(present, count), 4)]
     beyond = [shard_name(split, i, count) for i in sorted(present) if i >= count]
     if missing or beyond:
         shown = ", ".join((missing or beyond)[:3]) + (", ..." if len(missing or beyond) > 3 else "")
@@ -92,3 +96,9 @@ def find_split_files(path: str | Path, split: str) -> list[Path]:
             f"{path}: {split} shards incomplete ({what}); expected shards 0..{count - 1}"
         )
     return [file for _, _, file in sorted(shards)]
+
+
+def _absent(present: set[int], count: int):
+    """The indices 0 .. count - 1 not in ``present``, lazily (at most len(present) + k steps
+    for the first k)."""
+    return (i for i in range(count) if i not in present)

@@ -9,6 +9,7 @@ from simlidar.dataset.reader import dataset_splits
 from simlidar.dataset.schema import SCHEMA, SPLITS, generated_schema
 from simlidar.dataset.shards import SHARD_SAMPLES
 from simlidar.dataset.version import RELEASE_DATES, RELEASE_NOTES
+from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.about import (
     CITATION,
     CREATOR,
@@ -49,12 +50,21 @@ _DOCS = {  # one line per dataset of a split file; the full table is docs/datase
 }
 
 
+def stored_config(info) -> GeneratorConfig:
+    """The configuration a generated split (a :class:`~simlidar.dataset.reader.SplitInfo`)
+    stores; a DatasetError naming the file and the key when it is not one."""
+    try:
+        return GeneratorConfig.from_dict(info.attrs["config"])
+    except ConfigError as exc:
+        raise DatasetError(f"{info.path}: attribute 'config': {exc}") from None
+
+
 def generated_front_matter(path: Path) -> dict:
     """The YAML front matter (Hugging Face dataset card metadata) of a dataset directory."""
     splits = dataset_splits(path)
     attrs = splits["train"].attrs
     height, width = splits["train"].height, splits["train"].width
-    config = GeneratorConfig.from_dict(attrs["config"])
+    config = stored_config(splits["train"])
     features = [
         hf_feature(name, dtype, tail(height, width), attrs["class_names"])
         for name, (dtype, tail) in generated_schema(config.timing).items()
@@ -238,7 +248,7 @@ def generated_card(path: str | Path) -> str:
     path = Path(path)
     splits = dataset_splits(path)
     attrs = splits["train"].attrs
-    config = GeneratorConfig.from_dict(attrs["config"])
+    config = stored_config(splits["train"])
     names = attrs["class_names"]
     counts = dataset_info(path)["counts"]  # split -> class name -> count
     catalog = attrs["catalog"]

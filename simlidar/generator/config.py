@@ -1,10 +1,11 @@
 """The generator's configuration: one frozen dataclass, stored as JSON in every split file."""
 
 import json
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, fields, replace
 
-from simlidar.errors import ConfigError
-from simlidar.generator.profiles import PHYSICAL_RULE, Profile
+from simlidar.content import key_error
+from simlidar.errors import ConfigError, shown
+from simlidar.generator.profiles import PHYSICAL_RULE, Profile, checked_profile
 from simlidar.sensor.model import Sensor, default_sensor
 from simlidar.sensor.rays import scan_window_ns
 from simlidar.settings import Choice, Range, check, setting
@@ -165,10 +166,25 @@ class GeneratorConfig:
 
     @classmethod
     def from_dict(cls, values: dict) -> "GeneratorConfig":
+        """The inverse of :meth:`to_dict`, every key checked: a ConfigError naming the key for
+        anything else (a damaged or hostile dataset attribute)."""
+        known = [f.name for f in fields(cls)]
+        if not isinstance(values, dict):
+            raise ConfigError(f"configuration {shown(values)}: expected an object of {known}")
+        for key in values:
+            if key not in known:
+                raise key_error("configuration", key, f"one of {known}", key)
         values = dict(values)
         values["sensor"] = (
             Sensor.from_dict(values["sensor"]) if "sensor" in values else default_sensor()
         )
-        if values.get("profile") is not None:
-            values["profile"] = Profile(**values["profile"])
+        profile = values.get("profile")
+        if profile is not None:
+            name = profile.get("name") if isinstance(profile, dict) else None
+            if not isinstance(name, str):
+                raise key_error(
+                    "configuration", "profile", "a profile's keys with its name", profile
+                )
+            given = {k: v for k, v in profile.items() if k != "name"}
+            values["profile"] = checked_profile(f"configuration: profile {name!r}", name, given)
         return cls(**values)

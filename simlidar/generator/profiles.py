@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from simlidar.content import content_dir, finite_number, key_error, read_named_toml
-from simlidar.errors import ConfigError
+from simlidar.errors import ConfigError, shown
 
 DEFAULT_PROFILE = "paper"
 MAX_PROFILE_BYTES = 64 * 1024  # a profile is a few lines; anything larger is not one
@@ -73,7 +73,16 @@ def load_profile(name_or_path: str | Path) -> Profile:
                 f"profile {text!r}: expected one of {profile_names()} or a .toml file"
             )
     where = f"profile {path}"
-    data = read_named_toml(path, where, "a profile", MAX_PROFILE_BYTES)
+    return checked_profile(
+        where, path.stem, read_named_toml(path, where, "a profile", MAX_PROFILE_BYTES)
+    )
+
+
+def checked_profile(where: str, name: str, data: dict) -> Profile:
+    """The profile ``name`` of a profile file's keys ``data``, every key checked (also a
+    profile stored in a dataset's configuration); a ConfigError starting with ``where``."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{where}: expected a table of {sorted(KEYS)}, got {shown(data)}")
     for key in data:
         if key not in KEYS:
             raise key_error(where, key, f"one of {sorted(KEYS)}", key)
@@ -104,7 +113,7 @@ def load_profile(name_or_path: str | Path) -> Profile:
             data["spikes"],
         )
     return Profile(
-        name=path.stem,
+        name=name,
         description=data["description"],
         variation=float(data["variation"]),
         shift=float(data["shift"]),

@@ -10,6 +10,7 @@ import yaml
 
 from simlidar.dataset.schema import SPLITS
 from simlidar.errors import DatasetError
+from simlidar.release.checksums import write_text
 
 CARD = "README.md"
 
@@ -89,12 +90,9 @@ def front_matter_block(meta: dict) -> str:
 
 
 def write_card(path: str | Path, text: str) -> Path:
-    """(Re)write ``README.md`` of a dataset directory with ``text``."""
-    card = Path(path) / CARD
-    tmp = card.with_name(f".{CARD}.tmp")
-    tmp.write_text(text)
-    tmp.replace(card)
-    return card
+    """(Re)write ``README.md`` of a dataset directory with ``text`` (replaced, never written
+    through a link)."""
+    return write_text(Path(path) / CARD, text)
 
 
 def read_front_matter(path: str | Path) -> dict:

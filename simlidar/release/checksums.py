@@ -1,7 +1,13 @@
 """``SHA256SUMS``: the checksum of every file of a dataset directory (``sha256sum -c`` format)."""
 
 import hashlib
+import os
+import stat
 from pathlib import Path
+
+from simlidar.atomic import write_file
+from simlidar.content import file_kind
+from simlidar.errors import DatasetError
 
 SUMS = "SHA256SUMS"
 _BLOCK = 1 << 20
@@ -31,22 +37,70 @@ def sha256_file(path: str | Path) -> str:
 
 
 def dataset_files(path: Path) -> list[str]:
-    """Names of the files a dataset directory's checksums cover: all but SHA256SUMS itself
-    and operating-system litter (:func:`is_os_litter`)."""
+    """Names of the files a dataset directory's checksums cover: its regular files (never a
+    link, whatever it points to) but SHA256SUMS itself and operating-system litter
+    (:func:`is_os_litter`)."""
     return sorted(
         p.name
         for p in path.iterdir()
-        if p.is_file() and p.name != SUMS and not is_os_litter(p.name)
+        if _is_regular(p) and p.name != SUMS and not is_os_litter(p.name)
     )
 
 
+def _is_regular(path: Path) -> bool:
+    """A regular file itself, not a link to one (``lstat``)."""
+    try:
+        return stat.S_ISREG(path.lstat().st_mode)
+    except OSError:
+        return False
+
+
+def stray_entries(path: Path) -> list[str]:
+    """Problems of the entries of a dataset directory that are not regular files: a link (it
+    would be read, hashed and packed as the file it points to), a folder (a dataset has none:
+    ``payload/run_me.sh`` would travel with it unchecked), a pipe, a socket, a device.
+    Operating-system litter is allowed as a regular file only."""
+    problems = []
+    for entry in sorted(path.iterdir()):
+        try:
+            mode = entry.lstat().st_mode
+        except OSError as exc:
+            problems.append(f"{entry}: cannot be read ({exc.strerror}); expected a regular file")
+            continue
+        if not stat.S_ISREG(mode):
+            target = f" to {os.readlink(entry)}" if stat.S_ISLNK(mode) else ""
+            problems.append(
+                f"{entry}: is {file_kind(mode)}{target}, expected a regular file (a dataset "
+                "directory holds only its own files, listed in SHA256SUMS)"
+            )
+    return problems
+
+
 def write_sums(path: Path, names: list[str] | None = None) -> None:
-    """(Re)write SHA256SUMS; with ``names``, refresh only those lines and keep the others."""
+    """(Re)write SHA256SUMS; with ``names``, refresh only those lines and keep the others. The
+    file is replaced, never written through (a link stays what it pointed to); a file that is
+    not a regular file of ``path`` is never hashed (DatasetError)."""
     sums = read_sums(path) if names is not None and (path / SUMS).exists() else {}
     for name in names if names is not None else dataset_files(path):
+        if not _is_regular(path / name):
+            raise DatasetError(f"{path / name}: expected a regular file (not a link) to hash")
         sums[name] = sha256_file(path / name)
-    lines = [f"{digest}  {name}\n" for name, digest in sorted(sums.items())]
-    (path / SUMS).write_text("".join(lines))
+    text = "".join(f"{digest}  {name}\n" for name, digest in sorted(sums.items()))
+    write_text(path / SUMS, text)
+
+
+def write_text(path: Path, text: str) -> Path:
+    """Replace the file ``path`` with ``text`` (:func:`simlidar.atomic.write_file`: a
+    temporary renamed over it, so a link there is replaced, never written through), with the
+    mode of a file written in place (0666 less the umask: 0644 as a rule)."""
+
+    def write(tmp: Path) -> None:
+        tmp.write_text(text)
+        umask = os.umask(0o022)
+        os.umask(umask)
+        tmp.chmod(0o666 & ~umask)  # the temporary is made 0600
+
+    return write_file(path, write)
 
 
 def read_sums(path: Path) -> dict[str, str]:
@@ -66,15 +120,19 @@ def read_sums(path: Path) -> dict[str, str]:
 
 
 def check_sums(path: Path) -> list[str]:
-    """Problems with the checksums of a dataset directory (empty when all match)."""
-    if not (path / SUMS).is_file():
-        return [f"{path / SUMS}: missing"]
+    """Problems with the checksums of a dataset directory (empty when all match), and with
+    its entries: every one a regular file listed in SHA256SUMS (:func:`stray_entries`)."""
+    stray = stray_entries(path)
+    if not (path / SUMS).is_file() or not _is_regular(path / SUMS):
+        return stray + [f"{path / SUMS}: missing"] * (not (path / SUMS).is_symlink())
     try:
         sums = read_sums(path)
     except ValueError as exc:
-        return [str(exc)]
+        return stray + [str(exc)]
     problems = []
     for name, digest in sums.items():
+        if (path / name).is_symlink():
+            continue  # named by stray_entries; never hashed through
         if not (path / name).is_file():
             problems.append(f"{path / name}: listed in {SUMS} but missing")
         elif sha256_file(path / name) != digest:
@@ -82,4 +140,4 @@ def check_sums(path: Path) -> list[str]:
     for name in dataset_files(path):
         if name not in sums:
             problems.append(f"{path / name}: not listed in {SUMS}")
-    return problems
+    return stray + problems

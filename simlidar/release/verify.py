@@ -5,14 +5,28 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from simlidar.dataset.reader import _decode, check_version, written_version
-from simlidar.dataset.schema import REQUIRED_ATTRS, SPLITS, expected_shapes, split_source
+from simlidar.dataset.reader import (
+    _first_line,
+    check_attributes,
+    check_version,
+    datasets_of,
+    read_attrs,
+    unbacked,
+    written_version,
+)
+from simlidar.dataset.schema import (
+    ATTRIBUTES,
+    REQUIRED_ATTRS,
+    SPLITS,
+    expected_shapes,
+    split_source,
+)
 from simlidar.dataset.shards import find_split_files, shard_of, split_of
 from simlidar.errors import DatasetError
 from simlidar.release.card import read_front_matter
 from simlidar.release.checksums import check_sums
 
-_BLOCK = 65_536  # rows read at a time: memory stays flat whatever the split size
+_BLOCK_BYTES = 64 * 2**20  # bytes of a dataset read at a time: memory stays flat
 
 
 def _check_split(
@@ -20,75 +34,85 @@ def _check_split(
 ) -> tuple[list[str], int | None]:
     """The problems of one split file (of ``split``; ``shard``: its index and count when the
     split is sharded) and its number of samples (None where unreadable)."""
-    problems = []
     try:
         f = h5py.File(path, "r")
     except OSError as exc:
-        return [f"{path}: cannot read as HDF5 ({exc})"], None
+        return [f"{path}: cannot read as HDF5 ({_first_line(exc)})"], None
     with f:
+        attrs, problems = read_attrs(f)
         missing = [k for k in REQUIRED_ATTRS if k not in f.attrs]
         problems += [f"{path}: attribute '{k}' missing" for k in missing]
-        size = f["labels"].shape[0] if "labels" in f else None
+        problems += check_attributes(path, attrs)
+        datasets, more = datasets_of(path, f)
+        problems += more
+        labels, delays = datasets.get("labels"), datasets.get("delays")
+        size = labels.shape[0] if labels is not None and labels.ndim else None
         height, width = (
-            f["delays"].shape[1:] if "delays" in f and f["delays"].ndim == 3 else (None, None)
+            delays.shape[1:] if delays is not None and delays.ndim == 3 else (None, None)
         )
-        if "delays" in f and width is None:
-            problems.append(f"{path}: 'delays' has shape {f['delays'].shape}, expected (N, H, W)")
-        source = split_source(f.attrs)
-        version = f.attrs.get("dataset_version")
-        if version is not None:
-            try:
-                check_version(path, _decode(version), source, written_version(f.attrs))
-            except DatasetError as exc:
-                problems.append(str(exc))
-        events = f["event_t_us"].shape[0] if "event_t_us" in f else 0
+        if delays is not None and width is None:
+            problems.append(f"{path}: 'delays' has shape {delays.shape}, expected (N, H, W)")
+        source, version = split_source(attrs), attrs.get("dataset_version")
+        if not (
+            ATTRIBUTES["source"].accepts(source) and ATTRIBUTES["dataset_version"].accepts(version)
+        ):
+            return problems, None  # named by check_attributes
         try:
-            timing = _decode(f.attrs.get("timing", "flash"))
+            check_version(path, version, source, written_version(attrs))
+        except DatasetError as exc:
+            problems.append(str(exc))
+        events = datasets["event_t_us"].shape[0] if "event_t_us" in datasets else 0
+        try:
+            timing = attrs.get("timing", "flash")
             shapes = expected_shapes(source, size, height, width, events, timing)
         except DatasetError as exc:  # an unknown source
             return problems + [f"{path}: {exc}"], None
         for name, (dtype, shape) in shapes.items():
-            if name not in f:
-                problems.append(f"{path}: dataset '{name}' missing")
+            if name not in datasets:
+                if name not in f:  # else named by datasets_of
+                    problems.append(f"{path}: dataset '{name}' missing")
                 continue
-            ds = f[name]
+            ds = datasets[name]
             if ds.dtype != np.dtype(dtype):
                 problems.append(f"{path}: '{name}' is {ds.dtype}, expected {dtype}")
             if size is not None and width is not None and ds.shape != shape:
                 problems.append(f"{path}: '{name}' has shape {ds.shape}, expected {shape}")
         if problems or size is None or width is None:  # not readable as the schema says
             return problems, None
-        held = _decode(f.attrs["split"])
-        if held != split:
+        problems += [f"{path}: {p}" for p in map(unbacked, datasets.values()) if p is not None]
+        if problems:  # declared sizes the file cannot back: never read them
+            return problems, None
+        if attrs["split"] != split:
             problems.append(
-                f"{path}: holds the {held!r} split, expected {split!r} (files swapped or renamed?)"
+                f"{path}: holds the {attrs['split']!r} split, expected {split!r} (files swapped "
+                "or renamed?)"
             )
-        own = tuple(_decode(f.attrs[k]) if k in f.attrs else None for k in ("shard", "shards"))
+        own = (attrs.get("shard"), attrs.get("shards"))
         if own != (shard or (None, None)):
             expected = f"shard={shard[0]}, shards={shard[1]}" if shard else "none"
             problems.append(
                 f"{path}: shard attributes shard={own[0]!r}, shards={own[1]!r}; expected "
                 f"{expected} (shard files renamed?)"
             )
-        classes = len(f.attrs["class_names"])
-        if "classes" in f.attrs and int(f.attrs["classes"]) != classes:
-            problems.append(f"{path}: {classes} class_names for {int(f.attrs['classes'])} classes")
+        classes = len(attrs["class_names"])
+        row_bytes = max(ds.nbytes // max(size, 1) for ds in datasets.values())
+        block = max(1, _BLOCK_BYTES // max(row_bytes, 1))
         try:
-            for start in range(0, size, _BLOCK):
-                rows = slice(start, start + _BLOCK)
+            for start in range(0, size, block):
+                rows = slice(start, start + block)
                 for name in ("delays", "clean_delays"):
                     if name not in shapes:
                         continue
-                    block = f[name][rows]
-                    if not ((block >= 0) & (block <= 1)).all():  # NaN fails too
+                    values = datasets[name][rows]
+                    if not ((values >= 0) & (values <= 1)).all():  # NaN fails too
                         problems.append(f"{path}: '{name}' has values outside [0, 1] or NaN")
-                labels = f["labels"][rows]
-                if labels.size and not (0 <= labels.min() and labels.max() < classes):
+                values = labels[rows]
+                if values.size and not (0 <= values.min() and values.max() < classes):
                     problems.append(f"{path}: labels outside 0..{classes - 1}")
             if "event_count" in shapes:
                 problems += _check_events(path, f)
         except OSError as exc:  # a chunk that does not decompress
-            problems.append(f"{path}: unreadable data ({exc})")
+            problems.append(f"{path}: unreadable data ({_first_line(exc)})")
     return sorted(set(problems), key=problems.index), size
 
 

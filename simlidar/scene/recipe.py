@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from simlidar.content import content_dir
-from simlidar.errors import RecipeError
+from simlidar.content import PLAIN_NAME, PLAIN_NAME_RULE, content_dir, file_kind
+from simlidar.errors import RecipeError, shown
 from simlidar.scene import expr
 from simlidar.scene.primitives import DEFAULT_SEGMENTS, KINDS, template
 
@@ -168,27 +168,9 @@ class Catalog:
         return hashlib.sha256(text.encode()).hexdigest()
 
 
-def _show(value, limit: int = 100) -> str:
-    """``repr(value)`` for an error message, cut to ``limit`` characters."""
-    try:
-        text = repr(value)
-    except (ValueError, RecursionError):  # an integer of too many digits, a deep table
-        return "a value too large or too deeply nested to print"
-    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
-
-
 def _fail(where: str, key: str, expected: str, got) -> RecipeError:
     key = key if len(key) <= 100 else f"{key[:100]}..."
-    return RecipeError(f"{where}: key '{key}': expected {expected}, got {_show(got)}")
-
-
-_FILE_KINDS = {
-    stat.S_ISDIR: "a folder",
-    stat.S_ISCHR: "a character device",
-    stat.S_ISBLK: "a block device",
-    stat.S_ISFIFO: "a named pipe",
-    stat.S_ISSOCK: "a socket",
-}
+    return RecipeError(f"{where}: key '{key}': expected {expected}, got {shown(got)}")
 
 
 def _read_toml(path: Path) -> dict:
@@ -197,9 +179,7 @@ def _read_toml(path: Path) -> dict:
     try:
         mode = path.stat().st_mode
         if not stat.S_ISREG(mode):
-            kind = next(
-                (name for test, name in _FILE_KINDS.items() if test(mode)), "a special file"
-            )
+            kind = file_kind(mode)
             target = f" ({path.resolve()})" if path.is_symlink() else ""
             raise RecipeError(f"{path}: expected a regular file, got {kind}{target}")
         with path.open("rb") as f:
@@ -316,7 +296,7 @@ def _primitive(
         if not 0 <= spec.upper <= MAX_REPEAT:
             raise RecipeError(
                 f"{where}: key 'repeat': expected a parameter with values in 0..{MAX_REPEAT}, "
-                f"got {_show(repeat)} up to {spec.upper:g}"
+                f"got {shown(repeat)} up to {spec.upper:g}"
             )
         repeat_max, repeat_param = int(spec.upper), repeat
     elif isinstance(repeat, int) and not isinstance(repeat, bool) and 1 <= repeat <= MAX_REPEAT:
@@ -436,6 +416,9 @@ def _name_list(where: str, data: dict, key: str) -> list[str]:
     value = data.get(key)
     if not (isinstance(value, list) and value and all(isinstance(v, str) for v in value)):
         raise _fail(where, key, "a non-empty list of names", value)
+    for name in value:
+        if not PLAIN_NAME.match(name):
+            raise _fail(where, key, f"names of {PLAIN_NAME_RULE}", name)
     if len(set(value)) != len(value):
         raise _fail(where, key, "names without repeats", value)
     return value

@@ -18,7 +18,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from simlidar.content import content_dir, finite_number, key_error, read_named_toml
-from simlidar.errors import ConfigError
+from simlidar.errors import ConfigError, shown
 
 SPEED_OF_LIGHT_M_PER_S = 299_792_458.0
 DEFAULT_SENSOR = "vlp16"
@@ -201,9 +201,22 @@ class Sensor:
 
     @classmethod
     def from_dict(cls, values: dict) -> "Sensor":
-        """The inverse of :meth:`to_dict`."""
+        """The inverse of :meth:`to_dict`, every key checked as a sensor file's: a ConfigError
+        naming the key for anything else (a damaged or hostile dataset attribute)."""
+        if not isinstance(values, dict):
+            raise ConfigError(f"sensor {shown(values)}: expected an object of a sensor's keys")
         given = {**_LATER_KEYS, **values}
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in given.items()})
+        name = given.pop("name")
+        if not isinstance(name, str) or not name.strip():
+            raise key_error("sensor", "name", "a non-empty string", name)
+        where = f"sensor {name!r}"
+        checked = _checked(
+            where, {k: list(v) if isinstance(v, tuple) else v for k, v in given.items()}
+        )
+        try:
+            return cls(name=name, **checked)
+        except ConfigError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
 
     def with_rpm(self, rpm: float) -> "Sensor":
         return replace(self, rpm=float(rpm))

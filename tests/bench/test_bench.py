@@ -13,6 +13,14 @@ Attack list (issue 35, item 10):
 * a full disk while a cell is written (a real ``RLIMIT_FSIZE`` on a real process): the error
   was glued onto the progress bar's line; now it has a line of its own.
 * an ``--out`` of another suite: the message says what to do, and names no option bench lacks.
+
+Attack list of the suites that ask for more than a machine holds (issue 35, items 3 and 6):
+``[generate] train_size = 1000000000`` (inside the documented range), run as a real process
+under an 8 GiB address-space limit: refused in one line naming the memory it would take and
+what is available, before anything is allocated or written (it used to build an array of 10^9
+labels to check the validation split); the validation rule is checked from the class counts
+(a class left without a training sample is still named); ``seeds`` beyond a 64-bit seed
+(``[99999999999999999999999]``) refused by the suite reader, before anything is written.
 """
 
 import json
@@ -256,6 +264,12 @@ def test_generated_datasets_are_made_once(tmp_path):
         ('models = ["cnn"]\ndatasets = ["x"]\nbudget = [1]', r"key 'budget': expected a table"),
         ('models = ["cnn", "cnn"]\ndatasets = ["x"]', "key 'models': expected distinct"),
         ('models = ["cnn"]\nseeds = [1, 1]\ndatasets = ["x"]', "key 'seeds': expected distinct"),
+        (
+            'models = ["cnn"]\nseeds = [99999999999999999999999]\ndatasets = ["x"]',
+            r"key 'seeds': expected a non-empty list of integers in \[0, 2\*\*63\), got "
+            r"\[99999999999999999999999\]",
+        ),
+        ('models = ["cnn"]\nseeds = [9223372036854775808]\ndatasets = ["x"]', "key 'seeds'"),
         ('models = ["cnn"]\n[generate]\nnoise = [0.1, 0.1]', "distinct noise levels"),
         ('name = "../../evil"\nmodels = ["cnn"]\ndatasets = ["x"]', "key 'name': expected letters"),
         ('name = ".hidden"\nmodels = ["cnn"]\ndatasets = ["x"]', "key 'name'"),
@@ -582,3 +596,49 @@ def test_a_full_disk_while_a_cell_is_written_gets_a_line_of_its_own(tiny_suite, 
     assert len(errors) == 1 and errors[0].startswith("Error: "), done.stderr
     assert errors[0].endswith("cannot write the checkpoint (File too large)")
     assert "bench tiny" in done.stderr  # the bar was there, on lines of its own
+
+
+def test_a_suite_larger_than_the_machine_is_refused_before_anything_is_allocated(
+    tmp_path, address_limit
+):
+    import subprocess
+    import sys
+
+    path = tmp_path / "huge.toml"
+    path.write_text(
+        'models = ["cnn"]\n[generate]\nnoise = [0.1]\ntrain_size = 1000000000\n'
+        "test_size = 1000\n[budget]\nepochs = 1\n"
+    )
+    out = tmp_path / "out"
+    limit = 8 * 2**30
+    result = subprocess.run(
+        [sys.executable, "-m", "simlidar.cli", "bench", "--suite", str(path), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=address_limit(limit),
+    )
+    assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith(
+        f"Error: suite {path}: [generate] train_size=1000000000, test_size=1000: a cell's "
+        "delays and labels: 961.1 GiB to hold in memory, "
+    ), line
+    assert line.endswith(
+        "available; expected data that fits (a smaller split, or a machine with more memory)"
+    )
+    assert not out.exists()
+
+
+def test_the_validation_rule_is_checked_from_the_class_counts(tmp_path):
+    from simlidar.bench.run import check_validation
+
+    path = tmp_path / "s.toml"
+    path.write_text(  # 33 samples, 32 classes: class 0 has 2, the others 1
+        'models = ["cnn"]\n[generate]\nnoise = [0.1]\ntrain_size = 33\n[budget]\nvalidation = 0.1\n'
+    )
+    with pytest.raises(ConfigError, match=r"leaves class 'tunnel/car' \(1 training sample"):
+        check_validation(load_suite(path), ["cnn"], None)
+    path.write_text(path.read_text().replace("train_size = 33", "train_size = 64"))
+    check_validation(load_suite(path), ["cnn"], None)  # 2 a class: one to train on
+    # 10^9 samples without an array of labels: test_a_suite_larger_than_the_machine_...

@@ -1,7 +1,24 @@
-"""What makes a dataset publishable: card, Croissant metadata, checksums, verify, versions."""
+"""What makes a dataset publishable: card, Croissant metadata, checksums, verify, versions.
+
+Attack list of the hostile-directory tests below (each built by the test from a real dataset):
+* HDF5 "bombs" (issue 35, item 3): a small split file declaring 20,000,000 samples whose chunks
+  were never written (fill values), a contiguous dataset never written, a dataset whose every
+  chunk is stored but compressed far beyond what gzip can (scale-offset on a constant), and a
+  dataset that is an external or soft link into another file; with the card and SHA256SUMS
+  made to agree, so that only the declared sizes are wrong. verify refuses each, the readers
+  refuse before allocating, pack writes nothing.
+* links and folders in the dataset directory (items 7 and 8): ``notes.txt -> secret`` listed in
+  SHA256SUMS, a link to a split file, ``payload/run_me.sh``, an empty folder, a named pipe, a
+  ``.DS_Store`` folder; SHA256SUMS or README.md a link to a file outside, for ``simlidar card``
+  (which must refuse and leave the target untouched) and ``write_sums`` (which must replace a
+  link, never write through it).
+* duplicate class names in a split's attributes (item 8).
+"""
 
 import json
 import shutil
+import subprocess
+import sys
 
 import h5py
 import numpy as np
@@ -194,3 +211,205 @@ def test_front_matter_errors_are_named(copy):
     with pytest.raises(DatasetError, match="README.md: missing"):
         read_front_matter(copy)
     assert np.isfinite(1.0)
+
+
+def _agreeing(copy):
+    """Make the card and SHA256SUMS agree with the split files as they now are."""
+    from simlidar.release.card import write_card
+    from simlidar.release.checksums import write_sums
+
+    with h5py.File(copy / "train.h5", "r") as f:
+        size = f["labels"].shape[0]
+    card = copy / "README.md"
+    write_card(copy, card.read_text().replace("num_examples: 96", f"num_examples: {size}"))
+    write_sums(copy)
+
+
+def _bomb(copy, n=20_000_000, rows=None, stored=False):
+    """Every dataset of train.h5 declared with ``n`` rows: contiguous (``rows`` None) or in
+    gzip chunks of ``rows`` rows, never written, or (``stored``) each chunk one byte."""
+    with h5py.File(copy / "train.h5", "a") as f:
+        for name in list(f):
+            dtype, tail = f[name].dtype, f[name].shape[1:]
+            del f[name]
+            options = dict(chunks=(rows, *tail), compression="gzip") if rows else {}
+            ds = f.create_dataset(name, shape=(n, *tail), dtype=dtype, **options)
+            for start in range(0, n, rows) if stored else ():
+                ds.id.write_direct_chunk((start,) + (0,) * len(tail), b"\0")
+    _agreeing(copy)
+
+
+def test_an_hdf5_bomb_is_refused_before_anything_is_allocated(copy, tmp_path, address_limit):
+    from simlidar.release.archive import pack
+
+    _bomb(copy, rows=256)
+    assert (copy / "train.h5").stat().st_size < 1_000_000  # 20,000,000 samples declared
+    problems = verify(copy)
+    assert any(
+        "'delays' declares (20000000, 16, 16) float32 (19.1 GiB) but stores 0 B in 0 of 78125 "
+        "chunks" in p
+        for p in problems
+    ), problems
+    with pytest.raises(DatasetError, match="declares .* but stores 0 B"):
+        read_split_info(copy / "train.h5")
+    # load_split in a process of its own under a 4 GiB address-space limit: a regression fails
+    # here instead of allocating 19.1 GiB in the test process
+    script = "import sys; from simlidar.data import load_split; load_split(sys.argv[1])"
+    limit = 4 * 2**30
+    result = subprocess.run(
+        [sys.executable, "-c", script, str(copy)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=address_limit(limit),
+    )
+    assert (
+        result.stderr.strip()
+        .splitlines()[-1]
+        .startswith(
+            f"simlidar.errors.DatasetError: {copy / 'train.h5'}: 'attempts' declares (20000000,)"
+        )
+    ), result.stderr
+    with pytest.raises(DatasetError, match="declares"):
+        pack(copy, tmp_path / "out")
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+
+
+def test_a_contiguous_dataset_never_written_is_refused(copy):
+    _bomb(copy, n=2_000_000)  # contiguous: no storage allocated until written
+    problems = "\n".join(verify(copy))
+    assert "'delays' declares (2000000, 16, 16) float32 (1.9 GiB) but stores 0 B;" in problems
+
+
+def test_chunks_compressed_beyond_gzip_are_refused(copy):
+    _bomb(copy, rows=65_536, stored=True)  # every chunk stored, one byte each
+    problems = "\n".join(verify(copy))
+    expected = "'delays' declares (20000000, 16, 16) float32 (19.1 GiB) but stores 306 B in 306 "
+    assert f"{expected}of 306 chunks" in problems
+
+
+@pytest.mark.parametrize("kind", ["external", "soft"])
+def test_a_dataset_that_links_elsewhere_is_refused(copy, tmp_path, kind):
+    other = tmp_path / "other.h5"
+    with h5py.File(copy / "train.h5", "r") as f, h5py.File(other, "w") as o:
+        o["delays"] = f["delays"][:]
+    with h5py.File(copy / "train.h5", "a") as f:
+        f["kept"] = f["delays"][:]
+        del f["delays"]
+        link = h5py.ExternalLink(str(other), "delays") if kind == "external" else None
+        f["delays"] = link if link is not None else h5py.SoftLink("/kept")
+    _agreeing(copy)
+    what = "ExternalLink" if kind == "external" else "SoftLink"
+    message = f"'delays' is an HDF5 {what}, expected a dataset in the file"
+    assert any(message in p for p in verify(copy))
+    with pytest.raises(DatasetError, match=message):
+        read_split_info(copy / "train.h5")
+
+
+def test_a_link_listed_in_the_checksums_fails_verify_and_pack(copy, tmp_path):
+    from simlidar.release.archive import pack
+    from simlidar.release.checksums import write_sums
+
+    secret = tmp_path / "secret"
+    secret.write_text("the secret")
+    secret.chmod(0o600)
+    (copy / "notes.txt").symlink_to(secret)
+    sums = copy / SUMS
+    digest = __import__("hashlib").sha256(b"the secret").hexdigest()
+    sums.write_text(sums.read_text() + f"{digest}  notes.txt\n")  # listed, and it matches
+    problems = verify(copy)
+    assert problems == [
+        f"{copy / 'notes.txt'}: is a link to {secret}, expected a regular file (a dataset "
+        "directory holds only its own files, listed in SHA256SUMS)"
+    ]
+    with pytest.raises(DatasetError, match="notes.txt: is a link"):
+        pack(copy, tmp_path / "out")
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+    with pytest.raises(DatasetError, match="notes.txt: expected a regular file"):
+        write_sums(copy, ["notes.txt"])  # never hashed through the link
+    write_sums(copy)  # all: the link is not a file of the dataset
+    assert "notes.txt" not in read_sums(copy)
+
+
+def test_a_split_file_that_is_a_link_fails_verify(copy, tmp_path):
+    (copy / "test.h5").rename(tmp_path / "test.h5")
+    (copy / "test.h5").symlink_to(tmp_path / "test.h5")
+    assert any("test.h5: is a link to" in p for p in verify(copy))
+
+
+@pytest.mark.parametrize(
+    "make, kind",
+    [
+        (lambda d: (d / "payload").mkdir() or (d / "payload" / "run_me.sh").write_text("x"), ""),
+        (lambda d: (d / "empty").mkdir(), ""),
+        (lambda d: (d / ".DS_Store").mkdir(), ""),
+        (lambda d: __import__("os").mkfifo(d / "pipe"), "named pipe"),
+    ],
+)
+def test_anything_but_a_regular_file_in_a_dataset_fails_verify(copy, tmp_path, make, kind):
+    from simlidar.release.archive import pack
+
+    make(copy)
+    entry = next(p for p in copy.iterdir() if not p.is_file() or p.is_fifo())
+    kind = kind or "folder"
+    problems = verify(copy)
+    assert problems == [
+        f"{entry}: is a {kind}, expected a regular file (a dataset directory holds only its "
+        "own files, listed in SHA256SUMS)"
+    ]
+    with pytest.raises(DatasetError, match=f"is a {kind}"):
+        pack(copy, tmp_path / "out")
+
+
+@pytest.mark.parametrize("name", [SUMS, "README.md"])
+def test_card_refuses_a_link_and_never_writes_through_it(copy, tmp_path, name):
+    from click.testing import CliRunner
+
+    from simlidar.cli import main
+
+    target = tmp_path / "elsewhere"
+    target.write_bytes((copy / name).read_bytes())
+    (copy / name).unlink()
+    (copy / name).symlink_to(target)
+    before = target.read_bytes()
+    result = CliRunner().invoke(main, ["card", str(copy)])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert result.stderr.strip() == (
+        f"Error: {copy / name}: is not a regular file (a link or a folder); expected the "
+        "dataset's own file: remove it and run simlidar card again"
+    )
+    assert target.read_bytes() == before and (copy / name).is_symlink()
+
+
+def test_write_sums_replaces_a_link_instead_of_writing_through_it(copy, tmp_path):
+    from simlidar.release.checksums import write_sums
+
+    target = tmp_path / "elsewhere"
+    target.write_text("not yours\n")
+    (copy / SUMS).unlink()
+    (copy / SUMS).symlink_to(target)
+    write_sums(copy)
+    assert target.read_text() == "not yours\n"
+    assert not (copy / SUMS).is_symlink() and check_sums(copy) == []
+    assert (copy / SUMS).stat().st_mode & 0o777 == 0o666 & ~_umask()
+
+
+def _umask() -> int:
+    import os
+
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def test_duplicate_class_names_are_refused(copy):
+    from simlidar.release.checksums import write_sums
+
+    with h5py.File(copy / "train.h5", "a") as f:
+        names = [str(n) for n in f.attrs["class_names"]]
+        names[9] = names[5]  # two classes named open_road/car
+        f.attrs["class_names"] = np.array(names, dtype=h5py.string_dtype())
+    write_sums(copy)
+    assert any("attribute 'class_names' is" in p and "distinct" in p for p in verify(copy))
+    with pytest.raises(DatasetError, match="attribute 'class_names'"):
+        read_split_info(copy / "train.h5")

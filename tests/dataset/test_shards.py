@@ -1,4 +1,11 @@
-"""Sharded splits (issue "Scale out"): names, writing, reading, checking and publishing."""
+"""Sharded splits (issue "Scale out"): names, writing, reading, checking and publishing.
+
+Attack list (issue 35, item 3): a split file named ``train-00000-of-9999999999.h5`` (a count
+of ten billion shards from a file name) must not make ``verify``, ``info`` or ``card`` build a
+list per claimed shard: each is run as a real process under a 2 GiB address-space limit and
+must end in a few seconds with one line naming the missing shards; a count or index of more
+digits than a number holds is not a shard name.
+"""
 
 import json
 import shutil
@@ -268,3 +275,28 @@ def test_a_bad_shard_size_is_one_line(tmp_path):
     assert result.exit_code == 2
     assert "Invalid value for '--shard-size': 0 is not in the range x>=1." in result.output
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_shard_count_from_a_file_name_builds_no_list(datasets, tmp_path, address_limit):
+    import subprocess
+    import sys
+
+    copy = tmp_path / "d"
+    shutil.copytree(datasets[0.1], copy)
+    (copy / "train.h5").rename(copy / "train-00000-of-9999999999.h5")
+    for command in ("verify", "info", "card"):
+        result = subprocess.run(
+            [sys.executable, "-m", "simlidar.cli", command, str(copy)],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            preexec_fn=address_limit(2 * 2**30),
+        )
+        assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr
+        assert (
+            f"{copy}: train shards incomplete (missing train-00001-of-9999999999.h5, "
+            "train-00002-of-9999999999.h5, train-00003-of-9999999999.h5, ...); expected "
+            "shards 0..9999999998"
+        ) in result.stderr
+    assert shard_of("train-" + "9" * 19 + "-of-" + "9" * 19 + ".h5") is None
+    assert shard_of("train-" + "0" * 18 + "-of-" + "9" * 18 + ".h5") == ("train", 0, 10**18 - 1)

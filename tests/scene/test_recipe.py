@@ -1,4 +1,11 @@
-"""The scene catalog: what ships, and every way a recipe can be wrong."""
+"""The scene catalog: what ships, and every way a recipe can be wrong.
+
+Attack list of ``test_catalog_names_are_plain_names`` (issue 35, item 8): a layout, object or
+surface name that is a path (``../../x/layouts/open_road``, which read a recipe outside the
+catalog and gave two classes named ``open_road``), has a folder part, starts with a dot, is
+empty, holds a space or a NUL, or is longer than 64 characters: refused when the catalog is
+loaded (and by ``simlidar generate --scenes``), one line naming the key and the name.
+"""
 
 import numpy as np
 import pytest
@@ -251,3 +258,45 @@ def test_a_variant_object_keeps_its_placement_and_may_change_it(catalog_copy):
     truck = dict(zip(catalog.object_names, catalog.for_sensor("hdl32e").objects))["truck"]
     assert truck.params[0].name == "distance_m" and truck.params[0].values == (10.0, 12.0)
     assert catalog.for_sensor("hdl64e").objects == catalog.objects
+
+
+@pytest.mark.parametrize(
+    "key, name",
+    [
+        ("layouts", "../../x/layouts/open_road"),
+        ("layouts", "sub/open_road"),
+        ("objects", ".car"),
+        ("objects", ""),
+        ("surfaces", "road surface"),
+        ("surfaces", "a\\u0000b"),
+        ("layouts", "x" * 65),
+    ],
+)
+def test_catalog_names_are_plain_names(catalog_copy, tmp_path, key, name):
+    import shutil
+
+    from click.testing import CliRunner
+
+    from simlidar.cli import main
+
+    outside = tmp_path / "x" / "layouts"
+    outside.mkdir(parents=True)
+    shutil.copy(catalog_copy / "layouts" / "open_road.toml", outside)  # what the path reads
+    first = {"layouts": '"tunnel"', "objects": '"car"', "surfaces": '"road"'}[key]
+    text = (catalog_copy / "catalog.toml").read_text()
+    before = text.split(f"{key} = [", 1)
+    (catalog_copy / "catalog.toml").write_text(
+        before[0] + f"{key} = [" + before[1].replace(first, f'"{name}"', 1)
+    )
+    with pytest.raises(RecipeError) as err:
+        load_catalog(catalog_copy)
+    message = str(err.value)
+    assert f"key '{key}': expected names of letters, digits, '_' or '-'" in message
+    assert "\n" not in message
+    out = tmp_path / "out"
+    result = CliRunner().invoke(
+        main, ["generate", "--scenes", str(catalog_copy), "--train-size", "32", "--out", str(out)]
+    )
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    assert result.stderr.count("\n") == 1 and f"key '{key}'" in result.stderr
+    assert not out.exists()
