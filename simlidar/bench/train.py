@@ -162,8 +162,16 @@ def _fresh_noise(dataset, attrs: dict, seed: int, rows: np.ndarray):
 
 
 def predictions(model: torch.nn.Module, x: torch.Tensor, batch: int = 500) -> torch.Tensor:
-    """Predicted classes of any registered model, in batches (-1: no output spike)."""
+    """Predicted classes of any registered model, in batches (-1: no output spike).
+
+    A model that the event-driven evaluator runs (``event_driven``) is scored on its forward
+    pass in float64: the exact spike times of its float32 weights, which that evaluator reads
+    too (:func:`simlidar.models.decisions.decide_all`), so that a cell's ``accuracy`` and
+    ``early.accuracy`` agree by construction. In float32, two output spikes less than a
+    rounding step apart can swap places (training and validation stay in float32)."""
     model.eval()
+    if getattr(model, "event_driven", False):
+        x = x.double()
     with torch.no_grad():
         outs = [model(x[i : i + batch]) for i in range(0, len(x), batch)]
     if is_spiking(model):

@@ -94,7 +94,7 @@ def test_a_suite_runs_reruns_and_reports(tiny_suite, tmp_path, datasets):
     snn = [c for c in cells if c["model"] == "snn_simlidar"]
     cnn = [c for c in cells if c["model"] == "cnn"]
     for c in snn:  # event-driven figures agree with the batched accuracy
-        assert c["early"]["accuracy"] == pytest.approx(c["accuracy"])
+        assert c["early"]["accuracy"] == c["accuracy"]  # the same count, by construction
         assert 0.0 < c["early"]["data_ratio_mean"] <= 1.0
         assert c["kind"] == "spiking" and "macs" not in c
     for c in cnn:
