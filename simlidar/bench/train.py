@@ -174,10 +174,21 @@ def _fresh_noise(dataset, attrs: dict, seed: int, rows: np.ndarray):
     return draw
 
 
-def _batches(model, x: torch.Tensor, spec: ModelSpec, silent_from: float, batch: int):
-    """Each batch of ``x`` (N, 1, H, W) encoded for the model on its device, and its output."""
+def _batches(
+    model, x: torch.Tensor, spec: ModelSpec, silent_from: float, batch: int, exact: bool = False
+):
+    """Each batch of ``x`` (N, 1, H, W) encoded for the model on its device, and its output.
+
+    exact : a model that the event-driven evaluator runs (``event_driven``) is run on float64
+        input spikes: the exact spike times of its float32 weights, which that evaluator reads
+        too (:func:`simlidar.models.decisions.decide_all`), so that a cell's ``accuracy`` and
+        ``early.accuracy`` agree by construction (in float32, two output spikes less than a
+        rounding step apart can swap places; training and validation stay in float32)
+    """
     device = next(iter(model.parameters()), torch.empty(0)).device
     model.eval()
+    if exact and getattr(model, "event_driven", False):
+        x = x.double()
     with torch.no_grad():
         for i in range(0, len(x), batch):
             yield i, model(encode(x[i : i + batch].to(device), spec, silent_from))
@@ -190,14 +201,16 @@ def predictions(
     spec: ModelSpec | None = None,
     silent_from: float | None = None,
 ) -> torch.Tensor:
-    """Predicted classes of any model, in batches, on the CPU (-1: no decision).
+    """Predicted classes of any model, in batches, on the CPU (-1: no decision); simlidar's
+    event-driven networks in float64 (:func:`_batches`, ``exact``).
 
     x : (N, 1, H, W) delays, encoded as the model wants (``spec``; default: what it declares)
     silent_from : the data's no-return threshold (default: the model's, else 1.0)
     """
     spec = spec or spec_of(model)
     silent_from = getattr(model, "silent_from", 1.0) if silent_from is None else silent_from
-    outs = [readout(out, spec)[0].cpu() for _, out in _batches(model, x, spec, silent_from, batch)]
+    runs = _batches(model, x, spec, silent_from, batch, exact=True)
+    outs = [readout(out, spec)[0].cpu() for _, out in runs]
     return torch.cat(outs) if outs else torch.zeros(0, dtype=torch.long)
 
 

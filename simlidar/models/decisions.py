@@ -167,7 +167,10 @@ def network_size(model, input_shape: tuple[int, ...]) -> tuple[int, int]:
 
 def decide_all(model, z_in: torch.Tensor) -> list[Decision]:
     """:func:`decide` for every sample of a batch and for any spiking network (dense layers and
-    convolutions), from the exact spike times of the layer-wise forward pass in float64.
+    convolutions), from the exact spike times of the layer-wise forward pass in float64
+    (``SpikingNet.propagate``, the pass that :func:`simlidar.bench.train.predictions` scores
+    a spiking network's accuracy by: the two read the same first output spike, an exact tie
+    going to the lower class index, :func:`simlidar.models.ttfs.predict`).
 
     A neuron's spike depends only on the spikes before it, so the event-driven run to the first
     output spike delivers exactly the spikes at or before that time (an input or hidden spike
@@ -177,19 +180,13 @@ def decide_all(model, z_in: torch.Tensor) -> list[Decision]:
 
     model : a ``SpikingNet``; z_in : (B, ...) its input spikes (z domain, inf = none)
     """
-    spikes = [z_in.double()]
     with torch.no_grad():
-        for layer in model.layers:
-            w = layer.weight.detach().double()
-            if w.dim() == 4:
-                spikes.append(ttfs.conv2d(spikes[-1], w, layer.stride, layer.padding))
-            else:
-                spikes.append(ttfs.dense(spikes[-1].flatten(1), w))
+        spikes = model.propagate(z_in.double())
     reach = fan_outs(model, [tuple(s.shape[1:]) for s in spikes[:-1]])
     inputs = [s.flatten(1).numpy() for s in spikes[:-1]]
+    labels = ttfs.predict(spikes[-1]).tolist()  # the accuracy's rule, on the same spikes
     result = []
-    for b, out in enumerate(spikes[-1].numpy()):
-        label = int(np.argmin(out)) if np.isfinite(out).any() else -1
+    for b, (label, out) in enumerate(zip(labels, spikes[-1].numpy())):
         z_dec = float(out[label]) if label >= 0 else np.inf
         delivered = [layer[b] <= z_dec for layer in inputs]  # silent (inf) never
         result.append(

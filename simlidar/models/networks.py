@@ -42,7 +42,14 @@ class SpikingNet(nn.Module):
 
     def spikes(self, delays: torch.Tensor) -> list[torch.Tensor]:
         """The input spikes and every layer's output spikes, in the z domain (inf = none)."""
-        out = [ttfs.encode(delays, self.scale, self.silent_from)]
+        return self.propagate(ttfs.encode(delays, self.scale, self.silent_from))
+
+    def propagate(self, z: torch.Tensor) -> list[torch.Tensor]:
+        """Input spikes ``z`` (B, ...) (z domain) and every layer's output spikes after them,
+        computed in the wider of z's and the weights' dtypes: float64 input spikes give the
+        exact spike times that the accuracy and the event-driven evaluator are read from
+        (:func:`simlidar.bench.train.predictions`, :func:`simlidar.models.decisions.decide_all`)."""
+        out = [z]
         for layer in self.layers:
             out.append(layer(out[-1]))
         return out

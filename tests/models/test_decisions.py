@@ -1,4 +1,16 @@
-"""The event-driven evaluator agrees with the batched closed form, sample by sample."""
+"""The event-driven evaluator agrees with the batched closed form, sample by sample.
+
+Attack list (inputs that could make the two disagree):
+
+* random dense networks, pruned synapses, and a spiking CNN written out as dense layers, on
+  generated pulses: the same class, spike time, input and hidden spikes and accumulates;
+* a near-tie built by hand: two output spikes one float32 rounding step apart, equal in the
+  float32 forward and ordered in float64 (how a published cell's ``accuracy``, 0.7400, and
+  ``early.accuracy``, 0.7383, came one sample apart): the accuracy's prediction and the
+  event-driven decision read the same float64 spikes, so they pick the same class;
+* an exact tie of two outputs: the lower class index, in the batched prediction, in
+  ``decide_all`` and in the event-driven run.
+"""
 
 import numpy as np
 import pytest
@@ -166,3 +178,45 @@ def test_a_convolutional_network_decides_as_its_dense_equivalent():
         ), i
         assert batched[i].z == pytest.approx(one.z, rel=1e-9) or one.z == batched[i].z
     assert any(d.label >= 0 for d in batched) and any(d.data_ratio < 1 for d in batched)
+
+
+def _near_tie():
+    """Two float32 delays one rounding step apart (d_late > d_early) that the float32 encoding
+    maps to the same input spike, and a network in which output 0 fires at 2 z(d_late) and
+    output 1 at 2 z(d_early): tied in float32, output 1 first in float64."""
+    delays = torch.linspace(0.7, 0.99, 4096, dtype=torch.float32)
+    earlier = torch.nextafter(delays, torch.zeros_like(delays))
+    same = ttfs.encode(delays, 3.0) == ttfs.encode(earlier, 3.0)
+    i = int(torch.nonzero(same)[0])  # rounding of 3 * d makes many such pairs
+    x = torch.stack([delays[i], earlier[i]]).reshape(1, 1, 1, 2)  # (B, C, H, W)
+    model = _dense_net([np.array([[2.0, 0.0], [0.0, 2.0]], dtype=np.float32)])
+    return model, x
+
+
+def test_a_near_tie_goes_the_same_way_in_the_accuracy_and_the_event_driven_run():
+    from simlidar.bench.train import predictions
+    from simlidar.models.decisions import decide_all
+
+    model, x = _near_tie()
+    single = model(x)  # float32, as trained: the two outputs tie
+    assert single[0, 0] == single[0, 1] and ttfs.predict(single).tolist() == [0]
+    exact = model(x.double())  # float64: output 1 fires first, by a rounding step
+    assert exact[0, 1] < exact[0, 0] and exact[0, 0] / exact[0, 1] - 1 < 1e-6
+    z = ttfs.encode(x.double().flatten(1), 3.0)
+    assert [d.label for d in decide_all(model, z)] == [1]
+    weights = [layer.weight.detach().double().numpy() for layer in model.layers]
+    assert decide(weights, z[0].numpy()).label == 1
+    assert predictions(model, x).tolist() == [1]  # the cell's accuracy: the same rule
+
+
+def test_an_exact_tie_goes_to_the_lower_class_everywhere():
+    from simlidar.bench.train import predictions
+    from simlidar.models.decisions import decide_all
+
+    model, x = _near_tie()
+    x[..., 1] = x[..., 0]  # the same delay: the two outputs fire at the same instant
+    z = ttfs.encode(x.double().flatten(1), 3.0)
+    weights = [layer.weight.detach().double().numpy() for layer in model.layers]
+    assert predictions(model, x).tolist() == [0]
+    assert [d.label for d in decide_all(model, z)] == [0]
+    assert decide(weights, z[0].numpy()).label == 0
