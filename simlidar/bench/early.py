@@ -59,6 +59,7 @@ def early_decisions(
         "last_input_ns_mean": float(np.mean(last) * unit_ns) if unit_ns else None,
         "wait_saved_mean": float(np.mean(saved)) if saved else None,
         "input_spikes_mean": float(np.mean([d.input_spikes for d in runs])),
+        "input_spikes_authors_mean": float(np.mean([d.input_spikes_authors for d in runs])),
         "input_spikes_total_mean": float(np.mean([d.input_total for d in runs])),
         "data_ratio_mean": float(np.mean([d.data_ratio for d in runs])),
         "hidden_spikes_mean": float(np.mean([d.hidden_spikes for d in runs])),
@@ -69,6 +70,7 @@ def early_decisions(
         summary["per_sample"] = {
             "decision_time_ns": times_ns,
             "input_spikes": [d.input_spikes for d in runs],
+            "input_spikes_authors": [d.input_spikes_authors for d in runs],
         }
     return summary
 
