@@ -16,20 +16,24 @@ def decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test"):
     """The decision of every sample of a split (:func:`simlidar.models.decisions.decide_all`:
     the event-driven run's, from the exact spike times), ``BATCH`` samples at a time.
 
-    The model must be a ``SpikingNet`` (dense layers and convolutions).
+    The model must be a ``SpikingNet`` (dense layers and convolutions); its inputs are
+    encoded as it declares (:meth:`~simlidar.models.networks.SpikingNet.input_spikes`).
     returns : list of Decision, labels (N,), nanoseconds of a delay of 1.0
         (:func:`~simlidar.dataset.loaders.delay_unit_ns`; None if the dataset is not a LiDAR
-        one), each sample's last input spike as a delay (N,) (0 for a sample without any)
+        one, or if the network's clock is not the sensor's: a ``far_first`` encoding spikes
+        far returns first, which no sensor can do before the window's end), each sample's last
+        input spike as a delay (N,) (0 for a sample without any)
     """
     x, y = load_split(dataset, split)
     attrs = split_info(dataset, split).attrs  # one read of the attributes
     silent_from = spike_threshold(attrs)
-    z = ttfs.encode(torch.from_numpy(x.astype(np.float64))[:, None], model.scale, silent_from)
+    z = model.input_spikes(torch.from_numpy(x.astype(np.float64))[:, None])
     runs = []
     for start in range(0, len(z), BATCH):
         runs += decide_all(model, z[start : start + BATCH])
     last = np.where(x < silent_from, x, 0.0).reshape(len(x), -1).max(axis=1, initial=0.0)
-    return runs, y, delay_unit_ns(attrs), last
+    in_sensor_time = getattr(model, "direction", ttfs.NEAR_FIRST) == ttfs.NEAR_FIRST
+    return runs, y, delay_unit_ns(attrs) if in_sensor_time else None, last
 
 
 def early_decisions(
@@ -43,7 +47,8 @@ def early_decisions(
     timing and the window's first firing under scan timing. ``last_input_ns_mean`` is when a
     sample's last input spike comes (what a network that needs every input waits for) and
     ``wait_saved_mean`` the mean fraction of that wait a decided sample did not need,
-    ``1 - decision / last input``."""
+    ``1 - decision / last input``. Under a ``far_first`` encoding the network's clock is not
+    the sensor's, and these sensor times are None (``decision_time_mean`` is network time)."""
     runs, y, unit_ns, last = decisions(model, dataset, split)
     decided = [d for d in runs if d.label >= 0]
     spikes = np.array([d.spikes for d in runs])
@@ -59,6 +64,7 @@ def early_decisions(
         "last_input_ns_mean": float(np.mean(last) * unit_ns) if unit_ns else None,
         "wait_saved_mean": float(np.mean(saved)) if saved else None,
         "input_spikes_mean": float(np.mean([d.input_spikes for d in runs])),
+        "input_spikes_authors_mean": float(np.mean([d.input_spikes_authors for d in runs])),
         "input_spikes_total_mean": float(np.mean([d.input_total for d in runs])),
         "data_ratio_mean": float(np.mean([d.data_ratio for d in runs])),
         "hidden_spikes_mean": float(np.mean([d.hidden_spikes for d in runs])),
@@ -69,13 +75,19 @@ def early_decisions(
         summary["per_sample"] = {
             "decision_time_ns": times_ns,
             "input_spikes": [d.input_spikes for d in runs],
+            "input_spikes_authors": [d.input_spikes_authors for d in runs],
         }
     return summary
 
 
 def format_early(e: dict) -> str:
     """One line on how early a network decides (what ``simlidar train`` prints)."""
-    when = _duration(e["decision_time_ns_mean"]) if e["decision_time_ns_mean"] else "never"
+    if e["decision_time_ns_mean"]:
+        when = _duration(e["decision_time_ns_mean"])
+    elif e["decision_time_mean"] is not None:  # decided, but not in sensor time
+        when = f"network time {e['decision_time_mean']:.3f}"
+    else:
+        when = "never"
     if e.get("wait_saved_mean") is not None:
         when += (
             f" (last input at {_duration(e['last_input_ns_mean'])}: "

@@ -13,9 +13,19 @@ form's "before the next input" is strict).
 
 The result per sample: the class, the decision time (network time ln z and sensor
 nanoseconds), the input spikes consumed and their fraction of all input spikes (the paper's
-R_data), the hidden spikes emitted before the decision, the accumulates they caused (NeuroBench's
-effective synaptic operations of a spiking network: one per non-zero synapse a delivered spike
-reaches) and the energy spikes x alpha.
+R_data), the input spikes consumed by the authors' counting rule (below), the hidden spikes
+emitted before the decision, the accumulates they caused (NeuroBench's effective synaptic
+operations of a spiking network: one per non-zero synapse a delivered spike reaches) and the
+energy spikes x alpha.
+
+Two counting rules for the input spikes consumed, side by side:
+
+* ours (``input_spikes``): every input spike delivered before the decision, at any time from
+  t = 0 on, and one at the very instant of the output spike too (it is delivered first);
+* the authors' (``input_spikes_authors``): the test script of the paper's public code
+  (``zbs881314/Temporal-Coded-Deep-SNN``) counts the inputs with ``0 < t < t_out``, t_out the
+  first output spike of any output neuron: an input at exactly t = 0 (z = 1) is not counted,
+  nor one at t_out. Without a decision (t_out = inf) it counts every input spike after t = 0.
 """
 
 from dataclasses import dataclass
@@ -38,6 +48,7 @@ class Decision:
     input_total: int  # input spikes of the sample
     hidden_spikes: int  # spikes of hidden neurons before the decision
     accumulates: int  # synapses (non-zero weights) reached by the spikes delivered before it
+    input_spikes_authors: int  # input spikes with 0 < t < t_out: the authors' count (above)
 
     @property
     def time(self) -> float:
@@ -62,6 +73,15 @@ class Decision:
 
     def energy_pj(self, alpha_pj: float) -> float:
         return self.spikes * alpha_pj
+
+
+def authors_count(z_in: np.ndarray, z_out: float) -> int:
+    """Input spikes with 0 < t < t_out (1 < z < z_out): the authors' counting rule.
+
+    z_in : (N,) input spikes in the z domain, inf = no spike; z_out : the decision (inf: none)
+    """
+    z_in = np.asarray(z_in, dtype=np.float64)
+    return int(((z_in > 1.0) & (z_in < z_out) & np.isfinite(z_in)).sum())
 
 
 def decide(weights: list[np.ndarray], z_in: np.ndarray) -> Decision:
@@ -108,14 +128,18 @@ def decide(weights: list[np.ndarray], z_in: np.ndarray) -> Decision:
                 best_layer, best_neuron, best_z = layer, j, pending[layer][j]
         if z_next <= best_z:  # deliver the input spike first (ties included)
             if not np.isfinite(z_next):  # nothing left to deliver or fire: undecided
-                return Decision(-1, np.inf, next_input, len(order), hidden, accumulates)
+                authors = authors_count(z_in, np.inf)
+                return Decision(-1, np.inf, next_input, len(order), hidden, accumulates, authors)
             deliver(0, order[next_input], z_next)
             next_input += 1
             continue
         fired[best_layer][best_neuron] = True
         pending[best_layer][best_neuron] = np.inf
         if best_layer == n_layers - 1:
-            return Decision(best_neuron, float(best_z), next_input, len(order), hidden, accumulates)
+            authors = authors_count(z_in, best_z)
+            return Decision(
+                best_neuron, float(best_z), next_input, len(order), hidden, accumulates, authors
+            )
         hidden += 1
         deliver(best_layer + 1, best_neuron, best_z)
 
@@ -188,7 +212,8 @@ def decide_all(model, z_in: torch.Tensor) -> list[Decision]:
     result = []
     for b, (label, out) in enumerate(zip(labels, spikes[-1].numpy())):
         z_dec = float(out[label]) if label >= 0 else np.inf
-        delivered = [layer[b] <= z_dec for layer in inputs]  # silent (inf) never
+        # silent (inf) never, also when nothing decides (z_dec = inf)
+        delivered = [(layer[b] <= z_dec) & np.isfinite(layer[b]) for layer in inputs]
         result.append(
             Decision(
                 label,
@@ -197,6 +222,7 @@ def decide_all(model, z_in: torch.Tensor) -> list[Decision]:
                 int(np.isfinite(inputs[0][b]).sum()),
                 int(sum(d.sum() for d in delivered[1:])),
                 int(sum(r[d].sum() for r, d in zip(reach, delivered))),
+                authors_count(inputs[0][b], z_dec),
             )
         )
     return result

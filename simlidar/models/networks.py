@@ -20,11 +20,26 @@ class SpikingNet(nn.Module):
         missing return is no spike) or inf (the paper profile: every pixel spikes). A property
         of the data, not of the recipe: ``train`` sets it from the dataset's ``input_spikes``
         attribute (:func:`simlidar.dataset.loaders.spike_threshold`) and checkpoints keep it.
+    direction, missing : which delay spikes first and what a missing return becomes
+        (:func:`simlidar.models.ttfs.encode`; the recipe's ``[architecture]`` keys, recorded
+        with it in every cell); the defaults are simlidar's encoding, bit for bit
     """
 
     simlidar_spec = ModelSpec(output=FIRST_SPIKE_TIMES)  # first-spike times (z), not logits
 
-    def __init__(self, layers: list[nn.Module], scale: float):
+    def __init__(
+        self,
+        layers: list[nn.Module],
+        scale: float,
+        direction: str = ttfs.NEAR_FIRST,
+        missing: str = ttfs.AS_VALUE,
+    ):
+        for key, value, allowed in (
+            ("direction", direction, ttfs.DIRECTIONS),
+            ("missing", missing, ttfs.MISSING),
+        ):
+            if value not in allowed:
+                raise ConfigError(f"{key}={value!r}: expected one of {list(allowed)}")
         if not 0.0 < scale <= MAX_SCALE:
             raise ConfigError(
                 f"scale={scale!r}: expected a value in (0, {MAX_SCALE}] so that "
@@ -34,6 +49,8 @@ class SpikingNet(nn.Module):
         self.layers = nn.ModuleList(layers)
         self.scale = scale
         self.silent_from = 1.0
+        self.direction = direction
+        self.missing = missing
 
     event_driven = True  # the decision evaluator (simlidar.models.decisions) runs it
 
@@ -42,7 +59,7 @@ class SpikingNet(nn.Module):
 
     def spikes(self, delays: torch.Tensor) -> list[torch.Tensor]:
         """The input spikes and every layer's output spikes, in the z domain (inf = none)."""
-        return self.propagate(ttfs.encode(delays, self.scale, self.silent_from))
+        return self.propagate(self.input_spikes(delays))
 
     def propagate(self, z: torch.Tensor) -> list[torch.Tensor]:
         """Input spikes ``z`` (B, ...) (z domain) and every layer's output spikes after them,
@@ -53,6 +70,11 @@ class SpikingNet(nn.Module):
         for layer in self.layers:
             out.append(layer(out[-1]))
         return out
+
+    def input_spikes(self, delays: torch.Tensor) -> torch.Tensor:
+        """Delays (B, C, H, W) -> the input spikes (z domain, inf = none) by this network's
+        encoding (:func:`simlidar.models.ttfs.encode`)."""
+        return ttfs.encode(delays, self.scale, self.silent_from, self.direction, self.missing)
 
     def penalty(self) -> torch.Tensor:
         """Mean weight-sum penalty over layers (keeps every neuron able to fire)."""
@@ -76,12 +98,21 @@ class SpikingNet(nn.Module):
 
 
 def dense_snn(
-    input_shape, classes, generator=None, hidden=(400,), scale=3.0, excess=2.0, spread=1.0
+    input_shape,
+    classes,
+    generator=None,
+    hidden=(400,),
+    scale=3.0,
+    excess=2.0,
+    spread=1.0,
+    direction=ttfs.NEAR_FIRST,
+    missing=ttfs.AS_VALUE,
 ) -> SpikingNet:
-    """Dense TTFS network: inputs (all pixels) - hidden... - classes (256-400-32 on Sim LiDAR)."""
+    """Dense TTFS network: inputs (all pixels) - hidden... - classes (256-400-32 on Sim LiDAR).
+    ``direction`` and ``missing``: the input encoding (:class:`SpikingNet`)."""
     sizes = [int(torch.tensor(input_shape).prod())] + list(hidden) + [classes]
     layers = [DenseTTFS(a, b, excess, spread, generator) for a, b in zip(sizes, sizes[1:])]
-    return SpikingNet(layers, scale)
+    return SpikingNet(layers, scale, direction, missing)
 
 
 def spiking_cnn(
@@ -93,10 +124,12 @@ def spiking_cnn(
     scale=3.0,
     excess=2.0,
     spread=1.0,
+    direction=ttfs.NEAR_FIRST,
+    missing=ttfs.AS_VALUE,
 ) -> SpikingNet:
     """Spiking CNN: TTFS convolutions (channels, kernel, stride; padded with "no spike"),
     then dense TTFS layers (the paper's KITTI network: 48 and 24 channels of 5x5 stride 2,
-    dense 256, dense C)."""
+    dense 256, dense C). ``direction`` and ``missing``: the input encoding (:class:`SpikingNet`)."""
     c, h, w = input_shape
     layers: list[nn.Module] = []
     for channels, kernel, stride in conv:
@@ -106,4 +139,4 @@ def spiking_cnn(
         h, w = (h + 2 * pad - kernel) // stride + 1, (w + 2 * pad - kernel) // stride + 1
     sizes = [c * h * w] + list(dense) + [classes]
     layers += [DenseTTFS(a, b, excess, spread, generator) for a, b in zip(sizes, sizes[1:])]
-    return SpikingNet(layers, scale)
+    return SpikingNet(layers, scale, direction, missing)

@@ -44,14 +44,50 @@ import torch.nn.functional as F
 MIN_EXCESS = 1e-4
 
 
-def encode(delays: torch.Tensor, scale: float, no_return: float = 1.0) -> torch.Tensor:
-    """Normalised delays -> input spikes in the z domain.
+NEAR_FIRST, FAR_FIRST = "near_first", "far_first"  # which delay spikes first
+DIRECTIONS = (NEAR_FIRST, FAR_FIRST)
+AS_VALUE, FARTHEST, NO_SPIKE = "as_value", "farthest", "no_spike"  # a missing return
+MISSING = (AS_VALUE, FARTHEST, NO_SPIKE)
 
-    A delay d < no_return becomes the spike time t = scale * d, so z = exp(scale * d) lies in
-    [1, exp(scale)]; a missing return (d >= no_return) is no spike (z = inf). With
-    ``no_return = inf`` (the paper profile) every pixel is a spike.
+
+def encode(
+    delays: torch.Tensor,
+    scale: float,
+    no_return: float = 1.0,
+    direction: str = NEAR_FIRST,
+    missing: str = AS_VALUE,
+) -> torch.Tensor:
+    """Normalised delays in [0, 1] -> input spikes in the z domain.
+
+    direction : which delay spikes first
+      "near_first"  t = scale * d: a near return first (simlidar's encoding, the default)
+      "far_first"   t = scale * (1 - d): a larger value first (the authors' public code,
+                    t = 3 (1 - x))
+    missing : what a missing return becomes; a delay is a missing return when it is at or
+      above ``no_return`` or at the end of the window (1.0); one the data writes as 0.0 plus
+      noise (the ``paper`` profile) cannot be told from a near return and keeps its value
+      "as_value"    the data's rule, as before: a delay at or above ``no_return`` is no spike,
+                    every other delay spikes at its value (the default)
+      "farthest"    spikes as the farthest value, d = 1.0: last near-first, at t = 0 far-first
+                    (the authors' KITTI range maps)
+      "no_spike"    no spike
+
+    z = exp(t) lies in [1, exp(scale)]; no spike is z = inf. With the defaults and
+    ``no_return = inf`` (the paper profile) every pixel is a spike at t = scale * d.
     """
-    spike = delays < no_return
+    if direction not in DIRECTIONS or missing not in MISSING:
+        raise ValueError(
+            f"direction={direction!r}, missing={missing!r}: expected one of "
+            f"{DIRECTIONS} and one of {MISSING}"
+        )
+    if missing == AS_VALUE:
+        spike = delays < no_return
+    else:
+        absent = (delays >= no_return) | (delays >= 1.0)
+        spike = ~absent if missing == NO_SPIKE else torch.ones_like(absent)
+        delays = torch.where(absent, 1.0, delays) if missing == FARTHEST else delays
+    if direction == FAR_FIRST:
+        delays = 1.0 - delays
     return torch.where(spike, torch.exp(scale * torch.where(spike, delays, 0.0)), torch.inf)
 
 

@@ -10,6 +10,16 @@ Attack list (inputs that could make the two disagree):
   event-driven decision read the same float64 spikes, so they pick the same class;
 * an exact tie of two outputs: the lower class index, in the batched prediction, in
   ``decide_all`` and in the event-driven run.
+
+Attack list of the two counting rules (hand-made spike trains where they differ):
+
+* inputs at exactly t = 0 (z = 1) before the decision: ours counts them, the authors'
+  ``0 < t < t_out`` does not;
+* an input after the decision: counted by neither;
+* an input at the very instant of the output spike (a tie at t_out): ours counts it (it is
+  delivered first), the authors' does not;
+* no decision at all: ours counts every input delivered, the authors' every input after t = 0;
+* the batched evaluator (``decide_all``) gives the same two counts as the event-driven run.
 """
 
 import numpy as np
@@ -59,7 +69,8 @@ def test_a_decision_before_all_inputs_by_hand():
 
 def test_a_silent_network_decides_nothing():
     d = decide([np.full((3, 2), 0.1)], np.array([1.0, 2.0, np.inf]))
-    assert d == Decision(-1, np.inf, 2, 2, 0, 4)  # two input spikes, two synapses each
+    # two input spikes, two synapses each; the authors' rule leaves out the one at t = 0
+    assert d == Decision(-1, np.inf, 2, 2, 0, 4, 1)
 
 
 def test_accumulates_count_non_zero_synapses_by_hand():
@@ -220,3 +231,54 @@ def test_an_exact_tie_goes_to_the_lower_class_everywhere():
     assert predictions(model, x).tolist() == [0]
     assert [d.label for d in decide_all(model, z)] == [0]
     assert decide(weights, z[0].numpy()).label == 0
+
+
+def _both_counts(weights, z_in):
+    """(ours, authors') from the event-driven run and from the batched one, checked equal."""
+    from simlidar.models.decisions import decide_all
+
+    one = decide(weights, z_in)
+    (batched,) = decide_all(_dense_net(weights), torch.from_numpy(z_in)[None])
+    assert (batched.label, batched.input_spikes, batched.input_spikes_authors) == (
+        one.label,
+        one.input_spikes,
+        one.input_spikes_authors,
+    )
+    return one
+
+
+def test_inputs_at_time_zero_count_for_us_not_for_the_authors():
+    # inputs 0 and 1 at t = 0 (z = 1, w = 1 + 0.5) and input 2 at t = 0.5 (w = 1): the output
+    # fires at z = (1 + 0.5 + 1.6487) / (2.5 - 1) = 2.10, before input 3 at z = e^3
+    z_in = np.array([1.0, 1.0, np.exp(0.5), np.exp(3.0)])
+    d = _both_counts([np.array([[1.0], [0.5], [1.0], [0.5]])], z_in)
+    assert d.label == 0 and d.z == pytest.approx((1.5 + np.exp(0.5)) / 1.5)
+    assert (d.input_spikes, d.input_spikes_authors, d.input_total) == (3, 1, 4)
+
+
+def test_a_tie_at_the_decision_counts_for_us_not_for_the_authors():
+    # input 0 at z = 1.5 (w = 2) makes the output fire at z = 2 * 1.5 / (2 - 1) = 3.0; input 1
+    # arrives at exactly z = 3.0 (delivered first: it does not move the spike, since
+    # (3 + 0.5 * 3) / (2.5 - 1) = 3); input 2 at z = 5 comes after the decision
+    z_in = np.array([1.5, 3.0, 5.0])
+    d = _both_counts([np.array([[2.0], [0.5], [0.5]])], z_in)
+    assert (d.label, d.z) == (0, 3.0)
+    assert (d.input_spikes, d.input_spikes_authors) == (2, 1)
+
+
+def test_without_a_decision_the_authors_count_every_input_after_time_zero():
+    d = _both_counts([np.full((4, 2), 0.1)], np.array([1.0, 1.0, 2.0, np.inf]))
+    assert (d.label, d.input_spikes, d.input_spikes_authors, d.input_total) == (-1, 3, 1, 3)
+
+
+def test_the_counts_agree_when_no_input_is_at_zero_or_at_the_decision(datasets):
+    # noisy delays: no input at exactly t = 0 and (almost surely) none at t_out, so the two
+    # rules give the same count on every sample
+    from simlidar.models.decisions import authors_count, decide_all
+
+    x, _ = load_split(datasets[0.5], "test")
+    z = ttfs.encode(torch.from_numpy(x.astype(np.float64)).flatten(1), 3.0)
+    assert (z > 1.0).all()
+    runs = decide_all(_dense_net(_random_net(0)), z)
+    assert [d.input_spikes_authors for d in runs] == [d.input_spikes for d in runs]
+    assert authors_count(np.array([1.0, 2.0, np.inf]), 2.0) == 0

@@ -1,0 +1,176 @@
+"""The early-information bound: how early a decision can be right, per dataset and encoding.
+
+    python -m simlidar.cli generate --profile paper --noise 0.1,0.2 --train-size 3000 \\
+        --test-size 600 --seed 0 --out /tmp/data
+    python benchmark/early_bound.py /tmp/data/simlidar-32c-noise0.1-paper-v2.0.0 \\
+        --encodings near_first/as_value,far_first/as_value --seeds 0,1,2
+
+For each dataset and encoding (``direction/missing``, :func:`simlidar.models.ttfs.encode`),
+:func:`simlidar.bench.bound.dataset_bound` trains the learner on what has arrived by the k-th
+input spike, k in ``--ks`` and each sample's own count, for every seed. Each (dataset,
+encoding) is a JSON file under ``--out``/runs (a rerun skips the ones present); then
+``bound.json`` (every run), ``bound.md`` (a table) and ``bound.png`` (accuracy against input
+spikes consumed, one curve per dataset and encoding, seed spread as error bars, with the
+committed ``snn_simlidar_tuned`` cells of benchmark/results/paper as points: their median input
+spikes consumed and accuracy) are written from every run under ``--out``.
+"""
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "benchmark/results/early-bound"
+PAPER_CELLS = ROOT / "benchmark/results/paper/cells"
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("datasets", nargs="*", type=Path, help="dataset directories")
+    parser.add_argument("--encodings", default="near_first/as_value,far_first/as_value")
+    parser.add_argument("--ks", default="4,8,16,32,64,128,180,256")
+    parser.add_argument("--seeds", default="0,1,2")
+    parser.add_argument("--hidden", default="512,512", help="the learner's hidden layers")
+    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--out", type=Path, default=OUT)
+    args = parser.parse_args(argv)
+
+    import torch
+
+    from simlidar.bench.bound import BoundConfig, dataset_bound
+
+    torch.set_num_threads(args.threads)
+    config = replace(BoundConfig(), hidden=tuple(int(h) for h in args.hidden.split(",")))
+    ks = tuple(int(k) for k in args.ks.split(","))
+    seeds = tuple(int(s) for s in args.seeds.split(","))
+    runs = args.out / "runs"
+    runs.mkdir(parents=True, exist_ok=True)
+    for dataset in args.datasets:
+        for encoding in args.encodings.split(","):
+            direction, missing = encoding.split("/")
+            path = runs / f"{dataset.name}__{direction}-{missing}.json"
+            if path.exists():
+                print(f"{path.name}: present, skipped")
+                continue
+            start = time.perf_counter()
+            result = dataset_bound(dataset, direction, missing, ks=ks, seeds=seeds, config=config)
+            result.update(dataset=dataset.name, seconds=time.perf_counter() - start)
+            path.write_text(json.dumps(result, indent=1) + "\n")
+            print(f"{path.name}: {result['seconds']:.0f} s")
+            for row in result["rows"]:
+                print(
+                    f"  k={row['k']}: {row['input_spikes_median']:.0f} spikes (median), "
+                    f"accuracy {row['accuracy_mean']:.3f} +- {row['accuracy_std']:.3f}"
+                )
+    report(args.out)
+    return 0
+
+
+def snn_points() -> list[dict]:
+    """The committed snn_simlidar_tuned cells: dataset, seed, accuracy, input spikes."""
+    points = []
+    for path in sorted(PAPER_CELLS.glob("*__snn_simlidar_tuned__seed*.json")):
+        cell = json.loads(path.read_text())
+        spikes = cell["per_sample"]["input_spikes"]
+        points.append(
+            {
+                "dataset": cell["dataset"],
+                "seed": cell["seed"],
+                "accuracy": cell["early"]["accuracy"],
+                "input_spikes_median": float(np.median(spikes)),
+                "input_spikes_mean": cell["early"]["input_spikes_mean"],
+            }
+        )
+    return points
+
+
+def report(out: Path) -> None:
+    """bound.json, bound.md and bound.png from every run under ``out``/runs."""
+    results = [json.loads(p.read_text()) for p in sorted((out / "runs").glob("*.json"))]
+    points = snn_points()
+    (out / "bound.json").write_text(
+        json.dumps({"bounds": results, "snn_simlidar_tuned": points}, indent=1) + "\n"
+    )
+    lines = [
+        "# The early-information bound",
+        "",
+        "Test accuracy (mean +- std over seeds) of an MLP given what has arrived by the k-th",
+        "input spike; `spikes` is the median arrived in the test split (ties at the k-th",
+        "spike's time arrive together), `authors` the mean counted by the authors' rule",
+        "(t > 0). Made by `benchmark/early_bound.py` (its docstring has the command).",
+        "",
+    ]
+    for r in results:
+        enc = r["encoding"]
+        lines += [
+            f"## {r['dataset']}, {enc['direction']} / {enc['missing']}",
+            "",
+            f"seeds {r['seeds']}, learner {r['learner']}, {r['seconds']:.0f} s",
+            "",
+            "| k | spikes (median) | authors (mean) | accuracy % | per seed |",
+            "| ---: | ---: | ---: | ---: | --- |",
+        ]
+        for row in r["rows"]:
+            k = "all" if row["k"] is None else row["k"]
+            seeds = ", ".join(f"{a:.1%}" for a in row["accuracy"])
+            lines.append(
+                f"| {k} | {row['input_spikes_median']:.0f} | "
+                f"{row['input_spikes_authors_mean']:.1f} | {row['accuracy_mean']:.1%} +- "
+                f"{row['accuracy_std']:.1%} | {seeds} |"
+            )
+        lines.append("")
+    lines += [
+        "## snn_simlidar_tuned (committed cells, near_first / as_value)",
+        "",
+        "| dataset | seed | accuracy % | input spikes (median) |",
+        "| --- | ---: | ---: | ---: |",
+    ]
+    for p in points:
+        lines.append(
+            f"| {p['dataset']} | {p['seed']} | {p['accuracy']:.1%} | "
+            f"{p['input_spikes_median']:.0f} |"
+        )
+    (out / "bound.md").write_text("\n".join(lines) + "\n")
+    plot(results, points, out / "bound.png")
+
+
+def plot(results: list[dict], points: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 5))
+    noises = sorted({r["dataset"] for r in results})
+    for r in results:
+        rows = r["rows"]
+        x = [row["input_spikes_median"] for row in rows]
+        y = [100 * row["accuracy_mean"] for row in rows]
+        e = [100 * row["accuracy_std"] for row in rows]
+        enc = r["encoding"]
+        label = f"{r['dataset']}: {enc['direction']}/{enc['missing']}"
+        ax.errorbar(x, y, yerr=e, marker="o", ms=3, capsize=2, label=label)
+    for p in points:
+        if p["dataset"] in noises:
+            ax.plot(p["input_spikes_median"], 100 * p["accuracy"], "k*", ms=9)
+    ax.plot([], [], "k*", label="snn_simlidar_tuned (committed cells)")
+    ax.axvspan(13, 16, color="0.85", label="the paper: 13-16 spikes")
+    ax.axvline(180, color="0.6", ls="--", label="the paper: never more than 180")
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel("input spikes arrived / consumed (median over test samples)")
+    ax.set_ylabel("test accuracy %")
+    ax.set_ylim(0, 101)
+    ax.legend(fontsize=7, loc="lower right")
+    ax.set_title("How early a decision can be right: the bound and the networks")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,83 @@
+"""The early-information bound (``simlidar.bench.bound``) on toy datasets whose answer is known.
+
+Attack list:
+* the view by hand: ties at the k-th spike's time arrive together, a pixel that never spikes
+  never arrives, a k beyond a sample's spike count shows everything, the authors' count leaves
+  out spikes at t = 0;
+* a class written entirely in the earliest spike's position: the bound must reach ~100 % at
+  k = 1..4 (a learner too weak, or a view that hides what has arrived, fails here);
+* a class written only in the last spikes: the bound must stay at chance until they arrive
+  (a view that leaked a later spike, its time or its mask, would beat chance) and reach ~100 %
+  once every spike has arrived; the Bayes accuracy of both toys is known (100 % and 25 %), so
+  no learner can beat the bound there;
+* the encoding's direction reverses the two toys: far first, the late toy is decided at k = 1.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from simlidar.bench.bound import BoundConfig, arrived, bound, spike_times
+
+SMALL = BoundConfig(hidden=(64, 64), max_epochs=60, patience=10)
+CLASSES = 4
+
+
+def _toy(n: int, seed: int, late: bool):
+    """(delays (n, 8, 8), labels (n,)): 60 pixels U(0.2, 0.8) that say nothing; 4 pixels carry
+    the class: early toy, pixels 0-3 come first and the class's pixel first of all; late toy,
+    pixels 60-63 come last and the class's pixel last of all."""
+    rng = np.random.default_rng(seed)
+    y = rng.integers(0, CLASSES, n)
+    d = rng.uniform(0.2, 0.8, (n, 64))
+    rows = np.arange(n)
+    if late:
+        d[:, 60:] = rng.uniform(0.90, 0.92, (n, 4))
+        d[rows, 60 + y] = rng.uniform(0.98, 1.0, n)
+    else:
+        d[:, :4] = rng.uniform(0.08, 0.10, (n, 4))
+        d[rows, y] = rng.uniform(0.0, 0.02, n)
+    return d.reshape(n, 8, 8).astype(np.float32), y
+
+
+def test_the_view_by_hand():
+    times = np.array([[0.3, 0.1, np.inf, 0.1], [0.0, 0.5, 0.2, np.inf]])
+    view, got = arrived(times, 1)
+    # row 0: the first spike's time 0.1 is shared by two pixels: both arrive
+    assert view[0, 1].tolist() == [0, 1, 0, 1] and view[0, 0].tolist() == pytest.approx([0.1] * 4)
+    assert view[1, 1].tolist() == [1, 0, 0, 0] and view[1, 0].tolist() == [0.0] * 4
+    assert got.tolist() == [2, 1]
+    view, got = arrived(times, None)  # each sample's own count: every spike, never the silent
+    assert view[0, 1].tolist() == [1, 1, 0, 1] and view[1, 1].tolist() == [1, 1, 1, 0]
+    assert view[0, 0].tolist() == pytest.approx([0.3, 0.1, 0.3, 0.1])
+    assert got.tolist() == [3, 3]
+    assert np.array_equal(arrived(times, 10)[0], arrived(times, None)[0])
+    assert np.isfinite(view).all()
+    # far first: a delay of 1.0 as the farthest value spikes at t = 0
+    t = spike_times(np.array([[0.25, 1.0]]), 1.0, "far_first", "farthest")
+    assert t[0].tolist() == pytest.approx([0.75, 0.0])
+    assert spike_times(np.array([[0.25, 1.0]]), 1.0)[0, 1] == math.inf
+
+
+def test_a_class_in_the_earliest_spike_is_known_at_once():
+    result = bound(
+        _toy(600, 0, late=False), _toy(200, 1, late=False), CLASSES, math.inf,
+        ks=(1, 2, 4), seeds=(0,), config=SMALL,
+    )  # fmt: skip
+    for row in result["rows"]:
+        assert row["accuracy_mean"] >= 0.95, row["k"]
+    assert [row["input_spikes_median"] for row in result["rows"]] == [1, 2, 4, 64]
+    assert result["rows"][0]["input_spikes_authors_mean"] == 1.0  # no spike at t = 0 here
+
+
+def test_a_class_in_the_last_spikes_is_at_chance_until_they_arrive():
+    train, test = _toy(600, 0, late=True), _toy(200, 1, late=True)
+    result = bound(train, test, CLASSES, math.inf, ks=(4, 32, 60), seeds=(0,), config=SMALL)
+    *early, everything = result["rows"]
+    for row in early:  # chance is 25 %; 200 test samples: a std of about 3 points
+        assert row["accuracy_mean"] <= 0.40, row["k"]
+    assert everything["k"] is None and everything["accuracy_mean"] >= 0.95
+    # the other direction makes the last spikes the first ones
+    far = bound(train, test, CLASSES, math.inf, "far_first", ks=(1,), seeds=(0,), config=SMALL)
+    assert far["rows"][0]["accuracy_mean"] >= 0.95

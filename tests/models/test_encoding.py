@@ -1,0 +1,153 @@
+"""The input encoding as a named choice: the spike-time direction and what a missing return
+becomes (``ttfs.encode``, a spiking network's ``[architecture]`` keys ``direction`` and
+``missing``).
+
+Attack list:
+* each direction and each treatment of a missing return, on delays whose spike times are
+  worked out by hand (a return at the window's start and end, a missing return under both
+  profiles' rules);
+* today's encoding unchanged: the default equals an explicit ``near_first`` / ``as_value`` bit
+  for bit on real delays, and a network trained with the defaults has the same weights as one
+  trained with the explicit keys (a changed default would change today's datasets' cells);
+* a value outside the choices, in a recipe: one line naming the key, no traceback;
+* the choice reaches the cell (the recipe records it), survives a checkpoint, and the
+  evaluator reads it (far-first spikes carry no sensor time);
+* the authors' setting (far first, a missing return as the farthest value) spikes missing
+  returns at exactly t = 0, which the authors' counting rule leaves out.
+"""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from simlidar.bench.train import load_checkpoint, save_checkpoint, train
+from simlidar.dataset.loaders import load_split
+from simlidar.errors import ConfigError
+from simlidar.models import ttfs
+from simlidar.models.decisions import decide_all
+from simlidar.models.networks import dense_snn
+from simlidar.models.registry import build_model, load_recipe
+
+E = math.e
+# a return at the window's start, one a quarter in, a missing return written as 1.0
+DELAYS = torch.tensor([0.0, 0.25, 1.0], dtype=torch.float64)
+
+
+@pytest.mark.parametrize(
+    "direction, missing, no_return, times",
+    [
+        # t = 2 d; the data's rule (physical: 1.0 and above is no spike) decides the missing
+        ("near_first", "as_value", 1.0, [0.0, 0.5, None]),
+        # t = 2 (1 - d): the larger value first
+        ("far_first", "as_value", 1.0, [2.0, 1.5, None]),
+        # the missing return as the farthest value: last near-first, at t = 0 far-first
+        ("near_first", "farthest", 1.0, [0.0, 0.5, 2.0]),
+        ("far_first", "farthest", 1.0, [2.0, 1.5, 0.0]),
+        # every pixel a spike by the data's rule (paper), but 1.0 is the end of the window
+        ("near_first", "as_value", math.inf, [0.0, 0.5, 2.0]),
+        ("near_first", "no_spike", math.inf, [0.0, 0.5, None]),
+        ("far_first", "no_spike", 1.0, [2.0, 1.5, None]),
+    ],
+)
+def test_spike_times_by_hand(direction, missing, no_return, times):
+    z = ttfs.encode(DELAYS, 2.0, no_return, direction, missing)
+    expected = [math.inf if t is None else math.exp(t) for t in times]
+    assert z.tolist() == pytest.approx(expected)
+
+
+def test_a_bad_choice_is_refused():
+    with pytest.raises(ValueError, match="direction='sideways'"):
+        ttfs.encode(DELAYS, 2.0, direction="sideways")
+
+
+def test_the_default_is_todays_encoding_bit_for_bit(datasets):
+    x, _ = load_split(datasets[0.1], "test")
+    delays = torch.from_numpy(x)[:, None]
+    for no_return in (1.0, math.inf):
+        today = ttfs.encode(delays, 3.0, no_return)
+        assert torch.equal(today, ttfs.encode(delays, 3.0, no_return, "near_first", "as_value"))
+        # the expression before the choice existed
+        spike = delays < no_return
+        before = torch.where(spike, torch.exp(3.0 * torch.where(spike, delays, 0.0)), torch.inf)
+        assert torch.equal(today, before)
+    model = dense_snn((1, 16, 16), 32)
+    assert (model.direction, model.missing) == ("near_first", "as_value")
+
+
+def _tiny(**encoding):
+    recipe = load_recipe("snn_simlidar")
+    recipe["architecture"].update(hidden=[16], **encoding)
+    recipe["training"].update(optimizer="adam", lr=3e-3, batch_size=32, validation=0)
+    return recipe
+
+
+def test_training_with_the_default_equals_an_explicit_near_first(datasets):
+    default = train(_tiny(), datasets[0.1], seed=0, epochs=2, progress=False)
+    explicit = train(
+        _tiny(direction="near_first", missing="as_value"),
+        datasets[0.1],
+        seed=0,
+        epochs=2,
+        progress=False,
+    )
+    far = train(_tiny(direction="far_first"), datasets[0.1], seed=0, epochs=2, progress=False)
+    for a, b, c in zip(
+        default.model.parameters(), explicit.model.parameters(), far.model.parameters()
+    ):
+        assert torch.equal(a, b)
+        assert not torch.equal(a, c)  # the choice is used: other inputs, other weights
+
+
+def test_the_choice_is_recorded_and_survives_a_checkpoint(datasets, tmp_path):
+    from simlidar.bench.early import early_decisions
+
+    result = train(
+        _tiny(direction="far_first", missing="farthest"),
+        datasets[0.1],
+        seed=0,
+        epochs=1,
+        progress=False,
+    )
+    assert result.recipe["architecture"]["direction"] == "far_first"
+    model, _ = load_checkpoint(save_checkpoint(result, tmp_path / "far.pt"), (1, 16, 16), 32)
+    assert (model.direction, model.missing) == ("far_first", "farthest")
+    x, _ = load_split(datasets[0.1], "test")
+    delays = torch.from_numpy(x)[:, None]
+    assert torch.equal(model.input_spikes(delays), result.model.input_spikes(delays))
+    early = early_decisions(model, datasets[0.1])
+    # far-first spikes are not in sensor time: no nanoseconds, network time only
+    assert early["decision_time_ns_mean"] is None and early["last_input_ns_mean"] is None
+    assert early["decision_time_mean"] is not None or early["no_decision"] == early["samples"]
+
+
+@pytest.mark.parametrize("key, value", [("direction", "sideways"), ("missing", "zero")])
+def test_a_bad_recipe_value_is_one_line(key, value):
+    recipe = _tiny(**{key: value})
+    with pytest.raises(ConfigError) as caught:
+        build_model(recipe, (1, 16, 16), 32)
+    message = str(caught.value)
+    assert f"{key}={value!r}" in message and "expected one of" in message
+    assert "\n" not in message
+
+
+def test_the_authors_setting_spikes_missing_returns_at_zero_and_leaves_them_uncounted():
+    # physical-style data: returns below 1.0, missing returns written as 1.0. Far first with
+    # the farthest value puts the missing returns at t = 0 (z = 1): our count includes them,
+    # the authors' does not.
+    generator = torch.Generator().manual_seed(0)
+    model = dense_snn((1, 4, 4), 3, generator, hidden=(8,), direction="far_first")
+    model.missing = "farthest"
+    model.double()
+    delays = torch.full((1, 1, 4, 4), 1.0, dtype=torch.float64)
+    delays[0, 0, 0, :3] = torch.tensor([0.2, 0.3, 0.4], dtype=torch.float64)
+    z = model.input_spikes(delays)
+    assert int((z == 1.0).sum()) == 13 and int(torch.isfinite(z).sum()) == 16
+    for layer in model.layers:  # strong positive weights: the network decides at once
+        layer.weight.data.fill_(0.5)
+    (d,) = decide_all(model, z)
+    assert d.label >= 0 and d.input_total == 16
+    assert d.input_spikes - d.input_spikes_authors == 13  # every missing return, at t = 0
+    zeros = (z.flatten() == 1.0).numpy()
+    assert np.all(zeros[3:]) and not np.any(zeros[:3])
