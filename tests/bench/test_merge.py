@@ -251,7 +251,10 @@ def test_the_paper_run_and_a_tiny_bench_merge_into_one_report(tiny_runs, tmp_pat
     assert {c["model"] for c in mine} == {"snn_simlidar (tiny)", "cnn (tiny)"}
     text = (out / "report.md").read_text()
     assert text.startswith("# Benchmark report: suite paper + tiny")
-    assert "| *paper: SNN 256-400-32* | 99.83 | 96.16 | 82.66 | 68.16 |" in text
+    # the tiny run's splits are not the paper's size: the paper's SNN goes to the note
+    assert "| *paper: SNN 256-400-32* |" not in text
+    assert "**Not comparable with the paper's figures.**" in text
+    assert "The paper's SNN 256-400-32, on its own data: 99.83 % at noise 0.1" in text
     assert "| cnn (paper) | 100.00 ± 0.00 (3) | 96.28 ± 0.42 (3) |" in text
     assert "| cnn (tiny) | " in text and "| snn_simlidar (tiny) | " in text
     assert "| snn_simlidar_tuned | 99.28 ± 0.25 (3) | 95.83 ± 0.33 (3) |" in text  # one run's
@@ -363,3 +366,16 @@ def test_bad_folders_and_cells_are_refused_in_one_line_with_nothing_written(tmp_
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "broken", "empty", "file", "good", "junk", "other",
     ]  # fmt: skip
+
+
+def test_the_committed_outside_models_merge_with_the_paper_run(tmp_path):
+    """docs/benchmark.md's leaderboard: the snnTorch and Norse examples' run on the paper
+    suite's data beside every shipped model, with the paper's row (both runs' splits are the
+    paper's size)."""
+    out = tmp_path / "leaderboard"
+    result = report(PAPER, ROOT / "benchmark/results/outside", "--out", out)
+    assert result.exit_code == 0, result.output
+    text = (out / "report.md").read_text()
+    assert "| *paper: SNN 256-400-32* | 99.83 | 96.16 | 82.66 | 68.16 |" in text
+    assert "| snntorch_lif | 98.50 (1) §" in text and "| norse_lif | 99.17 (1) §" in text
+    assert "| snn_simlidar_tuned | 99.28 ± 0.25 (3) |" in text
