@@ -127,7 +127,7 @@ def test_a_failed_bench_claim_is_undone(tmp_path, monkeypatch, datasets):
     from simlidar.bench.suite import load_suite
 
     calls = {"n": 0}
-    original = run._write_json
+    original = run.write_json
 
     def full(path, data, indent=1):
         calls["n"] += 1
@@ -136,7 +136,7 @@ def test_a_failed_bench_claim_is_undone(tmp_path, monkeypatch, datasets):
             raise OSError(errno.ENOSPC, "No space left on device")
         return original(path, data, indent)
 
-    monkeypatch.setattr(run, "_write_json", full)
+    monkeypatch.setattr(run, "write_json", full)
     suite = load_suite("quick")
     out = tmp_path / "bench"
     with pytest.raises(OSError):

@@ -26,7 +26,7 @@ from pathlib import Path
 from simlidar import __version__
 from simlidar.atomic import building
 from simlidar.bench.report import write_report
-from simlidar.bench.run import _write_json, machine
+from simlidar.bench.run import machine, write_json
 from simlidar.errors import ResultsError
 
 SCHEMA = Path(__file__).with_name("cell.schema.json")
@@ -300,6 +300,6 @@ def merge_report(folders: list[Path], out: Path) -> tuple[dict, list[str]]:
     }
     final = out.resolve()
     with building(final.parent, final.name, force=True) as temporary:
-        _write_json(temporary / "results.json", results)
+        write_json(temporary / "results.json", results)
         write_report(results, temporary, sampled=cells)
     return results, notes

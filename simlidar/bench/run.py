@@ -55,7 +55,7 @@ from simlidar.resources import check_memory
 _NUMBERS = re.compile(r"\[[-0-9.eE+,\s]*\]")  # a list of numbers spread over lines
 
 
-def _write_json(path: Path, data, indent: int | None = 1) -> None:
+def write_json(path: Path, data, indent: int | None = 1) -> None:
     """Write atomically; with ``indent``, lists of numbers stay on one line each. Strict JSON:
     a non-finite number (which Python would write as a bare ``Infinity``, which JSON parsers
     refuse) is refused in one line instead; the values are made finite where they come in."""
@@ -116,7 +116,7 @@ def claim(out: Path, suite: Suite) -> None:
                     f"{suite.data_sha256[:12]}): another {other}; expected a new --out "
                     "directory (bench replaces nothing), or this one's own suite"
                 )
-            _write_json(marker, _ownership(suite))  # the same suite and data, the file edited
+            write_json(marker, _ownership(suite))  # the same suite and data, the file edited
         (out / "cells").mkdir(exist_ok=True)  # removed by hand: its cells are run again
         return
     litter = {"cells", ".suite.json.partial"}  # what a claim that failed midway left
@@ -130,7 +130,7 @@ def claim(out: Path, suite: Suite) -> None:
     created = not out.exists()
     try:
         (out / "cells").mkdir(parents=True, exist_ok=True)
-        _write_json(marker, _ownership(suite))
+        write_json(marker, _ownership(suite))
     except BaseException:  # undo, so that a rerun can claim the folder
         shutil.rmtree(out if created else out / "cells", ignore_errors=True)
         (out / ".suite.json.partial").unlink(missing_ok=True)
@@ -335,7 +335,7 @@ def remeasure(out: Path, suite: Suite, progress: bool = True) -> dict:
             )
         timing = {k: v for k, v in record.get("timing_seconds", {}).items() if k == "train"}
         record.update(measure(model, data["recipe"], dataset, suite, predicted, timing, spec))
-        _write_json(path, record, indent=None)
+        write_json(path, record, indent=None)
     results = collect(out, suite)
     write_report(results, out)
     return results
@@ -500,7 +500,7 @@ def run_and_write(
         machine=machine(),
         simlidar_version=__version__,
     )
-    _write_json(out / "cells" / f"{name}.json", record, indent=None)
+    write_json(out / "cells" / f"{name}.json", record, indent=None)
     return name
 
 
@@ -544,5 +544,5 @@ def collect(out: Path, suite: Suite) -> dict:
         "seconds": round(sum(r["seconds"] for r in records), 1),
         "cells": records,
     }
-    _write_json(out / "results.json", results)
+    write_json(out / "results.json", results)
     return results

@@ -52,8 +52,10 @@ class _NeuronSpikes:
                 counts = calls[0].reshape(self.steps, batch, -1).sum(2).double().cpu()
             else:  # unknown timing: the whole window's spikes, at the last step
                 counts = torch.zeros(self.steps, batch, dtype=torch.float64)
-                counts[-1] = sum(c.reshape(c.shape[0], -1).sum().double().cpu() for c in calls)
-                counts[-1] /= batch
+                if all(c.shape[:1] == (batch,) for c in calls):  # per sample
+                    counts[-1] = sum(c.reshape(batch, -1).sum(1).double().cpu() for c in calls)
+                else:  # no sample axis to read: the batch's mean for every sample
+                    counts[-1] = sum(float(c.sum()) for c in calls) / batch
                 stepwise = False
             total += counts
         self.calls.clear()

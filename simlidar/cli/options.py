@@ -236,3 +236,13 @@ def setting_option(cls, name: str, *decls: str, **overrides):
     if options["default"] is None:
         options["show_default"] = False
     return click.option(*flags, **options)
+
+
+def need_torch(command: str) -> None:
+    """Refuse ``simlidar <command>`` in one line where PyTorch is not installed."""
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise SimlidarError(
+            f"simlidar {command} needs PyTorch: pip install 'simlidar[torch]' (or torch itself)"
+        ) from None

@@ -4,8 +4,7 @@ from pathlib import Path
 
 import click
 
-from simlidar.cli.options import OutFolder
-from simlidar.cli.training import _need_torch
+from simlidar.cli.options import OutFolder, need_torch
 
 
 @click.command()
@@ -24,7 +23,7 @@ def report(folders, out):
     written: a cell that does not follow the published cell schema, cells of one dataset
     name made from different data, two different cells of the same dataset, model and
     seed."""
-    _need_torch("report")
+    need_torch("report")
     from simlidar.bench.merge import merge_report
 
     results, notes = merge_report(list(folders), out)

@@ -5,21 +5,18 @@ from pathlib import Path
 
 import click
 
-from simlidar.cli.options import IntegerRange, Workers, scheduler_option, setting_option
+from simlidar.cli.options import (
+    IntegerRange,
+    Workers,
+    need_torch,
+    scheduler_option,
+    setting_option,
+)
 from simlidar.errors import ConfigError, SimlidarError
 from simlidar.models.training import TrainingConfig
 from simlidar.settings import help_of
 
 MAX_EPOCHS = 10**6
-
-
-def _need_torch(command: str) -> None:
-    try:
-        import torch  # noqa: F401
-    except ImportError:
-        raise SimlidarError(
-            f"simlidar {command} needs PyTorch: pip install 'simlidar[torch]' (or torch itself)"
-        ) from None
 
 
 def _override(name: str, **options):
@@ -127,7 +124,7 @@ def train(
     """Train a model on a dataset's train split, keep the epoch with the best accuracy on a
     held-out validation part of it (the last epoch of a cosine schedule), score that once on
     the test split, save a checkpoint."""
-    _need_torch("train")
+    need_torch("train")
     from simlidar.bench.hardware import threads as using_threads
     from simlidar.bench.train import ANNEALED, check_writable, save_checkpoint
     from simlidar.bench.train import train as run
@@ -265,7 +262,7 @@ def bench(
     """Train and score the suite's models on its datasets: accuracy, how early spiking networks
     decide, energy, latency, size. Writes results.json, report.md and pictures; a rerun into
     the same directory skips the cells already finished."""
-    _need_torch("bench")
+    need_torch("bench")
     from simlidar.bench.run import run_suite
     from simlidar.bench.suite import load_suite
 

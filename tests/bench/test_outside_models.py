@@ -319,3 +319,31 @@ def test_the_python_api_writes_the_cells_bench_writes(tmp_path, datasets):
     assert cell["params"] == 256 * 32 + 32
     with pytest.raises(ConfigError, match="budget key 'lr': expected one of"):
         bench_model(tiny_mlp, datasets[0.1], out=tmp_path / "x", budget={"lr": 1.0})
+
+
+def test_neuron_spikes_of_unknown_timing_are_counted_per_sample_over_the_window():
+    """A neuron module called a number of times other than T (here twice in a 4-step run):
+    its spikes go to the last step, per sample, and the summary says the timing is unknown."""
+    from simlidar.bench.stepped import _NeuronSpikes
+
+    class Neuron(torch.nn.Module):
+        spiking_neuron = True
+
+        def forward(self, x):
+            return x
+
+    class Net(torch.nn.Module):
+        def __init__(self):
+            super().__init__()
+            self.lif = Neuron()
+
+        def forward(self, x):
+            return self.lif(x), self.lif(2 * x)
+
+    net = Net()
+    hooks = _NeuronSpikes(net, steps=4)
+    net(torch.tensor([[1.0, 0.0], [0.0, 0.0], [1.0, 1.0]]))  # 3 samples, 2 neurons
+    counts, stepwise = hooks.by_step(batch=3)
+    hooks.remove()
+    assert not stepwise
+    assert counts[:3].abs().sum() == 0 and counts[3].tolist() == [3.0, 0.0, 6.0]
