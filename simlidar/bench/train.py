@@ -66,7 +66,6 @@ class TrainResult:
     spec: ModelSpec = field(default_factory=ModelSpec)  # what the model declared (protocol)
     silent_from: float = 1.0  # the data's no-return threshold its inputs were encoded with
     device: str = "cpu"  # where it trained
-    own_fit: bool = False  # trained by its own simlidar_fit, not simlidar's loop
 
     def selection(self) -> dict:
         """What a benchmark cell records about the selection (docs/benchmark.md)."""
@@ -240,15 +239,18 @@ def _first_tensor(out) -> torch.Tensor:
     return out[0] if isinstance(out, tuple | list) else out
 
 
-def check_output(model, spec: ModelSpec, x: torch.Tensor, classes: int, where: str) -> None:
-    """Run the model on two samples and refuse, in one line naming ``where``, an output of the
-    wrong kind or shape for what it declares (before any training)."""
+def check_output(
+    model, spec: ModelSpec, x: torch.Tensor, classes: int, where: str, silent_from: float = 1.0
+) -> None:
+    """Run the model on two samples of ``x`` (N, 1, H, W) delays, encoded with the data's
+    no-return threshold ``silent_from``, and refuse, in one line naming ``where``, an output of
+    the wrong kind or shape for what it declares (before any training)."""
     device = next(iter(model.parameters()), torch.empty(0)).device
     was_training = model.training
     model.eval()
     try:
         with torch.no_grad():
-            out = model(encode(x[:2].to(device), spec, getattr(model, "silent_from", 1.0)))
+            out = model(encode(x[:2].to(device), spec, silent_from))
     except Exception as exc:
         raise ConfigError(
             f"{where}: the model's forward on a batch of 2 {spec.encoding} inputs raised "
@@ -325,7 +327,6 @@ def train(
     x_all = x_all[:, None]  # (N, 1, H, W)
     x_train, y_train = x_all[rows], y_all[rows]
     x_val, y_val = x_all[held], y_all[held]
-    parts = (x_train, y_train, x_val, y_val)
     patience = training.patience
     annealed = selection_rule(training) == ANNEALED
     generator = torch.Generator().manual_seed(seed)
@@ -336,9 +337,11 @@ def train(
         model.silent_from = silent_from
     device = torch.device(device)
     model.to(device)
-    check_output(model, spec, x_train, classes, f"{where}: builder {recipe['model']!r}")
+    builder = f"{where}: builder {recipe['model']!r}"
+    check_output(model, spec, x_train, classes, builder, silent_from)
     if hasattr(model, "simlidar_fit"):
-        return _own_fit(model, recipe, spec, dataset, seed, training, generator, device, parts)
+        parts = (x_train, y_train, x_val, y_val, silent_from)
+        return _own_fit(model, recipe, spec, dataset, training, generator, device, parts)
     fresh_noise = None
     if training.noise_augment:
         fresh_noise = _fresh_noise(dataset, attrs, seed, rows)
@@ -422,12 +425,14 @@ def _score_test(model, dataset, spec: ModelSpec, silent_from: float):
     return predicted, (predicted == y_test).float().mean().item()
 
 
-def _own_fit(model, recipe, spec, dataset, seed, training, generator, device, parts):
+OWN_FIT = "own-fit/v1"  # the selection rule of a model that trains itself (simlidar_fit)
+
+
+def _own_fit(model, recipe, spec, dataset, training, generator, device, parts):
     """A model with its own ``simlidar_fit``: it trains itself on the encoded train rows (and
     may watch the validation rows); simlidar scores the validation rows (recorded) and reads
-    the test split once."""
-    x_train, y_train, x_val, y_val = parts
-    silent_from = getattr(model, "silent_from", 1.0)
+    the test split once. ``parts``: (x_train, y_train, x_val, y_val, silent_from)."""
+    x_train, y_train, x_val, y_val, silent_from = parts
     start = time.perf_counter()
     model.train()
     model.simlidar_fit(
@@ -454,12 +459,11 @@ def _own_fit(model, recipe, spec, dataset, seed, training, generator, device, pa
         "own-fit",
         len(y_val),
         predicted.numpy(),
-        "the-model's-own-fit/v1",
+        OWN_FIT,
         1,
         spec,
         silent_from,
         str(device),
-        own_fit=True,
     )
 
 

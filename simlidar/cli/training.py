@@ -75,6 +75,11 @@ def _chosen(result) -> str:
     """Which epoch a ``simlidar train`` run kept, and why it stopped, in words."""
     from simlidar.bench.train import ANNEALED
 
+    if result.stopped == "own-fit":
+        return (
+            f"trained by its own simlidar_fit (validation accuracy of {result.validation_size} "
+            "held-out samples recorded)"
+        )
     why = {
         "plateau": "stopped on a validation plateau",
         "epochs": "ran every epoch",

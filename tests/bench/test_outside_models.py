@@ -347,3 +347,21 @@ def test_neuron_spikes_of_unknown_timing_are_counted_per_sample_over_the_window(
     hooks.remove()
     assert not stepwise
     assert counts[:3].abs().sum() == 0 and counts[3].tolist() == [3.0, 0.0, 6.0]
+
+
+def test_train_prints_a_model_that_trained_itself(plain_module, datasets, tmp_path):
+    result = CliRunner().invoke(
+        main,
+        [
+            "train",
+            "--model",
+            "outside_plain:fitted",
+            "--dataset",
+            str(datasets[0.1]),
+            "--out",
+            str(tmp_path / "runs"),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert "outside_plain.fitted: test accuracy" in result.output
+    assert "trained by its own simlidar_fit" in result.output
