@@ -2,7 +2,8 @@
 a whole split: its decision step by its declared readout (:func:`simlidar.models.protocol.
 readout`), the input spikes delivered up to that step, and the spikes of its neurons.
 
-A stepped network is given spike trains over T steps and returns output spikes over T steps.
+A stepped network is given spike trains over T steps (or the same spikes as events) and returns
+output spikes over T steps.
 Its neurons' spikes are counted through forward hooks on its spiking neuron modules
 (:func:`simlidar.bench.metrics.is_spiking_neuron`): a module called once a step gives its
 spikes step by step (its k-th call of a forward pass is step k); a module called once with a
@@ -16,7 +17,14 @@ import torch
 
 from simlidar.bench.metrics import is_spiking_neuron
 from simlidar.models.decisions import ALPHAS_PJ
-from simlidar.models.protocol import FIRST_SPIKE, ModelSpec, encode, readout, split_output
+from simlidar.models.protocol import (
+    FIRST_SPIKE,
+    ModelSpec,
+    arrivals,
+    encode,
+    readout,
+    split_output,
+)
 
 BATCH = 256  # samples run at once
 
@@ -96,14 +104,14 @@ def stepped_decisions(
     try:
         with torch.no_grad():
             for start in range(0, len(x), BATCH):
-                enc = encode(x[start : start + BATCH].to(device), spec, silent_from)
-                batch = enc.shape[1]
-                out = model(enc)
+                delays = x[start : start + BATCH].to(device)
+                batch = len(delays)
+                out = model(encode(delays, spec, silent_from))
                 label, step = readout(out, spec)
                 label, step = label.cpu(), step.cpu()
                 fired, known = hooks.by_step(batch)
                 stepwise &= known
-                arrived = enc.reshape(spec.steps, batch, -1).sum(2).double().cpu().cumsum(0)
+                arrived = arrivals(delays, spec.steps, silent_from).double().cpu()
                 at = torch.where(step >= 0, step, spec.steps - 1)
                 rows = torch.arange(batch)
                 consumed.append(arrived[at, rows])

@@ -261,14 +261,18 @@ def check_output(
     n = len(x[:2])
     if spec.output == STEPPED_SPIKES:
         spikes, membrane = split_output(out, spec)
-        shapes = [t.shape if isinstance(t, torch.Tensor) else None for t in (spikes, membrane)]
+        shapes = [
+            tuple(t.shape) if isinstance(t, torch.Tensor) else None for t in (spikes, membrane)
+        ]
         good = (
             shapes[0] is not None
-            and len(shapes[0]) == 3
-            and tuple(shapes[0][1:]) == (n, classes)
+            and shapes[0] == (spec.steps, n, classes)
             and (membrane is None or shapes[1] == shapes[0])
         )
-        expected = f"output spikes (T, {n}, {classes}), or a tuple (spikes, membrane) of those"
+        expected = (
+            f"output spikes ({spec.steps} steps, {n}, {classes}), or a tuple (spikes, membrane) "
+            "of those"
+        )
         got = shapes if membrane is not None else shapes[0]
     else:
         good = isinstance(out, torch.Tensor) and tuple(out.shape) == (n, classes)

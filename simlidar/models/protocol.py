@@ -17,7 +17,12 @@ network written for another library can be entered without touching its code.
       "latency"            (T, B, 1, H, W) binary spike trains: each pixel spikes once, at step
                            min(floor(delay * T), T - 1), the earliest step for the smallest
                            delay; a pixel the profile reads as no return does not spike
-    steps     T of the "latency" encoding
+      "events"             (B, H * W, 4) the same spikes as address events in Tonic's ordering
+                           (x column, y row, t step, p polarity 0), each sample's sorted by t
+                           (then row-major pixel order), padded to H * W rows (one pulse a
+                           pixel at most) with rows of -1; :func:`tonic_events` gives each
+                           sample as a Tonic event array
+    steps     T of the "latency" and "events" encodings
     readout   how a "stepped_spikes" network's decision is read (:func:`readout`)
       "first_spike"        the first step at which any output neuron spikes decides: the
                            class is that neuron; ties (several neurons spike at that step) go to
@@ -45,7 +50,8 @@ from simlidar.errors import ConfigError
 from simlidar.settings import Choice, Range, check, setting
 
 LOGITS, FIRST_SPIKE_TIMES, STEPPED_SPIKES = "logits", "first_spike_times", "stepped_spikes"
-DELAYS, LATENCY = "delays", "latency"
+DELAYS, LATENCY, EVENTS = "delays", "latency", "events"
+PADDING = -1  # every column of an "events" row that is no event
 FIRST_SPIKE, SPIKE_COUNT, MEMBRANE = "first_spike", "spike_count", "membrane"
 MAX_STEPS = 100_000
 
@@ -55,9 +61,13 @@ class ModelSpec:
     output: str = setting(
         LOGITS, "What forward returns.", Choice((LOGITS, FIRST_SPIKE_TIMES, STEPPED_SPIKES))
     )
-    encoding: str = setting(DELAYS, "The input forward is given.", Choice((DELAYS, LATENCY)))
+    encoding: str = setting(
+        DELAYS, "The input forward is given.", Choice((DELAYS, LATENCY, EVENTS))
+    )
     steps: int = setting(
-        0, "Time steps of the latency encoding.", Range(0, MAX_STEPS, "an integer")
+        0,
+        "Time steps of the latency and events encodings.",
+        Range(0, MAX_STEPS, "an integer"),
     )
     readout: str = setting(
         FIRST_SPIKE,
@@ -67,9 +77,16 @@ class ModelSpec:
 
     def __post_init__(self):
         check(self)
-        if self.encoding == LATENCY and self.steps < 1:
+        if self.output == STEPPED_SPIKES and self.encoding == DELAYS:
             raise ConfigError(
-                f"steps={self.steps}: expected at least 1 time step for the latency encoding"
+                f"encoding={self.encoding!r} with output {self.output!r}: expected "
+                f"{LATENCY!r} or {EVENTS!r} (a decision step is read against the input spikes "
+                "delivered by then)"
+            )
+        if self.encoding in (LATENCY, EVENTS) and self.steps < 1:
+            raise ConfigError(
+                f"steps={self.steps}: expected at least 1 time step for the {self.encoding} "
+                "encoding"
             )
 
     @property
@@ -113,12 +130,71 @@ def encode(delays, spec: ModelSpec, silent_from: float):
         return delays
     import torch
 
-    steps = spec.steps
-    step = torch.clamp((delays * steps).floor().long(), 0, steps - 1)  # (B, 1, H, W)
-    spikes = torch.zeros((steps, *delays.shape), dtype=delays.dtype, device=delays.device)
-    fires = delays < silent_from
+    step, fires = _steps(delays, spec.steps, silent_from)
+    if spec.encoding == EVENTS:
+        return _events(step, fires, delays.shape[-1], delays.dtype)
+    spikes = torch.zeros((spec.steps, *delays.shape), dtype=delays.dtype, device=delays.device)
     spikes.scatter_(0, step[None], fires[None].to(delays.dtype))
     return spikes
+
+
+def arrivals(delays, steps: int, silent_from: float):
+    """Input spikes of each sample arrived by the end of each step, (T, B) int64: what the
+    "latency" and "events" encodings deliver up to a step."""
+    import torch
+
+    step, fires = _steps(delays, steps, silent_from)
+    step = step.reshape(len(delays), -1)
+    per_step = torch.zeros((len(delays), steps), dtype=torch.int64, device=delays.device)
+    per_step.scatter_add_(1, step, fires.reshape(len(delays), -1).to(torch.int64))
+    return per_step.cumsum(1).T
+
+
+def _steps(delays, steps: int, silent_from: float):
+    """(each pixel's spike step, whether it spikes), both shaped as ``delays``."""
+    import torch
+
+    step = torch.clamp((delays * steps).floor().long(), 0, steps - 1)
+    return step, delays < silent_from
+
+
+def _events(step, fires, width: int, dtype):
+    """The "events" encoding of spike steps and spiking pixels (B, 1, H, W)."""
+    import torch
+
+    batch = len(step)
+    step, fires = step.reshape(batch, -1), fires.reshape(batch, -1)
+    key = torch.where(fires, step, step.max() + 1 if step.numel() else 0)
+    order = torch.sort(key, dim=1, stable=True).indices  # by step, then pixel index
+    pixel = order.to(dtype)
+    rows = torch.stack(
+        [
+            pixel % width,
+            torch.div(pixel, width, rounding_mode="floor"),
+            step.gather(1, order).to(dtype),
+            torch.zeros_like(pixel),
+        ],
+        dim=2,
+    )
+    return torch.where(fires.gather(1, order)[..., None], rows, torch.full_like(rows, PADDING))
+
+
+def tonic_events(events) -> list:
+    """Each sample of an "events" batch (B, E, 4) as a Tonic event array
+    (:data:`simlidar.dataset.loaders.EVENT_DTYPE`: x, y, t in steps, p), padding dropped."""
+    import numpy as np
+
+    from simlidar.dataset.loaders import EVENT_DTYPE
+
+    rows = events.detach().cpu().numpy().astype(np.int64)
+    samples = []
+    for sample in rows:
+        sample = sample[sample[:, 3] != PADDING]
+        out = np.zeros(len(sample), EVENT_DTYPE)
+        for i, name in enumerate(EVENT_DTYPE.names):
+            out[name] = sample[:, i]
+        samples.append(out)
+    return samples
 
 
 def split_output(out, spec: ModelSpec):

@@ -321,6 +321,121 @@ def test_the_python_api_writes_the_cells_bench_writes(tmp_path, datasets):
         bench_model(tiny_mlp, datasets[0.1], out=tmp_path / "x", budget={"lr": 1.0})
 
 
+STEPPED = """
+import torch
+from torch import nn
+
+
+class Spike(torch.autograd.Function):  # a spike above 1, a fast-sigmoid surrogate gradient
+    @staticmethod
+    def forward(ctx, v):
+        ctx.save_for_backward(v)
+        return (v > 1).float()
+
+    @staticmethod
+    def backward(ctx, grad):
+        (v,) = ctx.saved_tensors
+        return grad / (1 + (v - 1).abs()) ** 2
+
+
+class Fire(nn.Module):
+    spiking_neuron = True  # counted as a neuron module
+
+    def forward(self, v):
+        return Spike.apply(v)
+
+
+class Net(nn.Module):  # reads latency spike trains or the same spikes as events
+    def __init__(self, shape, classes, generator, steps):
+        super().__init__()
+        self.shape, self.steps = shape, steps
+        self.fc = nn.Linear(shape[0] * shape[1], classes)
+        nn.init.normal_(self.fc.weight, 0, 0.5, generator=generator)
+        nn.init.zeros_(self.fc.bias)
+        self.fire = Fire()
+
+    def frames(self, events):  # (B, E, 4) events -> (T, B, H * W) spikes
+        steps = self.steps
+        real = events[..., 3] >= 0
+        batch = torch.arange(len(events))[:, None].expand(real.shape)[real]
+        pixel = (events[..., 1] * self.shape[1] + events[..., 0])[real].long()
+        out = torch.zeros(steps, len(events), self.shape[0] * self.shape[1])
+        out[events[..., 2][real].long(), batch, pixel] = 1.0
+        return out
+
+    def forward(self, x):
+        x = self.frames(x) if x.dim() == 3 else x.flatten(2)
+        v, spikes = 0.0, []
+        for step in x:
+            v = 0.8 * v + self.fc(step)
+            spikes.append(self.fire(v))
+            v = v * (1 - spikes[-1])
+        return torch.stack(spikes)
+
+
+def build(input_shape, classes, generator=None, steps=1):
+    return Net(input_shape[1:], classes, generator, steps)
+"""
+
+
+def test_an_events_model_decides_as_its_latency_twin(tmp_path, datasets):
+    """One network declared on the "events" encoding and on "latency": the same spikes, so the
+    same weights, test predictions and decision figures."""
+    (tmp_path / "stepped.py").write_text(STEPPED)
+    recipes = []
+    for encoding in ("latency", "events"):
+        recipe = tmp_path / f"{encoding}.toml"
+        recipe.write_text(
+            'model = "stepped.py:build"\n[architecture]\nsteps = 6\n'
+            '[spec]\noutput = "stepped_spikes"\n'
+            f'encoding = "{encoding}"\nsteps = 6\nreadout = "first_spike"\n'
+            '[training]\noptimizer = "adam"\nlr = 1e-2\nbatch_size = 32\nepochs = 2\n'
+        )
+        recipes.append(str(recipe))
+    out = tmp_path / "b"
+    result = _bench(
+        "--suite", _suite(tmp_path, datasets), "--models", ",".join(recipes), "--out", out, "--json"
+    )
+    assert result.exit_code == 0, result.output
+    cells = {c["spec"]["encoding"]: c for c in json.loads(result.stdout)["cells"]}
+    latency, events = cells["latency"], cells["events"]
+    assert latency["kind"] == events["kind"] == "spiking"
+    files = {
+        c["spec"]["encoding"]: c
+        for c in map(json.loads, map(Path.read_text, sorted((out / "cells").glob("*.json"))))
+    }
+    assert files["events"]["per_sample"] == files["latency"]["per_sample"]
+    assert events["stepped"] == latency["stepped"]
+    assert latency["stepped"]["samples"] == 64 and latency["stepped"]["decision_step_mean"]
+    assert events["accuracy"] == latency["accuracy"]
+    # the events model's layer is given frames it made itself: binary, accumulates
+    assert events["synaptic_operations"] == latency["synaptic_operations"]
+    assert events["synaptic_operations"]["effective_macs"] == 0
+
+
+@pytest.mark.parametrize(
+    "spec, words",
+    [
+        ('encoding = "events"\nsteps = 5', r"is \(6, 2, 32\); expected output spikes \(5 steps, 2"),
+        ('encoding = "delays"', "encoding='delays' with output 'stepped_spikes': expected"),
+    ],
+)
+def test_a_stepped_model_that_disagrees_with_its_spec_is_one_line(tmp_path, datasets, spec, words):
+    (tmp_path / "stepped.py").write_text(STEPPED)
+    recipe = tmp_path / "wrong.toml"
+    recipe.write_text(
+        'model = "stepped.py:build"\n[architecture]\nsteps = 6\n'
+        f'[spec]\noutput = "stepped_spikes"\n{spec}\n'
+        '[training]\noptimizer = "adam"\nlr = 1e-2\nbatch_size = 32\nepochs = 1\n'
+    )
+    out = tmp_path / "b"
+    result = _bench("--suite", _suite(tmp_path, datasets), "--models", recipe, "--out", out)
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    (line,) = [line for line in result.output.splitlines() if "rror" in line]
+    assert "wrong" in line and __import__("re").search(words, line), result.output
+    assert not (out / "cells").exists() or not list((out / "cells").iterdir())
+
+
 def test_neuron_spikes_of_unknown_timing_are_counted_per_sample_over_the_window():
     """A neuron module called a number of times other than T (here twice in a 4-step run):
     its spikes go to the last step, per sample, and the summary says the timing is unknown."""

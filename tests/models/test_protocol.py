@@ -5,7 +5,15 @@ import pytest
 import torch
 
 from simlidar.errors import ConfigError
-from simlidar.models.protocol import ModelSpec, class_scores, encode, readout, spec_of
+from simlidar.models.protocol import (
+    ModelSpec,
+    arrivals,
+    class_scores,
+    encode,
+    readout,
+    spec_of,
+    tonic_events,
+)
 
 STEPPED = dict(output="stepped_spikes", encoding="latency", steps=4)
 
@@ -30,6 +38,58 @@ def test_latency_encoding_by_hand():
     paper = encode(delays, spec, silent_from=float("inf"))  # every pixel spikes
     assert paper.sum() == 6 and paper[3, 0, 0, 0, 5] == 1  # 1.0 on the last step
     assert encode(delays, ModelSpec(), 1.0) is delays  # "delays": the file's delays as they are
+
+
+def test_events_encoding_by_hand():
+    """The latency spikes as Tonic-ordered events: sorted by step, then pixel (row-major);
+    a pixel that does not spike is a padding row of -1 at the end."""
+    delays = torch.tensor([[0.6, 1.0, 0.1], [0.0, 0.3, 0.6]]).reshape(1, 1, 2, 3)
+    spec = ModelSpec(output="stepped_spikes", encoding="events", steps=4)
+    events = encode(delays, spec, silent_from=1.0)
+    assert events.shape == (1, 6, 4) and events.dtype == delays.dtype
+    assert events[0].tolist() == [
+        [2, 0, 0, 0],  # x column, y row, t step, p
+        [0, 1, 0, 0],  # same step 0: pixel 2 before pixel 3
+        [1, 1, 1, 0],
+        [0, 0, 2, 0],
+        [2, 1, 2, 0],
+        [-1, -1, -1, -1],  # the missing return (1.0) is no event
+    ]
+    (sample,) = tonic_events(events)
+    assert sample.dtype.names == ("x", "y", "t", "p") and len(sample) == 5
+    assert sample["t"].tolist() == [0, 0, 1, 2, 2] and not sample["p"].any()
+    assert arrivals(delays, 4, 1.0)[:, 0].tolist() == [2, 3, 5, 5]
+
+
+def test_events_are_the_latency_spikes_by_tonics_frames():
+    """tonic's ToFrame with one-step bins over the T steps makes, of each sample's events, its
+    latency encoding; the arrivals are its running sums."""
+    T = pytest.importorskip("tonic.transforms")
+    gen = torch.Generator().manual_seed(0)
+    delays = torch.rand(5, 1, 4, 6, generator=gen) * 1.1  # some at or past the no-return 1.0
+    for steps, silent_from in [(7, 1.0), (3, float("inf")), (1, 1.0)]:
+        latency = encode(delays, ModelSpec(encoding="latency", steps=steps), silent_from)
+        events = encode(delays, ModelSpec(encoding="events", steps=steps), silent_from)
+        to_frame = T.ToFrame(
+            sensor_size=(6, 4, 1),
+            time_window=1,
+            start_time=0,
+            end_time=steps,
+            include_incomplete=True,
+        )
+        for b, sample in enumerate(tonic_events(events)):
+            frames = to_frame(sample)  # (T, 1 polarity, H, W)
+            assert frames.shape == (steps, 1, 4, 6)
+            assert torch.equal(torch.from_numpy(frames).float(), latency[:, b])
+        counted = latency.reshape(steps, 5, -1).sum(2).cumsum(0)
+        assert torch.equal(arrivals(delays, steps, silent_from), counted.long())
+
+
+def test_a_stepped_output_needs_a_stepped_encoding():
+    with pytest.raises(ConfigError, match=r"encoding='delays' with output 'stepped_spikes': exp"):
+        ModelSpec(output="stepped_spikes")
+    with pytest.raises(ConfigError, match=r"steps=0: expected at least 1 time step for the events"):
+        ModelSpec(encoding="events")
 
 
 def test_first_spike_readout_ties_go_to_the_membrane_then_the_lowest_index():
