@@ -44,10 +44,13 @@ def _cell(
     path: str,
     training: dict | None = None,
     epochs: int | None = None,
+    architecture: dict | None = None,
 ) -> str:
     """Train one cell in a worker process; write its JSON atomically; return the path.
 
     training : [training] keys to set on top of the recipe's (benchmark/early_tradeoff.py)
+    architecture : [architecture] keys to set on top of the recipe's (an encoding's
+        ``direction``: benchmark/early_objectives.py); recorded when given
     """
     import torch
 
@@ -59,6 +62,7 @@ def _cell(
     recipe = load_recipe(recipe_name)
     recipe["training"]["validation"] = 0  # the paper's protocol: all 3000, the last epoch
     recipe["training"].update(training or {})
+    recipe["architecture"].update(architecture or {})
     # epochs decide, never the recipe's time cap: a figure must not depend on machine load
     result = train(
         recipe, dataset, seed=seed, epochs=epochs, max_seconds=float("inf"), progress=False
@@ -69,6 +73,7 @@ def _cell(
         "dataset": Path(dataset).name,
         "seed": seed,
         "training": training or {},
+        **({"architecture": architecture} if architecture else {}),
         "test_accuracy": result.test_accuracy,
         "epochs": result.epochs,
         "seconds": result.seconds,

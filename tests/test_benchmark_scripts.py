@@ -122,3 +122,50 @@ def test_sweep_speed_prints_frames_per_second_and_the_ratio(tmp_path):
     assert record["rays_ratio_sweep_over_window"] == pytest.approx(
         record["sweep_rays_per_s"] / record["window_rays_per_s"], rel=0.01
     )
+
+
+def _early_objectives():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "early_objectives", ROOT / "benchmark" / "early_objectives.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_early_objectives_reads_the_bound_and_the_targets_by_hand():
+    """A bound measured at k = 16, 64, 180 (99 % first at 180): a point at 97.5 % with a
+    median of 196 meets the first target (180 + 16) and is within 5 points of the bound read at
+    196 (linear between 180 and the next measured k, marked as read between points); a point at
+    46 % with a median of 40 is 9 points below the bound there (55 %, halfway from k = 16 to
+    64)."""
+    eo = _early_objectives()
+    curve = ([16, 64, 180, 256], [30.0, 80.0, 99.0, 99.8])
+    assert eo.k99(curve) == 180 and eo.k99(([4, 8], [50.0, 98.9])) is None
+    assert eo.bound_at(curve, 64) == (80.0, True)
+    value, measured = eo.bound_at(curve, 40)
+    assert value == pytest.approx(55.0) and not measured  # halfway from 30 to 80
+    cell = lambda seed, acc, spikes: {  # noqa: E731
+        "seed": seed,
+        "test_accuracy": acc,
+        "input_spikes": spikes,
+        "epochs": 30,
+        "early": {"input_spikes_authors_mean": 1.0, "no_decision": 0},
+    }
+    cells = {
+        "far-exp0.1": [cell(0, 0.98, [196] * 5), cell(1, 0.97, [190, 200, 196, 196, 196])],
+        "far-exp1": [cell(0, 0.46, [40] * 4)],
+    }
+    rows = eo.summarise(cells, {"far_first": curve})
+    early, late = rows
+    assert early["accuracy"] == pytest.approx(97.5) and early["median"] == 196
+    assert early["accuracy_std"] == pytest.approx(0.7071, abs=1e-4)
+    assert early["bound"] == pytest.approx(99.0 + 0.8 * 16 / 76) and not early["bound_measured"]
+    assert late["gap"] == pytest.approx(55.0 - 46.0)
+    goals = eo.targets(rows, "far_first")
+    assert goals["median_limit"] == 196
+    assert goals["points_meeting_97_at_limit"] == ["far-exp0.1"]
+    assert goals["points_within_5_of_bound"] == ["far-exp0.1"]
+    assert goals["points_farther_than_5"] == ["far-exp1"]

@@ -15,7 +15,7 @@ import io
 import os
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -364,10 +364,12 @@ def train(
             x_train = fresh_noise()
         order = torch.randperm(len(y_train), generator=generator)
         losses = []
+        # a scheduled early-decision term is off before its epoch
+        now = training if epoch >= training.early_start else replace(training, early_penalty=0.0)
         for i in range(0, len(order), batch):
             rows = order[i : i + batch]
             x = encode(x_train[rows].to(device), spec, silent_from)
-            loss, total = _loss(model, x, y_train[rows].to(device), training, spec)
+            loss, total = _loss(model, x, y_train[rows].to(device), now, spec)
             optimizer.zero_grad()
             total.backward()
             if training.clip_grad_norm:

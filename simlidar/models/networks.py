@@ -93,7 +93,10 @@ class SpikingNet(nn.Module):
             fire = ttfs.target_fire_penalty(spikes[-2].flatten(1), last, y, training.fire_margin)
             total = total + training.fire_penalty * fire
         if training.early_penalty:
-            total = total + training.early_penalty * ttfs.target_time(spikes[-1], y)
+            early = ttfs.early_term(
+                spikes[-1], y, training.early_form, training.early_beta, training.early_margin
+            )
+            total = total + training.early_penalty * early
         return loss, total
 
 

@@ -16,6 +16,9 @@ from simlidar.settings import Choice, Range, check_value, setting
 
 LOGITS = ("z", "time")  # a spiking model's logits: -z (the paper's) or -t = -ln z
 SCHEDULES = ("constant", "cosine")  # cosine: from lr down to 0 over the run's epochs
+# the early-decision term's form (docs/snn.md, "Deciding early"): the correct output's spike
+# time t, exp(t / early_beta) (Goeltz et al. 2021), or S4NN's relative targets
+EARLY_FORMS = ("linear", "exp", "relative")
 NON_NEGATIVE = Range(0, None, "a finite number", finite=True)
 
 
@@ -57,7 +60,28 @@ class TrainingConfig:
         Choice(SCHEDULES),
     )
     early_penalty: float = setting(
-        0.0, "Spiking networks: weight of the target output spike's time.", NON_NEGATIVE
+        0.0, "Spiking networks: weight of the early-decision term.", NON_NEGATIVE
+    )
+    early_form: str = setting(
+        "linear",
+        "Spiking networks: the early-decision term: linear (the correct output's spike time), "
+        "exp (Goeltz et al. 2021: exp(t / early_beta)) or relative (S4NN's targets: the "
+        "correct output at the earliest output's time, the others early_margin later).",
+        Choice(EARLY_FORMS),
+    )
+    early_beta: float = setting(
+        1.0,
+        "Spiking networks: the exp form's time scale, in time constants.",
+        Range(0, None, "a finite number", low_open=True, finite=True),
+    )
+    early_margin: float = setting(
+        0.5, "Spiking networks: the relative form's margin, in time constants.", NON_NEGATIVE
+    )
+    early_start: int = setting(
+        0,
+        "Spiking networks: the epoch (0-based) from which the early-decision term is on (a "
+        "schedule that adds it once accuracy has converged).",
+        Range(0, None, "an integer"),
     )
     noise_augment: bool = setting(
         False, "Draw fresh noise for the training rows every epoch.", Choice((True, False))

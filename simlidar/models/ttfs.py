@@ -414,6 +414,35 @@ def target_time(z_out: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     return torch.log(z[fired]).mean()
 
 
+def early_term(z_out: torch.Tensor, target: torch.Tensor, form: str, beta: float, margin: float):
+    """The early-decision loss term of ``form`` (:data:`simlidar.models.training.EARLY_FORMS`)
+    on output spikes ``z_out`` (B, M) (z domain, inf: none) and labels ``target`` (B,):
+
+    linear    mean spike time t = ln z of the correct output (:func:`target_time`)
+    exp       mean exp(t / beta) of the correct output (Goeltz et al. 2021, their alpha being
+              the term's weight): it grows fast for late outliers and barely moves early ones
+    relative  S4NN's relative targets (Kheradpisheh & Masquelier 2020) as a squared hinge: the
+              correct output's target is the earliest output's time t_min (detached), every
+              other output's target is no earlier than t_min + margin; the mean over samples of
+              (t_correct - t_min)^2 + sum over the others of max(0, t_min + margin - t_j)^2
+    Samples whose correct output is silent add nothing (the firing penalty moves those)."""
+    if form == "linear":
+        return target_time(z_out, target)
+    z = z_out.gather(1, target[:, None]).squeeze(1)
+    fired = torch.isfinite(z)
+    if not fired.any():
+        return z_out.new_zeros(())
+    if form == "exp":
+        return torch.exp(torch.log(z[fired]) / beta).mean()
+    t = torch.log(z_out[fired])  # (F, M), inf for silent outputs
+    y = target[fired]
+    t_min = t.detach().amin(1, keepdim=True)
+    correct = t.gather(1, y[:, None]).squeeze(1) - t_min.squeeze(1)
+    others = torch.relu(t_min + margin - torch.where(torch.isfinite(t), t, t_min + margin))
+    others = others.scatter(1, y[:, None], 0.0)
+    return (correct**2 + (others**2).sum(1)).mean()
+
+
 def output_logits(z_out: torch.Tensor) -> torch.Tensor:
     """Logits -z for a softmax over the output neurons; a silent neuron gets a logit below
     every firing one (no gradient), so it can never win the softmax by being silent."""

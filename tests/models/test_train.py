@@ -171,9 +171,34 @@ def test_the_penalties_enter_the_loss_as_the_recipe_weighs_them():
     assert total.item() == pytest.approx((base + 3.0 * early).item())
 
 
+def test_a_scheduled_early_term_is_off_before_its_epoch(datasets):
+    """early_start past the last epoch trains exactly as no term; from epoch 1 it changes the
+    second epoch, not the first."""
+    recipe = _small_recipe()
+    recipe["training"].update(early_penalty=3.0, early_form="exp", early_beta=2.0)
+    runs = {}
+    for name, extra in [
+        ("off", {"early_penalty": 0.0}),
+        ("late", {"early_start": 5}),
+        ("from1", {"early_start": 1}),
+    ]:
+        r = {**recipe, "training": {**recipe["training"], **extra}}
+        runs[name] = train(r, datasets[0.1], seed=0, epochs=2, progress=False)
+    weights = {k: r.model.state_dict() for k, r in runs.items()}
+    assert all(torch.equal(weights["off"][k], weights["late"][k]) for k in weights["off"])
+    assert runs["from1"].history[0] == {
+        **runs["off"].history[0],
+        "seconds": runs["from1"].history[0]["seconds"],
+    }
+    assert runs["from1"].history[1]["loss"] != runs["off"].history[1]["loss"]
+
+
 @pytest.mark.parametrize(
     ("key", "value", "message"),
     [
+        ("early_form", "quadratic", r"training.early_form': expected one of \['linear', 'exp'"),
+        ("early_beta", 0, r"training.early_beta': expected a finite number > 0, got 0"),
+        ("early_start", -1, r"training.early_start': expected an integer >= 0, got -1"),
         ("lr_schdule", "cosine", r"unknown key 'training.lr_schdule': expected one of \['batch"),
         ("lr_schedule", "step", r"training.lr_schedule': expected one of \['constant', 'cosine'\]"),
         ("fire_penalty", -1.0, r"training.fire_penalty': expected a finite number >= 0, got -1.0"),

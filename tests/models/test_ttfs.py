@@ -151,6 +151,33 @@ def test_target_time_averages_the_correct_outputs_that_fire():
     assert ttfs.target_time(silent, torch.tensor([0, 1])).item() == 0.0
 
 
+def test_the_early_terms_by_hand():
+    """Spike times t = ln z: sample 0 correct (class 0) at 1 before class 1 at 1.2; sample 1
+    correct (class 1) at 2 after class 0 at 0.5, class 2 silent; sample 2's correct is silent."""
+    e = torch.e
+    z = torch.tensor(
+        [[e, e**1.2, e**3], [e**0.5, e**2, torch.inf], [1.0, 1.0, torch.inf]],
+        dtype=torch.float64,
+        requires_grad=True,
+    )
+    y = torch.tensor([0, 1, 2])
+    linear = ttfs.early_term(z, y, "linear", 1.0, 0.5)
+    assert linear.item() == ttfs.target_time(z, y).item() == pytest.approx((1 + 2) / 2)
+    exp = ttfs.early_term(z, y, "exp", 2.0, 0.5)
+    assert exp.item() == pytest.approx((e**0.5 + e**1.0) / 2)  # exp(t / 2)
+    relative = ttfs.early_term(z, y, "relative", 1.0, 0.5)
+    # sample 0: correct is the earliest (0); class 1 at 1.2 is within 1 + 0.5: (0.3)^2; class 2
+    # at 3 is past it. Sample 1: correct 1.5 after the earliest: 1.5^2; class 0 is t_min
+    # itself, 0.5 - 0 short of t_min + 0.5: 0.5^2; silent class 2: nothing
+    assert relative.item() == pytest.approx((0.3**2 + 1.5**2 + 0.5**2) / 2)
+    relative.backward()
+    assert torch.isfinite(z.grad).all() and z.grad[2].abs().sum() == 0
+    assert z.grad[1, 1] > 0 and z.grad[0, 1] < 0  # correct later: pulled in; a rival: pushed out
+    silent = torch.full((2, 2), torch.inf)
+    for form in ("exp", "relative"):
+        assert ttfs.early_term(silent, torch.tensor([0, 1]), form, 1.0, 0.5).item() == 0.0
+
+
 def test_a_row_gets_the_same_spikes_and_gradients_alone_and_in_a_batch():
     # rows with 0, 2, 5 and 8 input spikes: the batch keeps only the first 8 of the time order
     g = torch.Generator().manual_seed(3)
