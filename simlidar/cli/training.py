@@ -16,8 +16,6 @@ from simlidar.errors import ConfigError, SimlidarError
 from simlidar.models.training import TrainingConfig
 from simlidar.settings import help_of
 
-MAX_EPOCHS = 10**6
-
 
 def _override(name: str, **options):
     """An option that overrides the recipe's (or suite's) TrainingConfig value ``name``."""
@@ -29,7 +27,7 @@ def _override(name: str, **options):
 
 _selection_options = [
     _override("validation"),
-    _override("patience", type=IntegerRange(1, MAX_EPOCHS)),
+    _override("patience"),
 ]
 
 
@@ -118,7 +116,7 @@ def _chosen(result) -> str:
     help="Folder for the checkpoint.",
 )
 @click.option("--seed", type=IntegerRange(0, 2**63 - 1), default=0, show_default=True)
-@_override("epochs", type=IntegerRange(1, MAX_EPOCHS))
+@_override("epochs")
 @_override("max_seconds")
 @_selection
 @_hardware
@@ -231,7 +229,7 @@ def train(
     default=None,
     help="Output directory (default: bench/<suite name>).",
 )
-@_override("epochs", type=IntegerRange(1, MAX_EPOCHS))
+@_override("epochs")
 @_override("max_seconds")
 @_selection
 @click.option(

@@ -12,13 +12,14 @@ import math
 from dataclasses import MISSING, dataclass, fields, replace
 
 from simlidar.errors import ConfigError
-from simlidar.settings import Choice, Range, check_value, setting
+from simlidar.settings import Choice, Range, check, check_value, setting
 
 LOGITS = ("z", "time")  # a spiking model's logits: -z (the paper's) or -t = -ln z
 SCHEDULES = ("constant", "cosine")  # cosine: from lr down to 0 over the run's epochs
 # the early-decision term's form (docs/snn.md, "Deciding early"): the correct output's spike
 # time t, exp(t / early_beta) (Goeltz et al. 2021), or S4NN's relative targets
 EARLY_FORMS = ("linear", "exp", "relative")
+MAX_EPOCHS = 10**6  # the most epochs (and patience) a run may ask for
 NON_NEGATIVE = Range(0, None, "a finite number", finite=True)
 
 
@@ -26,7 +27,7 @@ NON_NEGATIVE = Range(0, None, "a finite number", finite=True)
 class TrainingConfig:
     lr: float = setting(help="Learning rate.", rule=Range(0, None, "a number", low_open=True))
     batch_size: int = setting(help="Samples per step.", rule=Range(1, None, "an integer"))
-    epochs: int = setting(help="Epoch cap.", rule=Range(1, None, "an integer"))
+    epochs: int = setting(help="Epoch cap.", rule=Range(1, MAX_EPOCHS, "an integer"))
     optimizer: str = setting("sgd", "Optimiser.", Choice(("sgd", "adam")))
     momentum: float = setting(0.0, "SGD momentum.", NON_NEGATIVE)
     l2: float = setting(0.0, "Weight of the sum of squared parameters in the loss.", NON_NEGATIVE)
@@ -94,8 +95,11 @@ class TrainingConfig:
     patience: int = setting(
         10,
         "Epochs without a better validation score before training stops.",
-        Range(1, None, "an integer", note="(epochs without a better validation score)"),
+        Range(1, MAX_EPOCHS, "an integer", note="(epochs without a better validation score)"),
     )
+
+    def __post_init__(self) -> None:
+        check(self)
 
     @classmethod
     def check_table(cls, table, where: str, prefix: str = "training.") -> None:

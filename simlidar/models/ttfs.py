@@ -388,7 +388,7 @@ def weight_sum_penalty(w: torch.Tensor) -> torch.Tensor:
 
 
 def target_fire_penalty(
-    z_in: torch.Tensor, w: torch.Tensor, target: torch.Tensor, margin: float = 0.1
+    z_in: torch.Tensor, w: torch.Tensor, target: torch.Tensor, margin: float
 ) -> torch.Tensor:
     """mean_b max(0, 1 + margin - sum_{i spiked} w_{i, target_b}): keeps each sample's correct
     output neuron able to fire.

@@ -18,6 +18,7 @@ from click.testing import CliRunner
 from simlidar.bench.train import load_checkpoint, predictions, save_checkpoint, train
 from simlidar.cli import main
 from simlidar.dataset.loaders import load_split
+from simlidar.errors import ConfigError
 from simlidar.models.registry import load_recipe
 from simlidar.models.training import TrainingConfig
 
@@ -171,6 +172,25 @@ def test_the_penalties_enter_the_loss_as_the_recipe_weighs_them():
     assert total.item() == pytest.approx((base + 3.0 * early).item())
 
 
+def test_a_training_config_checks_itself():
+    """Made by hand or changed by over(), not only when read from a recipe."""
+    for bad, words in [
+        (dict(lr=-1, batch_size=60, epochs=3), r"lr=-1: expected a number > 0"),
+        (dict(lr=1e-3, batch_size=0, epochs=3), r"batch_size=0: expected an integer >= 1"),
+        (
+            dict(lr=1e-3, batch_size=60, epochs=0),
+            r"epochs=0: expected an integer in \[1, 1000000\]",
+        ),
+        (dict(lr=1e-3, batch_size=60, epochs=3, optimizer="nope"), r"optimizer='nope': expected"),
+    ]:
+        with pytest.raises(ConfigError, match=words):
+            TrainingConfig(**bad)
+    good = TrainingConfig(lr=1e-3, batch_size=60, epochs=3)
+    with pytest.raises(ConfigError, match=r"patience=-5: expected an integer in \[1, 1000000\]"):
+        good.over(patience=-5)
+    assert good.over(patience=None, epochs=10**6).epochs == 10**6
+
+
 def test_a_scheduled_early_term_is_off_before_its_epoch(datasets):
     """early_start past the last epoch trains exactly as no term; from epoch 1 it changes the
     second epoch, not the first."""
@@ -220,9 +240,13 @@ def test_a_scheduled_early_term_is_off_before_its_epoch(datasets):
             r"training.validation': expected a fraction of the train split in \[0, 1\)",
         ),
         ("validation", "10%", r"training.validation': expected a fraction .*got '10%'"),
-        ("patience", 0, r"training.patience': expected an integer >= 1 .*got 0"),
-        ("patience", 2.5, r"training.patience': expected an integer >= 1 .*got 2.5"),
-        ("patience", True, r"training.patience': expected an integer >= 1 .*got True"),
+        ("patience", 0, r"training.patience': expected an integer in \[1, 1000000\] .*got 0"),
+        ("patience", 2.5, r"training.patience': expected an integer in \[1, 1000000\] .*got 2.5"),
+        (
+            "patience",
+            True,
+            r"training.patience': expected an integer in \[1, 1000000\] .*got True",
+        ),
     ],
 )
 def test_training_keys_are_checked(datasets, key, value, message):

@@ -135,7 +135,7 @@ def test_target_fire_penalty_pushes_a_silent_correct_output_to_fire():
         w -= 2.0 * w.grad
     assert torch.isfinite(ttfs.dense(z, w)[[0, 1], [0, 1]]).all()
     firing = torch.tensor([[1.0, 2.0, torch.inf]])
-    assert ttfs.target_fire_penalty(firing, torch.full((3, 2), 1.0), torch.tensor([0])) == 0
+    assert ttfs.target_fire_penalty(firing, torch.full((3, 2), 1.0), torch.tensor([0]), 0.1) == 0
 
 
 def test_target_time_averages_the_correct_outputs_that_fire():
