@@ -78,8 +78,8 @@ def test_version(run):
     "args, code, words",
     [
         (["generate", "--classes", "5"], 2, "classes=5: expected one of [4, 8, 32]"),
-        (["generate", "--noise", "1.5"], 2, "1.5 is outside [0, 1]"),
-        (["generate", "--noise", "-0.1"], 2, "-0.1 is outside [0, 1]"),
+        (["generate", "--noise", "1.5"], 2, "1.5: expected noise levels, each a level in [0, 1]"),
+        (["generate", "--noise", "-0.1"], 2, "-0.1: expected noise levels, each a level in [0, 1]"),
         (["generate", "--noise", "0.1,abc"], 2, "'abc' is not a number"),
         (["generate", "--noise", "\u0660.\u0665"], 2, "'\u0660.\u0665' is not a number"),
         (["generate", "--seed", "\u0661"], 2, "'\u0661' is not a whole number in ASCII digits"),

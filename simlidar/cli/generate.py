@@ -341,7 +341,7 @@ def profiles(as_json):
 @click.option(
     "--format", "fmt", type=click.Choice(["glb", "ply"]), default="glb", show_default=True
 )
-@click.option("--seed", type=IntegerRange(0, 2**63 - 1), default=0, show_default=True)
+@setting_option(GeneratorConfig, "seed", help="Root of the sampled scenes' random streams.")
 @sensor_option
 def scenes(scenes, export_dir, fmt, seed, sensor):
     """List the scene catalog, or export sampled scenes as mesh files (as --sensor sees them:

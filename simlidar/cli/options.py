@@ -86,7 +86,8 @@ class IntegerRange(click.IntRange):
 
 
 class NoiseLevels(click.ParamType):
-    """A comma-separated list of noise levels in [0, 1], e.g. ``0.1,0.2,0.33,0.5``."""
+    """A comma-separated list of noise levels (each as GeneratorConfig's ``noise`` accepts it),
+    e.g. ``0.1,0.2,0.33,0.5``."""
 
     name = "LEVELS"
 
@@ -101,10 +102,12 @@ class NoiseLevels(click.ParamType):
                 level = float(part)
             except ValueError:
                 self.fail(f"{part!r} is not a number; expected levels like 0.1,0.2", param, ctx)
-            if not 0.0 <= level <= 1.0:
-                self.fail(
-                    f"{level:g} is outside [0, 1]; expected noise levels in [0, 1]", param, ctx
-                )
+            from simlidar.generator.config import GeneratorConfig
+            from simlidar.settings import rule_of
+
+            rule = rule_of(GeneratorConfig, "noise")  # the one rule of a noise level
+            if not rule.accepts(level):
+                self.fail(f"{level:g}: expected noise levels, each {rule.expected()}", param, ctx)
             levels.append(level)
         if len(set(levels)) != len(levels):
             self.fail(f"{value!r} repeats a level; expected distinct levels", param, ctx)

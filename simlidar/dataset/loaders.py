@@ -167,7 +167,7 @@ def delay_unit_ns(attrs: dict) -> float | None:
     return None
 
 
-def sensor_size(width: int, height: int = 16) -> tuple[int, int, int]:
+def sensor_size(width: int, height: int) -> tuple[int, int, int]:
     """Tonic's ``sensor_size`` of a sample: (W columns, H rows, 1 polarity)."""
     return (width, height, 1)
 

@@ -30,7 +30,7 @@ class SplitInfo:
     size: int  # samples in all its files
     width: int
     attrs: dict  # JSON attributes decoded (of the first file; a shard's own are left out)
-    height: int = 16  # rows H of a sample
+    height: int  # rows H of a sample
     files: tuple[Path, ...] = ()  # every file of the split, in sample order (default: path)
     sizes: tuple[int, ...] = ()  # samples in each file
 

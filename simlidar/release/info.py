@@ -77,7 +77,7 @@ def format_info(summary: dict) -> str:
         f"  dataset version {summary['dataset_version']}, simlidar {summary['simlidar_version']}",
         f"  release notes: {summary['release_notes']}",
         f"  {summary['classes']} classes ({summary['class_mode']}), noise {summary['noise']:g}, "
-        f"seed {summary['seed']}, {summary.get('height', 16)} x {summary['width']} pulses",
+        f"seed {summary['seed']}, {summary['height']} x {summary['width']} pulses",
     ]
     if "sensor" in summary:
         sensor = summary["sensor"]

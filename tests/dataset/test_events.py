@@ -61,7 +61,7 @@ def test_events_by_hand():
     # a delay of 1.0 is the last tick: every time lies below window_ticks
     assert window_ticks(6000.0) == 7 and window_ticks(667.13, 1.0) == 668
     assert to_events(np.zeros((1, 1)) + 1.0, 667.13, np.inf, 1.0)["t"].tolist() == [667]
-    assert sensor_size(4) == (4, 16, 1) and sensor_size(118, 50) == (118, 50, 1)
+    assert sensor_size(4, 16) == (4, 16, 1) and sensor_size(118, 50) == (118, 50, 1)
 
 
 @pytest.mark.parametrize(
