@@ -15,6 +15,7 @@ are called some other number of times has its neurons' spikes counted over the w
 import numpy as np
 import torch
 
+from simlidar.bench.early import BATCH
 from simlidar.bench.metrics import is_spiking_neuron
 from simlidar.models.decisions import ALPHAS_PJ
 from simlidar.models.protocol import (
@@ -25,8 +26,6 @@ from simlidar.models.protocol import (
     readout,
     split_output,
 )
-
-BATCH = 256  # samples run at once
 
 
 class _NeuronSpikes:

@@ -49,7 +49,7 @@ def selection_rule(training: TrainingConfig) -> str:
     return ANNEALED if training.lr_schedule == "cosine" else SELECTION
 
 
-@dataclass
+@dataclass(kw_only=True)
 class TrainResult:
     model: torch.nn.Module  # with the weights of ``best_epoch``
     recipe: dict
@@ -406,21 +406,21 @@ def train(
         model.load_state_dict(best_state)
     predicted, accuracy = _score_test(model, dataset, spec, silent_from)
     return TrainResult(
-        model,
-        recipe,
-        accuracy,
-        history[-1]["seconds"],
-        len(history),
-        history,
-        best_epoch,
-        stopped,
-        len(held),
-        predicted.numpy(),
-        selection_rule(training),
-        epochs,
-        spec,
-        silent_from,
-        str(device),
+        model=model,
+        recipe=recipe,
+        test_accuracy=accuracy,
+        seconds=history[-1]["seconds"],
+        epochs=len(history),
+        history=history,
+        best_epoch=best_epoch,
+        stopped=stopped,
+        validation_size=len(held),
+        test_predictions=predicted.numpy(),
+        rule=selection_rule(training),
+        epoch_cap=epochs,
+        spec=spec,
+        silent_from=silent_from,
+        device=str(device),
     )
 
 
@@ -455,21 +455,21 @@ def _own_fit(model, recipe, spec, dataset, training, generator, device, parts):
     record["seconds"] = time.perf_counter() - start
     predicted, accuracy = _score_test(model, dataset, spec, silent_from)
     return TrainResult(
-        model,
-        recipe,
-        accuracy,
-        record["seconds"],
-        1,
-        [record],
-        0,
-        "own-fit",
-        len(y_val),
-        predicted.numpy(),
-        OWN_FIT,
-        1,
-        spec,
-        silent_from,
-        str(device),
+        model=model,
+        recipe=recipe,
+        test_accuracy=accuracy,
+        seconds=record["seconds"],
+        epochs=1,
+        history=[record],
+        best_epoch=0,
+        stopped="own-fit",
+        validation_size=len(y_val),
+        test_predictions=predicted.numpy(),
+        rule=OWN_FIT,
+        epoch_cap=1,
+        spec=spec,
+        silent_from=silent_from,
+        device=str(device),
     )
 
 
