@@ -35,7 +35,7 @@ def main(argv=None) -> int:
     parser.add_argument("--encodings", default="near_first/as_value,far_first/as_value")
     parser.add_argument("--ks", default="4,8,16,32,64,128,180,256")
     parser.add_argument("--seeds", default="0,1,2")
-    parser.add_argument("--hidden", default="512,512", help="the learner's hidden layers")
+    parser.add_argument("--hidden", default="256,256", help="the learner's hidden layers")
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)

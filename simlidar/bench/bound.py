@@ -10,8 +10,8 @@ and selected on a validation split, bounds what any network deciding after k spi
 on this data, as far as the learner is strong enough.
 
 The learner: simlidar's MLP (:func:`simlidar.models.conventional.mlp`, two hidden layers of
-512 by default) trained with Adam on the view, the epoch with the best validation accuracy
-kept (ties: the lower validation loss; the rows of
+256 by default, as in the published runs) trained with Adam on the view, the epoch with the
+best validation accuracy kept (ties: the lower validation loss; the rows of
 :func:`simlidar.bench.train.validation_split`), stopped after ``patience`` epochs without
 improvement. Seeded: one torch.Generator per seed drives the initial weights and the batch
 order. Times are taken with scale 1 (t in [0, 1]); the scale does not change the order.
@@ -32,7 +32,7 @@ KS = (4, 8, 16, 32, 64, 128, 180, 256)  # input spikes arrived; None: each sampl
 
 @dataclass(frozen=True)
 class BoundConfig:
-    hidden: tuple[int, ...] = (512, 512)  # the MLP's hidden layers
+    hidden: tuple[int, ...] = (256, 256)  # the MLP's hidden layers
     lr: float = 1e-3  # Adam's learning rate
     batch_size: int = 128
     max_epochs: int = 100
