@@ -158,13 +158,13 @@ def test_early_objectives_reads_the_bound_and_the_targets_by_hand():
         "far-exp0.1": [cell(0, 0.98, [196] * 5), cell(1, 0.97, [190, 200, 196, 196, 196])],
         "far-exp1": [cell(0, 0.46, [40] * 4)],
     }
-    rows = eo.summarise(cells, {"far_first": curve})
+    rows = eo.summarise(cells, {"far_first/as_value": curve})
     early, late = rows
     assert early["accuracy"] == pytest.approx(97.5) and early["median"] == 196
     assert early["accuracy_std"] == pytest.approx(0.7071, abs=1e-4)
     assert early["bound"] == pytest.approx(99.0 + 0.8 * 16 / 76) and not early["bound_measured"]
     assert late["gap"] == pytest.approx(55.0 - 46.0)
-    goals = eo.targets(rows, "far_first")
+    goals = eo.targets(rows, "far_first/as_value")
     assert goals["median_limit"] == 196
     assert goals["points_meeting_97_at_limit"] == ["far-exp0.1"]
     assert goals["points_within_5_of_bound"] == ["far-exp0.1"]
