@@ -11,6 +11,8 @@ from simlidar.bench.metrics import MAC_PJ
 from simlidar.content import content_dir
 from simlidar.dataset.version import GENERATOR
 from simlidar.models.decisions import ALPHAS_PJ
+from simlidar.models.training import TrainingConfig
+from simlidar.settings import default_of
 
 PAPER_FILE = "reported/wang2020.toml"
 
@@ -455,7 +457,8 @@ def write_report(results: dict, out: Path, sampled: list[dict] | None = None) ->
         "## How the figures are measured",
         "",
         "* accuracy: test split, scored once with the weights of the epoch that did best on "
-        "a validation part held out of the train split (stratified, 10 % by default) under a "
+        "a validation part held out of the train split (stratified, "
+        f"{100 * default_of(TrainingConfig, 'validation'):g} % by default) under a "
         "constant learning rate, of the last epoch under a cosine schedule or without a "
         "validation part (`validation = 0`: the whole train split, a fixed number of epochs, "
         "as the paper trained); a spiking network whose outputs never fire counts as wrong; "

@@ -1,13 +1,14 @@
 """Seeded training of any registered model on a dataset in the simlidar schema.
 
 Model selection (docs/benchmark.md, Training and model selection): a stratified validation
-split is carved out of the train split (``[training] validation``, a fraction, default 0.1;
-seeded by the training seed), the weights of the epoch with the best validation accuracy are
-kept (ties: the lower validation loss), training stops once ``patience`` epochs (default 10)
-brought no improvement, and the test split is read once, at the end. A learning rate schedule
-that anneals to 0 (``cosine``) defines its own end: such a run keeps its last epoch and runs
-every epoch, and the validation split only reports (choosing among the near-equal epochs of an
-annealed run picks the luckiest draw of a small validation split, not a better model).
+split is carved out of the train split (``[training] validation``, a fraction; seeded by the
+training seed), the weights of the epoch with the best validation accuracy are kept (ties: the
+lower validation loss), training stops once ``patience`` epochs brought no improvement (the
+defaults: :class:`~simlidar.models.training.TrainingConfig`), and the test split is read once,
+at the end. A learning rate schedule that anneals to 0 (``cosine``) defines its own end: such
+a run keeps its last epoch and runs every epoch, and the validation split only reports
+(choosing among the near-equal epochs of an annealed run picks the luckiest draw of a small
+validation split, not a better model).
 """
 
 import copy
