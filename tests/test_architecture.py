@@ -1,5 +1,6 @@
 """The package's stages import one way (docs/architecture.md): a module imports only from its
-own stage or the stages below it, including imports made inside functions."""
+own stage or the stages below it, and no modules import each other in a circle, counting
+imports made inside functions."""
 
 import ast
 from pathlib import Path
@@ -52,15 +53,52 @@ def modules() -> dict[str, Path]:
     return found
 
 
-def imported(path: Path) -> set[str]:
-    """Every simlidar module ``path`` imports, at the top or inside a function."""
+def imported(path: Path, known=frozenset()) -> set[str]:
+    """Every simlidar module ``path`` imports, at the top or inside a function; ``from a
+    import b`` counts as ``a.b`` where that is one of the ``known`` modules."""
     names = set()
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.Import):
             names |= {a.name for a in node.names if a.name.startswith("simlidar")}
         elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("simlidar"):
-            names.add(node.module)
+            for alias in node.names:
+                submodule = f"{node.module}.{alias.name}"
+                names.add(submodule if submodule in known else node.module)
     return names
+
+
+def cycles(found: dict[str, Path]) -> list[list[str]]:
+    """The modules of ``found`` (name: path) that import each other in a circle, one sorted
+    list per circle (a strongly connected component of the import graph, Tarjan's
+    algorithm)."""
+    graph = {
+        name: sorted(imported(path, found.keys()) & found.keys()) for name, path in found.items()
+    }
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    circles = []
+
+    def visit(name: str) -> None:
+        index[name] = low[name] = len(index)
+        stack.append(name)
+        for other in graph[name]:
+            if other not in index:
+                visit(other)
+                low[name] = min(low[name], low[other])
+            elif other in stack:
+                low[name] = min(low[name], index[other])
+        if low[name] == index[name]:
+            members = []
+            while not members or members[-1] != name:
+                members.append(stack.pop())
+            if len(members) > 1 or name in graph[name]:
+                circles.append(sorted(members))
+
+    for name in sorted(graph):
+        if name not in index:
+            visit(name)
+    return sorted(circles)
 
 
 def test_every_module_imports_only_its_own_stage_or_the_stages_below():
@@ -77,3 +115,15 @@ def test_the_checker_sees_an_upward_import(tmp_path):
     path = tmp_path / "m.py"
     path.write_text("def f():\n    from simlidar.bench.run import run_suite\n")
     assert stage("simlidar.dataset.reader") < stage(next(iter(imported(path))))
+
+
+def test_no_modules_import_each_other_in_a_circle():
+    assert cycles(modules()) == []
+
+
+def test_the_checker_sees_a_circle(tmp_path):
+    (tmp_path / "a.py").write_text("from simlidar.pkg import b\n")
+    (tmp_path / "b.py").write_text("def f():\n    import simlidar.pkg.a\n")
+    (tmp_path / "c.py").write_text("from simlidar.pkg.a import x\n")  # into the circle, not in it
+    found = {f"simlidar.pkg.{n}": tmp_path / f"{n}.py" for n in "abc"}
+    assert cycles(found) == [["simlidar.pkg.a", "simlidar.pkg.b"]]

@@ -26,8 +26,9 @@ from distributed import Client, LocalCluster
 from simlidar.cli import main
 from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.config import GeneratorConfig
-from simlidar.generator.generate import Shard, generate
+from simlidar.generator.generate import generate
 from simlidar.generator.on_cluster import _cluster_shard
+from simlidar.generator.shard import Shard
 
 
 @pytest.fixture(scope="module")

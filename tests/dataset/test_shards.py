@@ -247,10 +247,10 @@ def test_a_card_count_that_disagrees_is_named(sharded, tmp_path):
 
 
 def test_a_failed_run_leaves_no_shard_behind(catalog, small_config, tmp_path, monkeypatch):
-    import simlidar.generator.generate as gen
+    import simlidar.generator.shard as shard
 
     calls = []
-    real = gen.split_rows
+    real = shard.split_rows
 
     def failing(*args):
         calls.append(1)
@@ -258,7 +258,7 @@ def test_a_failed_run_leaves_no_shard_behind(catalog, small_config, tmp_path, mo
             raise RuntimeError("disk gone")
         return real(*args)
 
-    monkeypatch.setattr(gen, "split_rows", failing)
+    monkeypatch.setattr(shard, "split_rows", failing)
     with pytest.raises(RuntimeError, match="disk gone"):
         generate(
             small_config, [0.1], catalog, tmp_path, batch_size=16, progress=False, shard_samples=40
