@@ -61,6 +61,12 @@ GOOD = (
     [
         (GOOD.replace("variation = 0.5", "variation = 0"), "key 'variation': expected a factor"),
         (GOOD.replace("variation = 0.5", "variation = nan"), "key 'variation'"),
+        # an integer too large for a float (it used to end in OverflowError's traceback)
+        (
+            GOOD.replace("variation = 0.5", f"variation = {10**400}"),
+            "key 'variation': expected a factor in (0, 1], got 1000",
+        ),
+        (GOOD.replace("shift = 0.0", f"shift = {10**400}"), "(401 characters)"),
         (GOOD.replace("shift = 0.0", "shift = 1.0"), "key 'shift': expected a value in [0, 1)"),
         (GOOD.replace("missing_delay = 0.0", "missing_delay = 0.5"), "key 'missing_delay'"),
         (GOOD.replace('noise_on = "all"', 'noise_on = "some"'), "key 'noise_on': expected one"),
