@@ -8,6 +8,7 @@ and no partial file; ``preview.png`` and checkpoints, written through a temporar
 umask 027 too).
 """
 
+import errno
 import fcntl
 import multiprocessing
 import os
@@ -17,7 +18,16 @@ from pathlib import Path
 import pytest
 
 from simlidar import atomic as claim
-from simlidar.atomic import Temporary, building, clean_stale, install
+from simlidar.atomic import (
+    Temporary,
+    building,
+    claim_folder,
+    clean_stale,
+    install,
+    temporary_of,
+    write_file,
+    write_files,
+)
 from simlidar.errors import DatasetError
 
 
@@ -106,6 +116,41 @@ def test_building_cleans_up_on_error_and_refuses_a_late_arrival(tmp_path):
             (out / "ds").mkdir()
             (out / "ds" / "y").write_text("theirs")
     assert [p.name for p in out.iterdir()] == ["ds"] and (out / "ds" / "y").exists()
+
+
+def test_files_written_together_are_all_in_place_or_none(tmp_path):
+    a, b = tmp_path / "x.tar.gz", tmp_path / "x.tar.gz.sha256"
+    b.write_text("old")
+
+    def half(temporaries):
+        temporaries[0].write_text("archive")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    with pytest.raises(DatasetError, match=r"x.tar.gz: cannot write \(No space left on device\)"):
+        write_files([a, b], half)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [b.name] and b.read_text() == "old"
+    written = write_files([a, b], lambda ts: [t.write_text(t.name) for t in ts], mode=0o604)
+    assert written == [a, b] and (a.read_text(), b.read_text()) == (a.name, b.name)
+    assert {p.stat().st_mode & 0o777 for p in written} == {0o604}
+    assert sorted(p.name for p in tmp_path.iterdir()) == [a.name, b.name]  # no temporary
+
+
+def test_a_file_write_killed_midway_is_cleaned_as_a_dead_runs_temporary(tmp_path):
+    def killed(temporary):
+        temporary.write_text("half")
+        os._exit(9)
+
+    process = multiprocessing.get_context("fork").Process(
+        target=write_file, args=(tmp_path / "report.md", killed)
+    )
+    process.start()
+    process.join()
+    assert process.exitcode == 9 and not (tmp_path / "report.md").exists()
+    left = sorted(tmp_path.iterdir())
+    assert [temporary_of(p.name) for p in left] == ["report.md", "report.md"]  # folder, lock
+    with pytest.warns(UserWarning, match="left by a run that did not finish"):
+        claim_folder(tmp_path)
+    assert list(tmp_path.iterdir()) == []
 
 
 def _full_disk_after(monkeypatch, writes: int):

@@ -132,7 +132,6 @@ def test_a_failed_bench_claim_is_undone(tmp_path, monkeypatch, datasets):
     def full(path, data, indent=1):
         calls["n"] += 1
         if calls["n"] == 1:
-            (path.parent / f".{path.name}.partial").write_text("")
             raise OSError(errno.ENOSPC, "No space left on device")
         return original(path, data, indent)
 
@@ -144,8 +143,13 @@ def test_a_failed_bench_claim_is_undone(tmp_path, monkeypatch, datasets):
     assert not out.exists()  # undone
     out.mkdir()
     (out / "cells").mkdir()  # what an older simlidar left behind
+    (out / ".suite.json.partial").write_text("")  # and its fixed-name temporary
+    # a claim killed while writing suite.json: its temporary folder and lock (not held)
+    (out / ".suite.json.partial-k1ll3d").mkdir()
+    (out / ".suite.json.partial-k1ll3d" / "suite.json").write_text("{")
+    (out / ".suite.json.partial-k1ll3d.lock").write_text("")
     run.claim(out, suite)  # the rerun claims it
-    assert (out / "suite.json").is_file()
+    assert sorted(p.name for p in out.iterdir()) == ["cells", "suite.json"]
 
 
 # Every attribute a reader parses, by hand (the test of the rules' table, not a copy of it);
