@@ -172,26 +172,22 @@ def _full_disk_after(monkeypatch, writes: int):
     return calls
 
 
-def test_a_full_disk_stops_generate_at_the_first_error_and_leaves_nothing(tmp_path, monkeypatch):
-    from click.testing import CliRunner
-
-    from simlidar.cli import main
+def test_a_full_disk_stops_generate_at_the_first_error_and_leaves_nothing(
+    tmp_path, monkeypatch, cli
+):
 
     calls = _full_disk_after(monkeypatch, 30)
     out = tmp_path / "out"
-    result = CliRunner().invoke(
-        main,
-        [
-            "generate",
-            "--out",
-            str(out),
-            "--noise",
-            "0.1,0.3",
-            "--train-size",
-            "2048",
-            "--batch-size",
-            "256",
-        ],
+    result = cli(
+        "generate",
+        "--out",
+        str(out),
+        "--noise",
+        "0.1,0.3",
+        "--train-size",
+        "2048",
+        "--batch-size",
+        "256",
     )
     assert result.exit_code == 1
     assert "cannot write (No space left on device)" in result.stderr
@@ -215,7 +211,6 @@ def _file_size_limit(size: int):
 
 
 def test_a_full_disk_while_saving_a_checkpoint_leaves_no_partial_file(tmp_path, datasets):
-    pytest.importorskip("torch")
     from simlidar.bench import train as training
     from simlidar.models.registry import load_recipe
 
@@ -233,7 +228,6 @@ def test_a_full_disk_while_saving_a_checkpoint_leaves_no_partial_file(tmp_path, 
 
 
 def test_outputs_written_through_a_temporary_get_the_mode_of_every_other(tmp_path, datasets):
-    pytest.importorskip("torch")
     from simlidar.bench import train as training
     from simlidar.models.registry import load_recipe
     from simlidar.release.preview import write_preview
@@ -255,20 +249,17 @@ def test_outputs_written_through_a_temporary_get_the_mode_of_every_other(tmp_pat
     assert mode(picture) == mode(checkpoint) == mode(plain) == 0o640
 
 
-def test_train_refuses_an_unwritable_out_before_training(tmp_path, datasets):
-    from click.testing import CliRunner
-
-    from simlidar.cli import main
+def test_train_refuses_an_unwritable_out_before_training(tmp_path, datasets, cli):
 
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     args = ["train", "--model", "mlp", "--dataset", str(datasets[0.1])]
-    result = CliRunner().invoke(main, [*args, "--out", str(blocker / "runs")])
+    result = cli(*args, "--out", str(blocker / "runs"))
     assert result.exit_code == 1 and "cannot write there" in result.stderr
     assert "test accuracy" not in result.output  # no training happened
-    nan = CliRunner().invoke(main, [*args, "--max-seconds", "nan"])
+    nan = cli(*args, "--max-seconds", "nan")
     assert nan.exit_code == 2 and "'nan' is not a number in the range x>=0" in nan.stderr
-    huge = CliRunner().invoke(main, [*args, "--epochs", "99999999999999999999"])
+    huge = cli(*args, "--epochs", "99999999999999999999")
     assert huge.exit_code == 2 and "--epochs" in huge.stderr
 
 
@@ -278,11 +269,8 @@ def _enospc():
     return OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
 
-def test_a_full_disk_leaves_no_empty_preview(tmp_path, monkeypatch, datasets):
-    from click.testing import CliRunner
+def test_a_full_disk_leaves_no_empty_preview(tmp_path, monkeypatch, datasets, cli):
     from matplotlib.figure import Figure
-
-    from simlidar.cli import main
 
     def full(self, fname, **kwargs):
         Path(fname).write_bytes(b"")  # what a full disk leaves: an empty file
@@ -290,16 +278,13 @@ def test_a_full_disk_leaves_no_empty_preview(tmp_path, monkeypatch, datasets):
 
     monkeypatch.setattr(Figure, "savefig", full)
     picture = tmp_path / "grid.png"
-    result = CliRunner().invoke(main, ["preview", str(datasets[0.1]), "--out", str(picture)])
+    result = cli("preview", str(datasets[0.1]), "--out", str(picture))
     assert result.exit_code == 1 and "grid.png: cannot write (No space left" in result.stderr
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_full_disk_leaves_no_exported_scene(tmp_path, monkeypatch):
+def test_a_full_disk_leaves_no_exported_scene(tmp_path, monkeypatch, cli):
     import trimesh
-    from click.testing import CliRunner
-
-    from simlidar.cli import main
 
     calls = {"n": 0}
     original = trimesh.Trimesh.export
@@ -313,6 +298,6 @@ def test_a_full_disk_leaves_no_exported_scene(tmp_path, monkeypatch):
 
     monkeypatch.setattr(trimesh.Trimesh, "export", export)
     out = tmp_path / "meshes"
-    result = CliRunner().invoke(main, ["scenes", "--export", str(out), "--format", "ply"])
+    result = cli("scenes", "--export", str(out), "--format", "ply")
     assert result.exit_code == 1 and "cannot write (No space left on device)" in result.stderr
     assert not out.exists()  # the four written before the failure were removed too

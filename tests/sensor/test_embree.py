@@ -102,16 +102,13 @@ def test_without_the_shared_path_the_cast_falls_back_and_says_so_once(catalog, m
     np.testing.assert_array_equal(got.range_m, expected.range_m)
 
 
-def test_the_version_says_which_ray_casting_path_is_in_use(monkeypatch):
-    from click.testing import CliRunner
+def test_the_version_says_which_ray_casting_path_is_in_use(monkeypatch, cli):
 
-    from simlidar.cli import main
-
-    shared = CliRunner().invoke(main, ["--version"])
+    shared = cli("--version")
     assert shared.exit_code == 0
     assert shared.stdout.splitlines()[1] == f"ray casting: {embree.ray_casting()}"
     monkeypatch.setattr(embree, "_probe", lambda: (None, "embreex's Embree is version 3"))
-    fallback = CliRunner().invoke(main, ["--version"])
+    fallback = cli("--version")
     assert fallback.exit_code == 0
     assert fallback.stdout.splitlines()[1] == (
         "ray casting: embreex's TriangleMesh, a copy a triangle: slower, the same hits "
