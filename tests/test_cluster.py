@@ -90,7 +90,7 @@ def test_a_worker_killed_mid_shard_changes_nothing(cluster, catalog, tmp_path):
                     scheduler=address,
                 )
             )
-        except Exception as exc:  # noqa: BLE001 - reported by the assertion below
+        except Exception as exc:  # reported by the assertion below
             errors.append(exc)
 
     thread = threading.Thread(target=run)

@@ -130,7 +130,7 @@ def _download(url: str, target: Path, timeout: float, progress: bool) -> None:
     from tqdm import tqdm
 
     try:
-        with urllib.request.urlopen(url, timeout=timeout) as response:  # noqa: S310
+        with urllib.request.urlopen(url, timeout=timeout) as response:
             expected = response.headers.get("Content-Length")
             expected = int(expected) if expected is not None else None
             received = 0
@@ -179,7 +179,7 @@ def _download(url: str, target: Path, timeout: float, progress: bool) -> None:
 
 def _sidecar_sha256(url: str, timeout: float) -> str:
     try:
-        with urllib.request.urlopen(url + ".sha256", timeout=timeout) as response:  # noqa: S310
+        with urllib.request.urlopen(url + ".sha256", timeout=timeout) as response:
             text = response.read(4096).decode("ascii", "replace")
     except (urllib.error.URLError, OSError) as exc:
         raise FetchError(
