@@ -41,8 +41,9 @@ from simlidar import __version__  # noqa: E402
 from simlidar.dataset.schema import SHUFFLED, generated_shapes  # noqa: E402
 from simlidar.dataset.writer import SplitWriter  # noqa: E402
 from simlidar.generator.config import GeneratorConfig  # noqa: E402
-from simlidar.generator.generate import generate, generated_split_attrs  # noqa: E402
+from simlidar.generator.generate import generate  # noqa: E402
 from simlidar.generator.pulses import split_rows  # noqa: E402
+from simlidar.generator.shard import generated_split_attrs  # noqa: E402
 from simlidar.generator.simulate import simulate  # noqa: E402
 from simlidar.scene.build import build_batch, place_instances  # noqa: E402
 from simlidar.scene.recipe import load_catalog  # noqa: E402

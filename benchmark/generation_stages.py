@@ -27,7 +27,7 @@ import embreex.rtcore_scene as rtcs  # noqa: E402
 import simlidar.generator.simulate as simulate  # noqa: E402
 import simlidar.sensor.raycast as raycast  # noqa: E402
 from simlidar.dataset.writer import SplitWriter  # noqa: E402
-from simlidar.generator import generate as generate_module  # noqa: E402
+from simlidar.generator import shard as shard_module  # noqa: E402
 from simlidar.generator.config import GeneratorConfig  # noqa: E402
 from simlidar.generator.generate import generate  # noqa: E402
 from simlidar.scene.recipe import load_catalog  # noqa: E402
@@ -74,7 +74,7 @@ def main() -> None:
         raycast.visible_triangles = timed("back-face culling", raycast.visible_triangles)
         raycast.attach_triangles = timed("Embree geometry", raycast.attach_triangles)
         rtcs.EmbreeScene = TimedScene
-        generate_module.split_rows = timed("profile and noise", generate_module.split_rows)
+        shard_module.split_rows = timed("profile and noise", shard_module.split_rows)
         SplitWriter.append = timed("HDF5 writing", SplitWriter.append)
         start = time.perf_counter()
         generate(config, [0.2], catalog, f"{tmp}/timed", progress=False, preview=False)

@@ -19,9 +19,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from simlidar.generator.config import GeneratorConfig  # noqa: E402
-from simlidar.generator.generate import generate  # noqa: E402
-from simlidar.scene.recipe import load_catalog  # noqa: E402
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.generate import generate
+from simlidar.scene.recipe import load_catalog
 
 
 def digest(path: Path) -> str:

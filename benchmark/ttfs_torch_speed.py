@@ -22,9 +22,9 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from ttfs_speed import PAIRS, batch, step_seconds, trainer  # noqa: E402
+from ttfs_speed import PAIRS, batch, step_seconds, trainer
 
-from simlidar.models import ttfs  # noqa: E402
+from simlidar.models import ttfs
 
 TARGET = 20.0  # the torch form's step at most this many times the kernels' on a CPU
 

@@ -12,6 +12,9 @@ dataset that appeared under the final name while this run worked is refused, nev
 ``RENAME_EXCHANGE`` with ``--force``, so the old dataset and the new one swap in one step and
 the old one is then removed under this run's lock. Where ``renameat2`` is unavailable the
 fallback is ``os.rename`` after an existence check (a narrow race, documented).
+
+Files are written the same way (:func:`write_files`, :func:`write_file`): in a locked temporary
+folder beside them, each renamed into place only when every one is complete.
 """
 
 import ctypes
@@ -186,27 +189,50 @@ def new_temporary(folder: Path, prefix: str, suffix: str = "") -> tuple[int, Pat
     raise FileExistsError(errno.EEXIST, "no unused temporary name", str(folder / prefix))
 
 
-def write_file(path: str | Path, write) -> Path:
-    """Write ``path`` through a unique temporary file beside it (``write(temporary)``), renamed
-    into place when complete, with the mode of :func:`new_temporary`. On any error the
-    temporary is removed, so neither a 0-byte nor a half file is left; an OSError (a full
-    disk, a read-only folder) becomes a DatasetError naming ``path`` and the cause."""
-    path = Path(path)
+def write_files(paths: list[str | Path], write, mode: int | None = None) -> list[Path]:
+    """Write the files ``paths`` of one folder all or none: ``write(temporaries)`` writes a
+    temporary of each, of the same name, in a locked temporary folder beside them
+    (:class:`Temporary`; a killed run's is removed by the next :func:`claim_folder` there), and
+    only when it returns are they renamed into place, in order. A full disk while writing
+    leaves none of them; on any error the temporaries are removed, and an OSError becomes a
+    DatasetError naming the first path and the cause. A link at a path is replaced, never
+    written through.
+
+    mode : the files' permission bits; None: what the writer's ``open`` gave (0666 less the
+        umask, as every other output)
+    """
+    paths = [Path(p) for p in paths]
+    folder = paths[0].parent
+    if any(p.parent != folder for p in paths):
+        raise ValueError(f"{[str(p) for p in paths]}: expected files of one folder")
     try:
-        fd, tmp = new_temporary(path.parent, f".{path.name}.", ".partial")
-        os.close(fd)
+        work = Temporary(folder, paths[0].name)
     except OSError as exc:
-        raise DatasetError(f"{path}: cannot write ({exc.strerror or exc})") from None
+        raise DatasetError(f"{paths[0]}: cannot write ({exc.strerror or exc})") from None
     try:
-        write(Path(tmp))
-        os.replace(tmp, path)
+        temporaries = [work.path / p.name for p in paths]
+        write(temporaries)
+        for temporary in temporaries if mode is not None else []:
+            temporary.chmod(mode)
+        for temporary, path in zip(temporaries, paths):
+            os.replace(temporary, path)
     except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
-        raise DatasetError(f"{path}: cannot write ({exc.strerror or exc})") from None
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+        raise DatasetError(f"{paths[0]}: cannot write ({exc.strerror or exc})") from None
+    finally:
+        work.release()
+    return paths
+
+
+def write_file(path: str | Path, write, mode: int | None = None) -> Path:
+    """Write the one file ``path`` through ``write(temporary)``: :func:`write_files`."""
+    return write_files([path], lambda temporaries: write(temporaries[0]), mode)[0]
+
+
+def temporary_of(name: str) -> str | None:
+    """The name whose temporary (its folder or its lock file) the entry ``name`` is, if it is
+    one (``.suite.json.partial-x1y2.lock``: ``suite.json``)."""
+    match = _TEMP.match(name.removesuffix(".lock"))
+    return match["name"] if match else None
 
 
 @contextmanager

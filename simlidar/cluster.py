@@ -49,7 +49,7 @@ def _handshake(distributed, address: str, seconds: float) -> None:
     def run():
         try:
             asyncio.run(probe())
-        except BaseException as exc:  # noqa: BLE001 - handed to the caller below
+        except BaseException as exc:  # handed to the caller below
             failure.append(exc)
 
     thread = threading.Thread(target=run, name="simlidar-scheduler-probe", daemon=True)

@@ -79,5 +79,12 @@ def key_error(where: str, key: str, expected: str, got) -> ConfigError:
 
 
 def finite_number(value) -> bool:
-    """A TOML int or float that is finite (booleans are not numbers here)."""
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    """A TOML int or float that is finite (booleans are not numbers here); an integer too
+    large for a float (``1`` followed by 400 zeros) is not: every user of such a number takes
+    it as a float."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an int beyond 1.8e308
+        return False

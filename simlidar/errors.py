@@ -38,3 +38,9 @@ def shown(value, limit: int = 100) -> str:
     except (ValueError, RecursionError):  # an integer of too many digits, a deep structure
         return "a value too large or too deeply nested to print"
     return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
+
+
+def first_line(exc: BaseException) -> str:
+    """The first line of ``exc``'s message for a one-line error (its type's name when it has
+    none): h5py's and the OS's errors can run to several lines."""
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__

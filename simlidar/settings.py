@@ -12,7 +12,8 @@ checks that involve several fields.
 import math
 from dataclasses import MISSING, dataclass, field, fields
 
-from simlidar.errors import ConfigError
+from simlidar.content import finite_number
+from simlidar.errors import ConfigError, shown
 
 
 @dataclass(frozen=True)
@@ -40,10 +41,11 @@ class Range:
     def accepts(self, value) -> bool:
         if isinstance(value, bool) or not isinstance(value, int | float):
             return False
-        if self.integer and not isinstance(value, int):
-            return False
-        if math.isnan(value) or (self.finite and math.isinf(value)):
-            return False
+        if self.integer:  # any int, compared with the bounds exactly
+            if not isinstance(value, int):
+                return False
+        elif not (finite_number(value) or (not self.finite and value in (-math.inf, math.inf))):
+            return False  # NaN, an infinity where refused, an int too large for a float
         if self.low is not None and (value <= self.low if self.low_open else value < self.low):
             return False
         return self.high is None or (value < self.high if self.high_open else value <= self.high)
@@ -116,7 +118,8 @@ def check_value(cls, name: str, value, say) -> None:
 def check(obj, say=None) -> None:
     """Check every field of the dataclass instance ``obj`` against its rule (in field order).
 
-    say : (name, expected) -> the message; default ``"<name>=<value!r>: expected <expected>"``
+    say : (name, expected) -> the message; default ``"<name>=<value>: expected <expected>"``
+        (the value as :func:`~simlidar.errors.shown` prints it)
     """
     for f in fields(obj):
         value = getattr(obj, f.name)
@@ -124,5 +127,5 @@ def check(obj, say=None) -> None:
             type(obj),
             f.name,
             value,
-            say or (lambda name, expected, v=value: f"{name}={v!r}: expected {expected}"),
+            say or (lambda name, expected, v=value: f"{name}={shown(v)}: expected {expected}"),
         )

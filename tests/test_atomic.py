@@ -8,6 +8,7 @@ and no partial file; ``preview.png`` and checkpoints, written through a temporar
 umask 027 too).
 """
 
+import errno
 import fcntl
 import multiprocessing
 import os
@@ -17,7 +18,16 @@ from pathlib import Path
 import pytest
 
 from simlidar import atomic as claim
-from simlidar.atomic import Temporary, building, clean_stale, install
+from simlidar.atomic import (
+    Temporary,
+    building,
+    claim_folder,
+    clean_stale,
+    install,
+    temporary_of,
+    write_file,
+    write_files,
+)
 from simlidar.errors import DatasetError
 
 
@@ -108,6 +118,41 @@ def test_building_cleans_up_on_error_and_refuses_a_late_arrival(tmp_path):
     assert [p.name for p in out.iterdir()] == ["ds"] and (out / "ds" / "y").exists()
 
 
+def test_files_written_together_are_all_in_place_or_none(tmp_path):
+    a, b = tmp_path / "x.tar.gz", tmp_path / "x.tar.gz.sha256"
+    b.write_text("old")
+
+    def half(temporaries):
+        temporaries[0].write_text("archive")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    with pytest.raises(DatasetError, match=r"x.tar.gz: cannot write \(No space left on device\)"):
+        write_files([a, b], half)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [b.name] and b.read_text() == "old"
+    written = write_files([a, b], lambda ts: [t.write_text(t.name) for t in ts], mode=0o604)
+    assert written == [a, b] and (a.read_text(), b.read_text()) == (a.name, b.name)
+    assert {p.stat().st_mode & 0o777 for p in written} == {0o604}
+    assert sorted(p.name for p in tmp_path.iterdir()) == [a.name, b.name]  # no temporary
+
+
+def test_a_file_write_killed_midway_is_cleaned_as_a_dead_runs_temporary(tmp_path):
+    def killed(temporary):
+        temporary.write_text("half")
+        os._exit(9)
+
+    process = multiprocessing.get_context("fork").Process(
+        target=write_file, args=(tmp_path / "report.md", killed)
+    )
+    process.start()
+    process.join()
+    assert process.exitcode == 9 and not (tmp_path / "report.md").exists()
+    left = sorted(tmp_path.iterdir())
+    assert [temporary_of(p.name) for p in left] == ["report.md", "report.md"]  # folder, lock
+    with pytest.warns(UserWarning, match="left by a run that did not finish"):
+        claim_folder(tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
 def _full_disk_after(monkeypatch, writes: int):
     """Make the n-th HDF5 dataset write fail with ENOSPC, as a full disk does."""
     import errno
@@ -127,26 +172,22 @@ def _full_disk_after(monkeypatch, writes: int):
     return calls
 
 
-def test_a_full_disk_stops_generate_at_the_first_error_and_leaves_nothing(tmp_path, monkeypatch):
-    from click.testing import CliRunner
-
-    from simlidar.cli import main
+def test_a_full_disk_stops_generate_at_the_first_error_and_leaves_nothing(
+    tmp_path, monkeypatch, cli
+):
 
     calls = _full_disk_after(monkeypatch, 30)
     out = tmp_path / "out"
-    result = CliRunner().invoke(
-        main,
-        [
-            "generate",
-            "--out",
-            str(out),
-            "--noise",
-            "0.1,0.3",
-            "--train-size",
-            "2048",
-            "--batch-size",
-            "256",
-        ],
+    result = cli(
+        "generate",
+        "--out",
+        str(out),
+        "--noise",
+        "0.1,0.3",
+        "--train-size",
+        "2048",
+        "--batch-size",
+        "256",
     )
     assert result.exit_code == 1
     assert "cannot write (No space left on device)" in result.stderr
@@ -170,7 +211,6 @@ def _file_size_limit(size: int):
 
 
 def test_a_full_disk_while_saving_a_checkpoint_leaves_no_partial_file(tmp_path, datasets):
-    pytest.importorskip("torch")
     from simlidar.bench import train as training
     from simlidar.models.registry import load_recipe
 
@@ -188,7 +228,6 @@ def test_a_full_disk_while_saving_a_checkpoint_leaves_no_partial_file(tmp_path, 
 
 
 def test_outputs_written_through_a_temporary_get_the_mode_of_every_other(tmp_path, datasets):
-    pytest.importorskip("torch")
     from simlidar.bench import train as training
     from simlidar.models.registry import load_recipe
     from simlidar.release.preview import write_preview
@@ -210,20 +249,17 @@ def test_outputs_written_through_a_temporary_get_the_mode_of_every_other(tmp_pat
     assert mode(picture) == mode(checkpoint) == mode(plain) == 0o640
 
 
-def test_train_refuses_an_unwritable_out_before_training(tmp_path, datasets):
-    from click.testing import CliRunner
-
-    from simlidar.cli import main
+def test_train_refuses_an_unwritable_out_before_training(tmp_path, datasets, cli):
 
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     args = ["train", "--model", "mlp", "--dataset", str(datasets[0.1])]
-    result = CliRunner().invoke(main, [*args, "--out", str(blocker / "runs")])
+    result = cli(*args, "--out", str(blocker / "runs"))
     assert result.exit_code == 1 and "cannot write there" in result.stderr
     assert "test accuracy" not in result.output  # no training happened
-    nan = CliRunner().invoke(main, [*args, "--max-seconds", "nan"])
+    nan = cli(*args, "--max-seconds", "nan")
     assert nan.exit_code == 2 and "'nan' is not a number in the range x>=0" in nan.stderr
-    huge = CliRunner().invoke(main, [*args, "--epochs", "99999999999999999999"])
+    huge = cli(*args, "--epochs", "99999999999999999999")
     assert huge.exit_code == 2 and "--epochs" in huge.stderr
 
 
@@ -233,11 +269,8 @@ def _enospc():
     return OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
 
-def test_a_full_disk_leaves_no_empty_preview(tmp_path, monkeypatch, datasets):
-    from click.testing import CliRunner
+def test_a_full_disk_leaves_no_empty_preview(tmp_path, monkeypatch, datasets, cli):
     from matplotlib.figure import Figure
-
-    from simlidar.cli import main
 
     def full(self, fname, **kwargs):
         Path(fname).write_bytes(b"")  # what a full disk leaves: an empty file
@@ -245,16 +278,13 @@ def test_a_full_disk_leaves_no_empty_preview(tmp_path, monkeypatch, datasets):
 
     monkeypatch.setattr(Figure, "savefig", full)
     picture = tmp_path / "grid.png"
-    result = CliRunner().invoke(main, ["preview", str(datasets[0.1]), "--out", str(picture)])
+    result = cli("preview", str(datasets[0.1]), "--out", str(picture))
     assert result.exit_code == 1 and "grid.png: cannot write (No space left" in result.stderr
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_full_disk_leaves_no_exported_scene(tmp_path, monkeypatch):
+def test_a_full_disk_leaves_no_exported_scene(tmp_path, monkeypatch, cli):
     import trimesh
-    from click.testing import CliRunner
-
-    from simlidar.cli import main
 
     calls = {"n": 0}
     original = trimesh.Trimesh.export
@@ -268,6 +298,6 @@ def test_a_full_disk_leaves_no_exported_scene(tmp_path, monkeypatch):
 
     monkeypatch.setattr(trimesh.Trimesh, "export", export)
     out = tmp_path / "meshes"
-    result = CliRunner().invoke(main, ["scenes", "--export", str(out), "--format", "ply"])
+    result = cli("scenes", "--export", str(out), "--format", "ply")
     assert result.exit_code == 1 and "cannot write (No space left on device)" in result.stderr
     assert not out.exists()  # the four written before the failure were removed too

@@ -16,9 +16,7 @@ import shutil
 import h5py
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from simlidar.cli import main
 from simlidar.dataset.schema import ATTRIBUTES, REQUIRED_ATTRS, SOURCE_ATTRS
 from simlidar.release.checksums import write_sums
 
@@ -89,32 +87,28 @@ CASES = {
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_train_and_bench_refuse_a_broken_dataset_before_training(case, datasets, tmp_path):
+def test_train_and_bench_refuse_a_broken_dataset_before_training(case, datasets, tmp_path, cli):
     corrupt, message = CASES[case]
     broken = tmp_path / "broken"
     shutil.copytree(datasets[0.1], broken)
     corrupt(broken)
-    runner = CliRunner()
-    result = runner.invoke(
-        main, ["train", "--model", "mlp", "--dataset", str(broken), "--out", str(tmp_path / "runs")]
+    result = cli(
+        "train", "--model", "mlp", "--dataset", str(broken), "--out", str(tmp_path / "runs")
     )
     assert result.exit_code == 1, result.output
     assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
     assert "expected a dataset that simlidar verify accepts" in result.stderr
     assert not (tmp_path / "runs").exists()  # refused before anything was trained or written
-    bench = runner.invoke(
-        main,
-        [
-            "bench",
-            "--suite",
-            "quick",
-            "--models",
-            "mlp",
-            "--dataset",
-            str(broken),
-            "--out",
-            str(tmp_path / "bench"),
-        ],
+    bench = cli(
+        "bench",
+        "--suite",
+        "quick",
+        "--models",
+        "mlp",
+        "--dataset",
+        str(broken),
+        "--out",
+        str(tmp_path / "bench"),
     )
     assert bench.exit_code == 1 and message in bench.stderr
     assert not (tmp_path / "bench").exists()
@@ -132,7 +126,6 @@ def test_a_failed_bench_claim_is_undone(tmp_path, monkeypatch, datasets):
     def full(path, data, indent=1):
         calls["n"] += 1
         if calls["n"] == 1:
-            (path.parent / f".{path.name}.partial").write_text("")
             raise OSError(errno.ENOSPC, "No space left on device")
         return original(path, data, indent)
 
@@ -144,8 +137,13 @@ def test_a_failed_bench_claim_is_undone(tmp_path, monkeypatch, datasets):
     assert not out.exists()  # undone
     out.mkdir()
     (out / "cells").mkdir()  # what an older simlidar left behind
+    (out / ".suite.json.partial").write_text("")  # and its fixed-name temporary
+    # a claim killed while writing suite.json: its temporary folder and lock (not held)
+    (out / ".suite.json.partial-k1ll3d").mkdir()
+    (out / ".suite.json.partial-k1ll3d" / "suite.json").write_text("{")
+    (out / ".suite.json.partial-k1ll3d.lock").write_text("")
     run.claim(out, suite)  # the rerun claims it
-    assert (out / "suite.json").is_file()
+    assert sorted(p.name for p in out.iterdir()) == ["cells", "suite.json"]
 
 
 # Every attribute a reader parses, by hand (the test of the rules' table, not a copy of it);
@@ -190,14 +188,13 @@ def _one_line(result, name):
 
 @pytest.mark.parametrize("name", sorted(PARSED))
 def test_every_parsed_attribute_refused_in_one_line_by_every_reading_command(
-    name, datasets, tmp_path
+    name, datasets, tmp_path, cli
 ):
     copy = tmp_path / "d"
     shutil.copytree(datasets[0.1], copy)
     cases = {k: v for k, v in HOSTILE.items() if not (k == "not JSON" and name in TEXT)}
     if name in REQUIRED_ATTRS or name in SOURCE_ATTRS["simlidar-generator"]:
         cases["missing"] = None
-    runner = CliRunner()
     before = sorted(p.name for p in copy.iterdir())
     for number, (case, make) in enumerate(cases.items()):
         with h5py.File(copy / "train.h5", "a") as f:
@@ -206,7 +203,7 @@ def test_every_parsed_attribute_refused_in_one_line_by_every_reading_command(
             if make is not None:
                 f.attrs[name] = make(name)
         write_sums(copy, ["train.h5"])  # the attribute is the only problem
-        result = runner.invoke(main, ["verify", str(copy)])
+        result = cli("verify", str(copy))
         assert "Traceback" not in result.output and result.exit_code == 1, (case, result.output)
         assert isinstance(result.exception, SystemExit), (case, repr(result.exception))
         failed = [line for line in result.stderr.splitlines() if line.startswith("FAILED")]
@@ -218,6 +215,6 @@ def test_every_parsed_attribute_refused_in_one_line_by_every_reading_command(
             ["train", "--model", "mlp", "--dataset", str(copy), "--out", str(tmp_path / "r")],
             ["bench", "--models", "mlp", "--dataset", str(copy), "--out", str(tmp_path / "b")],
         )[: 4 + (number == 0)]:
-            _one_line(runner.invoke(main, command), name)
+            _one_line(cli(*command), name)
         assert sorted(p.name for p in copy.iterdir()) == before, case
         assert not any((tmp_path / n).exists() for n in ("p.png", "r", "b")), case

@@ -9,7 +9,6 @@ import json
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
 
 from simlidar import __version__
 from simlidar.cli import main
@@ -17,16 +16,8 @@ from simlidar.cli import main
 SMALL = ["--train-size", "32", "--test-size", "32"]
 
 
-@pytest.fixture
-def run():
-    def invoke(*args):
-        return CliRunner().invoke(main, [str(a) for a in args])
-
-    return invoke
-
-
-def test_generate_json_then_info_and_preview(run, tmp_path):
-    result = run(
+def test_generate_json_then_info_and_preview(cli, tmp_path):
+    result = cli(
         "generate", *SMALL, "--noise", "0.1,0.33", "--out", tmp_path, "--json", "--batch-size", "20"
     )
     assert result.exit_code == 0, result.output
@@ -37,29 +28,29 @@ def test_generate_json_then_info_and_preview(run, tmp_path):
     assert first["classes"] == 32 and first["splits"] == {"train": 32, "test": 32}
     assert "generate" in result.stderr  # the progress bar goes to stderr
 
-    info = run("info", first["path"], "--json")
+    info = cli("info", first["path"], "--json")
     assert info.exit_code == 0
     assert json.loads(info.stdout)["counts"]["test"]["tunnel/none"] == 1
-    text = run("info", first["path"])
+    text = cli("info", first["path"])
     assert "32 classes (layout x object)" in text.stdout and "tunnel/car" in text.stdout
 
     picture = tmp_path / "grid.png"
-    shown = run("preview", first["path"], "--out", picture)
+    shown = cli("preview", first["path"], "--out", picture)
     assert shown.exit_code == 0 and picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_generate_plain_output_and_classes(run, tmp_path):
-    result = run("generate", *SMALL, "--classes", "8", "--out", tmp_path)
+def test_generate_plain_output_and_classes(cli, tmp_path):
+    result = cli("generate", *SMALL, "--classes", "8", "--out", tmp_path)
     assert result.exit_code == 0, result.output
     assert "simlidar-8c-noise0.2" in result.stdout
     assert (tmp_path / "simlidar-8c-noise0.2-paper-v2.0.0" / "preview.png").is_file()
 
 
-def test_scenes_lists_and_exports(run, tmp_path):
-    listing = run("scenes")
+def test_scenes_lists_and_exports(cli, tmp_path):
+    listing = cli("scenes")
     assert listing.exit_code == 0
     assert "tunnel" in listing.stdout and "pedestrian" in listing.stdout
-    exported = run("scenes", "--export", tmp_path, "--format", "ply")
+    exported = cli("scenes", "--export", tmp_path, "--format", "ply")
     assert exported.exit_code == 0
     files = sorted(p.name for p in tmp_path.iterdir())
     assert len(files) == 32 and "tunnel__car.ply" in files
@@ -70,8 +61,8 @@ def test_scenes_lists_and_exports(run, tmp_path):
     assert len(mesh.faces) > 20
 
 
-def test_version(run):
-    assert __version__ in run("--version").stdout
+def test_version(cli):
+    assert __version__ in cli("--version").stdout
 
 
 @pytest.mark.parametrize(
@@ -107,63 +98,63 @@ def test_version(run):
         (["scenes", "--scenes", "nowhere"], 1, "nowhere: expected a scene catalog folder"),
     ],
 )
-def test_bad_input_gets_one_line_and_an_exit_code(run, tmp_path, monkeypatch, args, code, words):
+def test_bad_input_gets_one_line_and_an_exit_code(cli, tmp_path, monkeypatch, args, code, words):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "afile").write_text("not a folder")
-    result = run(*args)
+    result = cli(*args)
     assert result.exit_code == code, result.output
     assert words in result.stderr
     assert result.exception is None or isinstance(result.exception, SystemExit)  # no traceback
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]  # nothing written
 
 
-def test_an_existing_dataset_needs_force(run, tmp_path):
-    assert run("generate", *SMALL, "--out", tmp_path).exit_code == 0
+def test_an_existing_dataset_needs_force(cli, tmp_path):
+    assert cli("generate", *SMALL, "--out", tmp_path).exit_code == 0
     target = tmp_path / "simlidar-32c-noise0.2-paper-v2.0.0" / "train.h5"
     before = target.read_bytes()
-    again = run("generate", *SMALL, "--out", tmp_path)
+    again = cli("generate", *SMALL, "--out", tmp_path)
     assert again.exit_code == 1
     assert "already exists: pass --force" in again.stderr
     assert target.read_bytes() == before
-    assert run("generate", *SMALL, "--out", tmp_path, "--force").exit_code == 0
+    assert cli("generate", *SMALL, "--out", tmp_path, "--force").exit_code == 0
 
 
-def test_an_unwritable_out_is_named(run, tmp_path):
+def test_an_unwritable_out_is_named(cli, tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    result = run("generate", *SMALL, "--out", blocker / "sub")
+    result = cli("generate", *SMALL, "--out", blocker / "sub")
     assert result.exit_code == 1
     assert "--out" in result.stderr and "cannot create the folder" in result.stderr
 
 
-def test_a_bad_recipe_is_named(run, tmp_path, catalog_copy):
+def test_a_bad_recipe_is_named(cli, tmp_path, catalog_copy):
     recipe = catalog_copy / "objects" / "car.toml"
     recipe.write_text(recipe.read_text().replace('kind = "box"', 'kind = "blob"', 1))
-    result = run("generate", *SMALL, "--scenes", catalog_copy, "--out", tmp_path / "o")
+    result = cli("generate", *SMALL, "--scenes", catalog_copy, "--out", tmp_path / "o")
     assert result.exit_code == 1
     assert "car.toml: primitive[0]: key 'kind'" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "o").exists()
 
 
-def test_preview_wants_a_png_in_an_existing_folder(run, datasets, tmp_path):
-    result = run("preview", datasets[0.1], "--out", tmp_path / "a.jpg")
+def test_preview_wants_a_png_in_an_existing_folder(cli, datasets, tmp_path):
+    result = cli("preview", datasets[0.1], "--out", tmp_path / "a.jpg")
     assert result.exit_code == 2 and "ending in .png" in result.stderr
-    result = run("preview", datasets[0.1], "--out", tmp_path / "no" / "a.png")
+    result = cli("preview", datasets[0.1], "--out", tmp_path / "no" / "a.png")
     assert result.exit_code == 1 and "does not exist" in result.stderr
 
 
-def test_file_system_errors_are_one_line(run, tmp_path, datasets):
+def test_file_system_errors_are_one_line(cli, tmp_path, datasets):
     # /proc refuses new files even to root: the OSError must not become a traceback
-    result = run("preview", datasets[0.1], "--out", "/proc/simlidar-preview.png")
+    result = cli("preview", datasets[0.1], "--out", "/proc/simlidar-preview.png")
     assert result.exit_code == 1
     assert result.stderr.startswith("Error: ") and len(result.stderr.strip().splitlines()) == 1
-    result = run("scenes", "--export", "/proc/simlidar-meshes")
+    result = cli("scenes", "--export", "/proc/simlidar-meshes")
     assert result.exit_code == 1 and "Error: " in result.stderr
 
 
-def test_classes_that_do_not_fit_a_custom_catalog(run, tmp_path, catalog_copy):
-    result = run(
+def test_classes_that_do_not_fit_a_custom_catalog(cli, tmp_path, catalog_copy):
+    result = cli(
         "generate", *SMALL, "--scenes", catalog_copy, "--classes", "36", "--out", tmp_path / "o"
     )
     assert result.exit_code == 2
@@ -171,22 +162,22 @@ def test_classes_that_do_not_fit_a_custom_catalog(run, tmp_path, catalog_copy):
     assert not (tmp_path / "o").exists()
 
 
-def test_an_object_that_is_never_seen_fails_cleanly(run, tmp_path, catalog_copy):
+def test_an_object_that_is_never_seen_fails_cleanly(cli, tmp_path, catalog_copy):
     recipe = catalog_copy / "objects" / "truck.toml"
     recipe.write_text(
         recipe.read_text().replace("distance_m = [8.0, 25.0]", "distance_m = [-25.0, -8.0]")
     )
-    result = run("generate", *SMALL, "--scenes", catalog_copy, "--out", tmp_path / "o")
+    result = cli("generate", *SMALL, "--scenes", catalog_copy, "--out", tmp_path / "o")
     assert result.exit_code == 1
     assert "truck): no draw in 200" in result.stderr
     assert not (tmp_path / "o").exists()  # the folder this run created is gone again
 
 
-def test_shift_moves_every_return_of_a_sample(run, tmp_path):
+def test_shift_moves_every_return_of_a_sample(cli, tmp_path):
     import h5py
     import numpy as np
 
-    result = run("generate", *SMALL, "--shift", "0.05", "--out", tmp_path, "--json")
+    result = cli("generate", *SMALL, "--shift", "0.05", "--out", tmp_path, "--json")
     assert result.exit_code == 0, result.output
     path = json.loads(result.stdout)["datasets"][0]["path"]
     with h5py.File(f"{path}/train.h5") as f:
@@ -203,13 +194,13 @@ def test_shift_moves_every_return_of_a_sample(run, tmp_path):
     assert (clean[lost] == 1.0).all()
 
 
-def test_variation_narrows_the_scenes_and_names_the_dataset(run, tmp_path):
+def test_variation_narrows_the_scenes_and_names_the_dataset(cli, tmp_path):
     import h5py
     import numpy as np
 
     spread = {}
     for variation in ("1", "0.1"):
-        result = run(
+        result = cli(
             "generate",
             "--profile",
             "physical",
@@ -239,7 +230,7 @@ def test_variation_narrows_the_scenes_and_names_the_dataset(run, tmp_path):
     assert "scene variation 0.1" in card.split("---")[1]  # the card's title (pretty_name)
     assert (spread["0.1"] < 0.2 * spread["1"]).all(), spread
     command = card.split("## Regenerate")[1].split("```\n")[1].strip().split()[2:]
-    again = run("generate", *command, "--out", tmp_path / "again")
+    again = cli("generate", *command, "--out", tmp_path / "again")
     assert again.exit_code == 0, again.output
     for name in ("train.h5", "test.h5", "README.md", "SHA256SUMS"):
         assert (tmp_path / "again" / Path(path).name / name).read_bytes() == (
@@ -247,33 +238,33 @@ def test_variation_narrows_the_scenes_and_names_the_dataset(run, tmp_path):
         ).read_bytes(), name
 
 
-def test_debug_shows_the_traceback(run):
-    result = run("--debug", "info", "nowhere")
+def test_debug_shows_the_traceback(cli):
+    result = cli("--debug", "info", "nowhere")
     assert result.exit_code == 1
     assert result.exception is not None and "expected a dataset directory" in str(result.exception)
 
 
-def test_verify_card_and_pack(run, datasets, tmp_path):
+def test_verify_card_and_pack(cli, datasets, tmp_path):
     import shutil
 
     copy = tmp_path / datasets[0.1].name
     shutil.copytree(datasets[0.1], copy)
-    ok = run("verify", copy)
+    ok = cli("verify", copy)
     assert ok.exit_code == 0 and "OK (dataset version 1.0.0, train 96, test 64" in ok.stdout
 
     card = copy / "README.md"
     original = card.read_bytes()
     card.write_text("---\nbroken: [\n---\n")
-    bad = run("verify", copy)
+    bad = cli("verify", copy)
     assert bad.exit_code == 1
     assert "README.md: sha256 does not match" in bad.stderr
     assert "README.md: malformed YAML front matter" in bad.stderr
     assert "Traceback" not in bad.output
-    assert run("card", copy).exit_code == 0
+    assert cli("card", copy).exit_code == 0
     assert card.read_bytes() == original  # rewritten from the files alone
-    assert run("verify", copy).exit_code == 0
+    assert cli("verify", copy).exit_code == 0
 
-    packed = run("pack", copy, "--out", tmp_path / "pub")
+    packed = cli("pack", copy, "--out", tmp_path / "pub")
     assert packed.exit_code == 0
     assert (tmp_path / "pub" / f"{copy.name}.tar.gz.sha256").is_file()
 
@@ -297,9 +288,9 @@ def test_verify_card_and_pack(run, datasets, tmp_path):
         (["fetch", "not-a-url", "--sha256", "0" * 64], 1, "fetch failed at download"),
     ],
 )
-def test_release_commands_fail_in_one_line(run, tmp_path, monkeypatch, args, code, words):
+def test_release_commands_fail_in_one_line(cli, tmp_path, monkeypatch, args, code, words):
     monkeypatch.chdir(tmp_path)
-    result = run(*args)
+    result = cli(*args)
     assert result.exit_code == code, result.output
     assert words in result.stderr
     assert result.exception is None or isinstance(result.exception, SystemExit)
@@ -308,15 +299,15 @@ def test_release_commands_fail_in_one_line(run, tmp_path, monkeypatch, args, cod
         assert list((tmp_path / "data").iterdir()) == []  # nothing half written
 
 
-def test_a_usage_error_is_one_line(run):
+def test_a_usage_error_is_one_line(cli):
     for args in (["generate", "--noise", "2"], ["generate", "--nope"], ["bogus"]):
-        result = run(*args)
+        result = cli(*args)
         assert result.exit_code == 2
         assert result.stderr.startswith("Error: ") and len(result.stderr.splitlines()) == 1, (
             result.stderr
         )
-    assert run("--version").exit_code == 0
-    bare = run()  # no command: click's help, as before
+    assert cli("--version").exit_code == 0
+    bare = cli()  # no command: click's help, as before
     assert bare.exit_code == 2 and "Commands:" in bare.output
 
 

@@ -20,14 +20,13 @@ from contextlib import contextmanager
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 
 import pytest
-from click.testing import CliRunner
 from distributed import Client, LocalCluster
 
-from simlidar.cli import main
 from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.config import GeneratorConfig
-from simlidar.generator.generate import Shard, generate
+from simlidar.generator.generate import generate
 from simlidar.generator.on_cluster import _cluster_shard
+from simlidar.generator.shard import Shard
 
 
 @pytest.fixture(scope="module")
@@ -91,7 +90,7 @@ def test_a_worker_killed_mid_shard_changes_nothing(cluster, catalog, tmp_path):
                     scheduler=address,
                 )
             )
-        except Exception as exc:  # noqa: BLE001 - reported by the assertion below
+        except Exception as exc:  # reported by the assertion below
             errors.append(exc)
 
     thread = threading.Thread(target=run)
@@ -123,13 +122,13 @@ def test_a_worker_without_the_output_folder_says_so(small_config, catalog, tmp_p
         _cluster_shard(small_config, [0.1], (None, "0" * 64), shard, [str(tmp_path)], 8)
 
 
-def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(catalog, tmp_path, monkeypatch):
+def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(
+    catalog, tmp_path, monkeypatch, cli
+):
     import simlidar.cluster
 
     monkeypatch.setattr(simlidar.cluster, "CONNECT_SECONDS", 1)
-    result = CliRunner().invoke(
-        main, ["generate", "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "d")]
-    )
+    result = cli("generate", "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "d"))
     assert result.exit_code == 2
     assert (
         "Invalid value for '--scheduler': tcp://127.0.0.1:9: cannot reach a Dask scheduler"
@@ -149,17 +148,15 @@ def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(catalog, tmp_pa
         )
 
 
-def test_bench_cells_on_the_cluster_equal_cells_run_here(cluster, datasets, tmp_path):
+def test_bench_cells_on_the_cluster_equal_cells_run_here(cluster, datasets, tmp_path, cli):
     """Both runs at their defaults: a plain bench used torch's default thread count (2 here)
     while a cluster task ran on one thread, and the CNN's cells differed (issue 35, item 9);
     both now run the cells on --threads (default 1) and record it."""
     address, _ = cluster
     args = ["bench", "--suite", "quick", "--models", "mlp,cnn", "--dataset", str(datasets[0.1])]
     args += ["--epochs", "2"]
-    here = CliRunner().invoke(main, args + ["--out", str(tmp_path / "here"), "--json"])
-    there = CliRunner().invoke(
-        main, args + ["--out", str(tmp_path / "there"), "--json", "--scheduler", address]
-    )
+    here = cli(*args, "--out", str(tmp_path / "here"), "--json")
+    there = cli(*args, "--out", str(tmp_path / "there"), "--json", "--scheduler", address)
     assert here.exit_code == 0 and there.exit_code == 0, there.output
     cells = sorted((tmp_path / "here" / "cells").iterdir())
     assert [c.name for c in cells] == sorted(
@@ -230,7 +227,7 @@ def _banner_server():
     ids=["http", "banner"],
 )
 def test_a_service_that_is_not_a_scheduler_is_one_line_naming_it(
-    server, cause, catalog, tmp_path, monkeypatch
+    server, cause, catalog, tmp_path, monkeypatch, cli
 ):
     import simlidar.cluster
 
@@ -239,7 +236,7 @@ def test_a_service_that_is_not_a_scheduler_is_one_line_naming_it(
         out = tmp_path / "d"
         args = ["generate", "--scheduler", address, "--out", str(out)]
         result = []  # run on a thread: a run that hangs fails the test instead of hanging it
-        thread = threading.Thread(target=lambda: result.append(CliRunner().invoke(main, args)))
+        thread = threading.Thread(target=lambda: result.append(cli(*args)))
         thread.daemon = True
         thread.start()
         thread.join(60)

@@ -21,34 +21,22 @@ import tarfile
 import time
 import warnings
 
-import convert.conftest as kitti_fixtures
-import dataset.test_archive as archive_tests
-import dataset.test_release as release_tests
 import h5py
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from simlidar.cli import main
 from simlidar.convert import convert_kitti
 from simlidar.errors import ConfigError
 from simlidar.release.archive import fetch
 from simlidar.release.checksums import SUMS, write_sums
 
 SMALL = ["--train-size", "32", "--test-size", "32"]
-# Fixtures reused from the archive and converter tests (pytest puts tests/ on sys.path).
-server, packed = archive_tests.server, archive_tests.packed
-synthetic_kitti = kitti_fixtures.synthetic_kitti
 
 
 @pytest.fixture(autouse=True)
 def _restore_showwarning(monkeypatch):
     """main() sends warnings to stderr as one line; undo that after each test."""
     monkeypatch.setattr(warnings, "showwarning", warnings.showwarning)
-
-
-def _run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
 
 
 def _error_lines(result) -> list[str]:
@@ -67,11 +55,11 @@ def _copy(datasets, tmp_path):
 
 
 # 1. fetch --timeout inf / 1e300 / nan: a bad option value, before anything is created.
-def test_1_fetch_refuses_absurd_timeouts(server, packed, tmp_path):
+def test_fetch_refuses_absurd_timeouts(server, packed, tmp_path, cli):
     url = f"{server[0]}/{packed[0].name}"
     out = tmp_path / "data"
     for timeout in ("inf", "1e300", "nan", "86401"):
-        result = _run("fetch", url, "--out", out, "--timeout", timeout)
+        result = cli("fetch", url, "--out", out, "--timeout", timeout)
         assert result.exit_code == 2, result.output
         (line,) = _error_lines(result)
         assert "Invalid value for '--timeout'" in line and "0.1<=x<=86400" in line
@@ -79,14 +67,14 @@ def test_1_fetch_refuses_absurd_timeouts(server, packed, tmp_path):
     with pytest.raises(ConfigError, match=r"timeout=inf: expected seconds in \(0, 86400\]"):
         fetch(url, out=out, timeout=float("inf"), progress=False)
     assert not out.exists()
-    result = _run("fetch", url, "--out", out, "--timeout", "86400")  # a day is fine
+    result = cli("fetch", url, "--out", out, "--timeout", "86400")  # a day is fine
     assert result.exit_code == 0, result.output
     assert sorted(p.name for p in out.iterdir()) == [packed[0].name.removesuffix(".tar.gz")]
 
 
 # 2. A fetch killed with -9 leaves a locked temporary that the next fetch removes, with a
 # warning; pack's temporary is unique, so another process's (same PID) is never touched.
-def test_2_a_killed_fetchs_temporary_is_removed_by_the_next_one(server, packed, tmp_path):
+def test_a_killed_fetchs_temporary_is_removed_by_the_next_one(server, packed, tmp_path, cli):
     url, _ = server
     out = tmp_path / "data"
     command = ["fetch", f"{url}/hang/x.tar.gz", "--sha256", "0" * 64, "--out", str(out)]
@@ -105,18 +93,18 @@ def test_2_a_killed_fetchs_temporary_is_removed_by_the_next_one(server, packed, 
         child.wait()
     left = sorted(p.name for p in out.iterdir())
     assert len(left) == 2 and left[0].startswith(".x.fetch-") and left[1] == left[0] + ".lock"
-    result = _run("fetch", f"{url}/{packed[0].name}", "--out", out)
+    result = cli("fetch", f"{url}/{packed[0].name}", "--out", out)
     assert result.exit_code == 0, result.output
     assert f"Warning: removed {out / left[0]}, left by a run that did not finish" in result.output
     assert sorted(p.name for p in out.iterdir()) == [packed[0].name.removesuffix(".tar.gz")]
 
 
-def test_2_pack_never_collides_with_another_process_temporary(datasets, tmp_path):
+def test_pack_never_collides_with_another_process_temporary(datasets, tmp_path, cli):
     out = tmp_path / "out"
     out.mkdir()
     theirs = out / f".{datasets[0.1].name}.tar.gz.partial-{os.getpid()}"  # same PID, elsewhere
     theirs.mkdir()
-    result = _run("pack", datasets[0.1], "--out", out)
+    result = cli("pack", datasets[0.1], "--out", out)
     assert result.exit_code == 0, result.output
     assert theirs.is_dir()
     assert sorted(p.name for p in out.iterdir() if p != theirs) == [
@@ -137,15 +125,16 @@ def test_2_pack_never_collides_with_another_process_temporary(datasets, tmp_path
         ("--max-range", "nan", "'nan' is not a number in the range 1<=x<=1000"),
     ],
 )
-def test_3_kitti_options_that_mean_nothing_are_refused(
+def test_kitti_options_that_mean_nothing_are_refused(
     synthetic_kitti,
     tmp_path,
     option,
     value,
     expected,
+    cli,
 ):
     out = tmp_path / "out"
-    result = _run("convert", "kitti", synthetic_kitti, "--out", out, option, value)
+    result = cli("convert", "kitti", synthetic_kitti, "--out", out, option, value)
     assert result.exit_code == 2, result.output
     (line,) = _error_lines(result)
     assert f"Invalid value for '{option}': {expected}" in line
@@ -157,37 +146,37 @@ def test_3_kitti_options_that_mean_nothing_are_refused(
 
 
 # 4. A card (or SHA256SUMS) that is not UTF-8: one problem, named, no UnicodeDecodeError.
-def test_4_a_card_that_is_not_utf8_is_one_problem(datasets, tmp_path):
+def test_a_card_that_is_not_utf8_is_one_problem(datasets, tmp_path, cli):
     copy = _copy(datasets, tmp_path)
     card = copy / "README.md"
     card.write_bytes(card.read_bytes().replace(b"---\n", b"---\n# caf\xe9\n", 1))
     write_sums(copy, ["README.md"])  # the checksums agree: the encoding is the only problem
-    result = _run("verify", copy)
+    result = cli("verify", copy)
     assert result.exit_code == 1, result.output
     assert "Traceback" not in result.output
     failed = [line for line in result.output.splitlines() if line.startswith("FAILED")]
     assert len(failed) == 1 and failed[0].startswith(f"FAILED {card}: not UTF-8 text (")
     assert failed[0].endswith("expected the dataset card in UTF-8")
     out = tmp_path / "out"
-    result = _run("pack", copy, "--out", out)
+    result = cli("pack", copy, "--out", out)
     assert result.exit_code == 1
     (line,) = _error_lines(result)
     assert line.startswith(f"Error: {card}: not UTF-8 text")
     assert not out.exists()
     (copy / SUMS).write_bytes((copy / SUMS).read_bytes() + b"\xff\n")
-    result = _run("verify", copy)
+    result = cli("verify", copy)
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert f"FAILED {copy / SUMS}: not UTF-8 text (invalid start byte at byte" in result.output
 
 
 # 5. info on labels outside the class list: one line naming the file and the labels.
-def test_5_info_names_bad_labels(datasets, tmp_path):
+def test_info_names_labels_outside_the_class_list(datasets, tmp_path, cli):
     copy = _copy(datasets, tmp_path)
     with h5py.File(copy / "train.h5", "r+") as f:
         f["labels"][3] = -1
         f["labels"][5] = 99
     for args in (["info", copy], ["info", copy, "--json"]):
-        result = _run(*args)
+        result = cli(*args)
         assert result.exit_code == 1, result.output
         (line,) = _error_lines(result)
         assert line.startswith(f"Error: {copy / 'train.h5'}: labels -1, 99 outside 0..31")
@@ -195,16 +184,16 @@ def test_5_info_names_bad_labels(datasets, tmp_path):
 
 
 # 6. OS litter in a dataset: ignored by verify, left out of the archive.
-def test_6_os_litter_is_ignored_and_not_packed(datasets, tmp_path):
+def test_os_litter_is_ignored_and_not_packed(datasets, tmp_path, cli):
     copy = _copy(datasets, tmp_path)
     sums = (copy / SUMS).read_bytes()
     litter = [".DS_Store", "Thumbs.db", "desktop.ini", "._train.h5"]
     for name in litter:
         (copy / name).write_bytes(b"\0\x05\x16\x07")
-    result = _run("verify", copy)
+    result = cli("verify", copy)
     assert result.exit_code == 0, result.output
     out = tmp_path / "out"
-    result = _run("pack", copy, "--out", out)
+    result = cli("pack", copy, "--out", out)
     assert result.exit_code == 0, result.output
     with tarfile.open(out / f"{copy.name}.tar.gz") as tar:
         names = {name.split("/")[-1] for name in tar.getnames()}
@@ -213,9 +202,11 @@ def test_6_os_litter_is_ignored_and_not_packed(datasets, tmp_path):
 
 
 # 7. generate --out "": a bad option value, not the current folder.
-def test_7_generate_refuses_an_empty_out(tmp_path, monkeypatch):
+def test_generate_refuses_an_empty_out_instead_of_using_the_current_folder(
+    tmp_path, monkeypatch, cli
+):
     monkeypatch.chdir(tmp_path)
-    result = _run("generate", *SMALL, "--out", "")
+    result = cli("generate", *SMALL, "--out", "")
     assert result.exit_code == 2, result.output
     (line,) = _error_lines(result)
     assert "Invalid value for '--out': '' is empty" in line
@@ -244,22 +235,22 @@ def _reading_commands(copy, tmp_path):
 
 # 8. A config attribute that is not JSON: one line from every reading command; pack (which
 # verifies first) publishes nothing.
-def test_8_a_config_that_is_not_json_is_one_line_everywhere(datasets, tmp_path):
+def test_a_config_that_is_not_json_is_one_line_everywhere(datasets, tmp_path, cli):
     def damage(f):
         f.attrs["config"] = "{not json"
 
     copy = _damaged(datasets, tmp_path, damage)
     message = f"{copy / 'train.h5'}: attribute 'config' is '{{not json'; expected a JSON object"
-    result = _run("verify", copy)
+    result = cli("verify", copy)
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert f"FAILED {message}" in result.output
     for name, command in _reading_commands(copy, tmp_path).items():
-        result = _run(*command)
+        result = cli(*command)
         assert result.exit_code == 1, (name, result.output)
         (line,) = _error_lines(result)
         assert line.startswith(f"Error: {message}"), (name, line)
     out = tmp_path / "out"
-    result = _run("pack", copy, "--out", out)
+    result = cli("pack", copy, "--out", out)
     assert result.exit_code == 1
     (line,) = _error_lines(result)
     assert line.startswith(f"Error: {message}")
@@ -268,7 +259,7 @@ def test_8_a_config_that_is_not_json_is_one_line_everywhere(datasets, tmp_path):
 
 
 # 9. 2-D labels: info and card name the file and the shape.
-def test_9_two_dimensional_labels_are_one_line(datasets, tmp_path):
+def test_two_dimensional_labels_are_one_line(datasets, tmp_path, cli):
     def damage(f):
         labels = f["labels"][:]
         del f["labels"]
@@ -277,7 +268,7 @@ def test_9_two_dimensional_labels_are_one_line(datasets, tmp_path):
     copy = _damaged(datasets, tmp_path, damage)
     card = (copy / "README.md").read_bytes()
     for command in (["info", copy], ["info", copy, "--json"], ["card", copy]):
-        result = _run(*command)
+        result = cli(*command)
         assert result.exit_code == 1, result.output
         (line,) = _error_lines(result)
         assert line == (
@@ -289,12 +280,12 @@ def test_9_two_dimensional_labels_are_one_line(datasets, tmp_path):
 
 # 10. card with a malformed SHA256SUMS: one line, and nothing written (neither the card nor
 # the checksums).
-def test_10_card_with_malformed_checksums_writes_nothing(datasets, tmp_path):
+def test_card_with_malformed_checksums_writes_nothing(datasets, tmp_path, cli):
     copy = _copy(datasets, tmp_path)
     (copy / "README.md").write_text((copy / "README.md").read_text() + "edited\n")
     (copy / SUMS).write_text("not a checksum line\n")
     before = {p.name: p.read_bytes() for p in copy.iterdir()}
-    result = _run("card", copy)
+    result = cli("card", copy)
     assert result.exit_code == 1
     (line,) = _error_lines(result)
     assert line == (
@@ -306,14 +297,14 @@ def test_10_card_with_malformed_checksums_writes_nothing(datasets, tmp_path):
 
 # 11. A training seed beyond 64 bits in a suite that generates its datasets: refused by the
 # suite reader, before any dataset is written (it used to fail after writing them).
-def test_11_a_seed_beyond_64_bits_is_refused_before_anything_is_written(tmp_path):
+def test_a_seed_beyond_64_bits_is_refused_before_anything_is_written(tmp_path, cli):
     suite = tmp_path / "s.toml"
     suite.write_text(
         'models = ["mlp"]\nseeds = [99999999999999999999999]\n[generate]\nnoise = [0.1]\n'
         "train_size = 64\ntest_size = 32\n[budget]\nepochs = 1\nvalidation = 0\n"
     )
     out = tmp_path / "out"
-    result = _run("bench", "--suite", suite, "--out", out)
+    result = cli("bench", "--suite", suite, "--out", out)
     assert result.exit_code == 2, result.output
     (line,) = _error_lines(result)
     assert line == (
@@ -327,9 +318,9 @@ def test_11_a_seed_beyond_64_bits_is_refused_before_anything_is_written(tmp_path
 # 12. An HDF5 bomb (20,000,000 samples declared in a file of a few hundred KB): train and
 # bench refuse it in one line instead of "Unable to allocate 19.1 GiB". Real processes under
 # an 8 GiB address-space limit, so that a regression fails here instead of taking the machine.
-def test_12_train_and_bench_refuse_an_hdf5_bomb(datasets, tmp_path, address_limit):
+def test_train_and_bench_refuse_an_hdf5_bomb(datasets, tmp_path, address_limit, hdf5_bomb):
     copy = _copy(datasets, tmp_path)
-    release_tests._bomb(copy, rows=256)
+    hdf5_bomb(copy, rows=256)
     commands = _reading_commands(copy, tmp_path)
     limit = 8 * 2**30
     for name in ("train", "bench"):
@@ -350,7 +341,7 @@ def test_12_train_and_bench_refuse_an_hdf5_bomb(datasets, tmp_path, address_limi
 # 13. A split larger than the memory the process can still take: one line naming both sizes
 # before reading (it was an HDF5 "memory allocation failed" traceback). A real process under
 # an address-space limit (ulimit -v) of its own size plus 16 KiB.
-def test_13_a_split_that_does_not_fit_in_memory_is_refused_before_reading(datasets, monkeypatch):
+def test_a_split_that_does_not_fit_in_memory_is_refused_before_reading(datasets, monkeypatch):
     """The room is what simlidar.resources reads off the machine (available memory, the cgroup,
     ``ulimit -v``), here made 50 KiB: an address-space limit just above the process's size was
     tried first, and h5py's own allocations while opening the file fail under it at random."""
@@ -379,7 +370,7 @@ def test_13_a_split_that_does_not_fit_in_memory_is_refused_before_reading(datase
 
 # 14. A fetched dataset carrying a subfolder (payload/run_me.sh): refused at fetch's verify
 # step, nothing installed (it used to install and verify OK).
-def test_14_a_dataset_carrying_a_subfolder_is_not_installed(server, datasets, tmp_path):
+def test_a_dataset_carrying_a_subfolder_is_not_installed(server, datasets, tmp_path, cli):
     import hashlib
     import io
 
@@ -395,7 +386,7 @@ def test_14_a_dataset_carrying_a_subfolder_is_not_installed(server, datasets, tm
     (root / f"{name}.tar.gz").write_bytes(buffer.getvalue())
     digest = hashlib.sha256(buffer.getvalue()).hexdigest()
     out = tmp_path / "data"
-    result = _run("fetch", f"{url}/{name}.tar.gz", "--sha256", digest, "--out", out)
+    result = cli("fetch", f"{url}/{name}.tar.gz", "--sha256", digest, "--out", out)
     assert result.exit_code == 1, result.output
     (line,) = _error_lines(result)
     assert line.startswith("Error: fetch failed at verify: ") and "payload: is a folder" in line

@@ -21,9 +21,7 @@ import warnings
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
 
-from simlidar.cli import main
 from simlidar.processes import capped_workers, usable_cores
 
 DEADLINE_S = 30.0
@@ -61,7 +59,7 @@ def _wait_for(condition, what: str):
     raise AssertionError(f"not within {DEADLINE_S} s: {what}")
 
 
-def test_workers_are_capped_at_the_batches_and_the_cores(tmp_path, monkeypatch):
+def test_workers_are_capped_at_the_batches_and_the_cores(tmp_path, monkeypatch, cli):
     import simlidar.generator.generate as gen
 
     sizes = []
@@ -75,7 +73,7 @@ def test_workers_are_capped_at_the_batches_and_the_cores(tmp_path, monkeypatch):
     monkeypatch.setattr(gen, "ProcessPoolExecutor", counted)
     args = ["generate", "--classes", "4", "--train-size", "64", "--test-size", "32"]
     args += ["--batch-size", "32", "--out", str(tmp_path), "--workers", "999"]
-    done = CliRunner().invoke(main, args)
+    done = cli(*args)
     assert done.exit_code == 0, done.output
     batches, cores = 3, usable_cores()  # train 2 + test 1
     expected = min(batches, cores)
@@ -85,7 +83,7 @@ def test_workers_are_capped_at_the_batches_and_the_cores(tmp_path, monkeypatch):
         f"Warning: --workers 999: starting {expected} worker process(es), as many as there "
         f"are batches to do ({batches}) and cores to run on ({cores})"
     )
-    quiet = CliRunner().invoke(main, [*args[:-1], "1", "--force"])
+    quiet = cli(*args[:-1], "1", "--force")
     assert quiet.exit_code == 0 and "Warning" not in quiet.stderr
 
 

@@ -8,9 +8,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from simlidar.cli import main
 from simlidar.dataset.loaders import spike_threshold
 from simlidar.dataset.reader import read_split_info
 from simlidar.dataset.schema import SCHEMA
@@ -24,20 +22,16 @@ PAPER = dict(variation=0.05, shift=0.05, missing_delay=0.0, noise_on="all", spik
 PHYSICAL = dict(variation=1.0, shift=0.0, missing_delay=1.0, noise_on="returns", spikes="returns")
 
 
-def run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
-
-
-def test_shipped_profiles_and_the_default():
+def test_shipped_profiles_and_the_default(cli):
     assert {"paper", "physical"} <= set(profile_names())
     assert DEFAULT_PROFILE == "paper"
     for name, values in (("paper", PAPER), ("physical", PHYSICAL)):
         profile = load_profile(name)
         assert profile.name == name and profile.description
         assert {k: getattr(profile, k) for k in values} == values
-    listing = run("profiles")
+    listing = cli("profiles")
     assert listing.exit_code == 0 and "paper (default)" in listing.stdout
-    shown = json.loads(run("profiles", "--json").stdout)
+    shown = json.loads(cli("profiles", "--json").stdout)
     assert shown["default"] == "paper" and {p["name"] for p in shown["profiles"]} >= {
         "paper",
         "physical",
@@ -61,6 +55,12 @@ GOOD = (
     [
         (GOOD.replace("variation = 0.5", "variation = 0"), "key 'variation': expected a factor"),
         (GOOD.replace("variation = 0.5", "variation = nan"), "key 'variation'"),
+        # an integer too large for a float (it used to end in OverflowError's traceback)
+        (
+            GOOD.replace("variation = 0.5", f"variation = {10**400}"),
+            "key 'variation': expected a factor in (0, 1], got 1000",
+        ),
+        (GOOD.replace("shift = 0.0", f"shift = {10**400}"), "(401 characters)"),
         (GOOD.replace("shift = 0.0", "shift = 1.0"), "key 'shift': expected a value in [0, 1)"),
         (GOOD.replace("missing_delay = 0.0", "missing_delay = 0.5"), "key 'missing_delay'"),
         (GOOD.replace('noise_on = "all"', 'noise_on = "some"'), "key 'noise_on': expected one"),
@@ -73,25 +73,25 @@ GOOD = (
         ("# pad\n" * 20000, "expected a profile of at most"),
     ],
 )
-def test_a_bad_profile_file_is_one_line_naming_file_and_key(tmp_path, text, expected):
+def test_a_bad_profile_file_is_one_line_naming_file_and_key(tmp_path, text, expected, cli):
     path = _write(tmp_path, text)
     with pytest.raises(ConfigError, match=None) as error:
         load_profile(path)
     assert str(path) in str(error.value) and expected in str(error.value)
     assert "\n" not in str(error.value)
-    result = run("generate", "--profile", path, "--out", tmp_path / "out")
+    result = cli("generate", "--profile", path, "--out", tmp_path / "out")
     assert result.exit_code == 2 and expected in result.output
     assert not (tmp_path / "out").exists()  # nothing written
 
 
-def test_unknown_profile_names_and_file_names(tmp_path):
-    result = run("generate", "--profile", "nonsense", "--out", tmp_path / "out")
+def test_unknown_profile_names_and_file_names(tmp_path, cli):
+    result = cli("generate", "--profile", "nonsense", "--out", tmp_path / "out")
     assert result.exit_code == 2
     assert "profile 'nonsense': expected one of" in result.output and "'paper'" in result.output
-    missing = run("generate", "--profile", tmp_path / "absent.toml", "--out", tmp_path / "out")
+    missing = cli("generate", "--profile", tmp_path / "absent.toml", "--out", tmp_path / "out")
     assert missing.exit_code == 2 and "file not found" in missing.output
     spaced = _write(tmp_path, GOOD, "My Profile.toml")
-    bad_name = run("generate", "--profile", spaced, "--out", tmp_path / "out")
+    bad_name = cli("generate", "--profile", spaced, "--out", tmp_path / "out")
     assert bad_name.exit_code == 2 and "file name 'My Profile'" in bad_name.output
     assert not (tmp_path / "out").exists()
 
@@ -132,9 +132,9 @@ BEFORE_PROFILES = {
 
 
 @pytest.mark.parametrize("options", list(BEFORE_PROFILES))
-def test_the_physical_profile_writes_the_records_of_1_0_0(tmp_path, options):
+def test_the_physical_profile_writes_the_records_of_1_0_0(tmp_path, options, cli):
     flags = [a for key, value in options for a in (f"--{key}", value)]
-    result = run(
+    result = cli(
         "generate",
         "--profile",
         "physical",
@@ -155,8 +155,8 @@ def test_the_physical_profile_writes_the_records_of_1_0_0(tmp_path, options):
     assert path.name.startswith("simlidar-32c-noise0.2-physical") and path.name.endswith("v1.0.0")
 
 
-def test_the_default_is_the_paper_profile(tmp_path):
-    result = run(
+def test_the_default_is_the_paper_profile(tmp_path, cli):
+    result = cli(
         "generate",
         "--classes",
         32,
@@ -192,12 +192,12 @@ def test_the_default_is_the_paper_profile(tmp_path):
     assert (delays >= clean).all() and delays.max() <= 1.0
     card = (path / "README.md").read_text()
     assert "--profile paper" in card and "profile paper" in card.split("---")[1]
-    info = run("info", path)
+    info = cli("info", path)
     assert info.exit_code == 0 and "2.0.0" in info.output
 
 
-def test_options_override_the_profile_and_the_name_says_so(tmp_path):
-    result = run(
+def test_options_override_the_profile_and_the_name_says_so(tmp_path, cli):
+    result = cli(
         "generate",
         "--variation",
         0.1,
@@ -213,7 +213,7 @@ def test_options_override_the_profile_and_the_name_says_so(tmp_path):
     assert "--variation 0.1 overrides profile paper's 0.05" in result.stderr
     path = json.loads(result.stdout)["datasets"][0]["path"]
     assert path.endswith("simlidar-32c-noise0.2-paper-var0.1-v2.0.0")
-    same = run(
+    same = cli(
         "generate",
         "--variation",
         0.05,
@@ -232,11 +232,11 @@ def test_options_override_the_profile_and_the_name_says_so(tmp_path):
     ) == ("simlidar-32c-noise0.5-physical-shift0.1-v1.0.0")
 
 
-def test_a_profile_file_regenerates_from_its_card(tmp_path):
+def test_a_profile_file_regenerates_from_its_card(tmp_path, cli):
     path = _write(
         tmp_path, GOOD.replace('noise_on = "all"', 'noise_on = "returns"'), "zero-quiet.toml"
     )
-    result = run(
+    result = cli(
         "generate",
         "--profile",
         path,
@@ -267,8 +267,8 @@ def test_a_profile_file_regenerates_from_its_card(tmp_path):
 
 
 @pytest.mark.parametrize("profile", ["paper", "physical"])
-def test_the_card_command_regenerates_a_shipped_profile(tmp_path, profile):
-    result = run(
+def test_the_card_command_regenerates_a_shipped_profile(tmp_path, profile, cli):
+    result = cli(
         "generate",
         "--profile",
         profile,
@@ -288,21 +288,20 @@ def test_the_card_command_regenerates_a_shipped_profile(tmp_path, profile):
     card = (first / "README.md").read_text()
     command = card.split("## Regenerate")[1].split("```\n")[1].strip().split()
     assert command[:4] == ["simlidar", "generate", "--profile", profile]
-    again = run(*command[1:], "--out", tmp_path / "b")
+    again = cli(*command[1:], "--out", tmp_path / "b")
     assert again.exit_code == 0, again.output
     for name in ("train.h5", "test.h5", "README.md", "SHA256SUMS"):
         assert (tmp_path / "b" / first.name / name).read_bytes() == (first / name).read_bytes()
 
 
-def test_the_encoding_follows_the_profile(tmp_path):
-    pytest.importorskip("torch")
+def test_the_encoding_follows_the_profile(tmp_path, cli):
     from simlidar.bench.early import early_decisions
     from simlidar.bench.train import load_checkpoint, save_checkpoint, train
     from simlidar.models.registry import load_recipe
 
     paths = {}
     for profile in ("paper", "physical"):
-        result = run(
+        result = cli(
             "generate",
             "--profile",
             profile,

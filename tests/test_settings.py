@@ -18,15 +18,16 @@ from simlidar.settings import Choice, Range, default_of, rule_of
 @pytest.mark.parametrize(
     ("rule", "good", "bad", "expected"),
     [
-        (Range(2, None, "an integer"), [2, 10**9], [1, 2.5, True, "3"], "an integer >= 2"),
-        (Range(0, 1, "a level"), [0, 0.5, 1], [-0.1, 1.01, math.nan], "a level in [0, 1]"),
+        (Range(2, None, "an integer"), [2, 10**400], [1, 2.5, True, "3"], "an integer >= 2"),
+        (Range(0, 1, "a level"), [0, 0.5, 1], [-0.1, 1.01, math.nan, 10**400], "a level in [0, 1]"),
         (
             Range(0, 2**63, "an integer", high_open=True),
             [0, 2**63 - 1],
             [-1, 2**63],
             "an integer in [0, 2**63)",
         ),
-        (Range(0, None, "seconds"), [0, math.inf], [-1, math.nan], "seconds >= 0"),
+        # an int too large for a float is no number of seconds (it used to raise OverflowError)
+        (Range(0, None, "seconds"), [0, math.inf], [-1, math.nan, 10**400], "seconds >= 0"),
         (
             Range(0, None, "a finite number", finite=True),
             [0, 3.5],

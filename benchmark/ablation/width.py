@@ -16,7 +16,7 @@ import json
 import sys
 from pathlib import Path
 
-from simlidar.bench.report import _groups, _pct, _stats
+from simlidar.bench.report import group_by, mean_std, percent
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "benchmark/results"
@@ -44,7 +44,7 @@ def cells(folders: list[Path], models: set[str]) -> list[dict]:
 
 
 def table(found: list[dict]) -> list[str]:
-    by = _groups(found, "model", "noise")
+    by = group_by(found, "model", "noise")
     lines = [
         "| model | weights | " + " | ".join(f"noise {n:g}" for n in NOISE) + " |",
         "|---" * (2 + len(NOISE)) + "|",
@@ -55,7 +55,7 @@ def table(found: list[dict]) -> list[str]:
             if not runs:
                 continue
             row = [
-                f"{_pct([c['accuracy'] for c in by[(model, n)]])} ({len(by[(model, n)])})"
+                f"{percent([c['accuracy'] for c in by[(model, n)]])} ({len(by[(model, n)])})"
                 if by.get((model, n))
                 else "–"
                 for n in NOISE
@@ -70,7 +70,7 @@ def plot(found: list[dict], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    by = _groups(found, "model", "noise")
+    by = group_by(found, "model", "noise")
     params = {c["model"]: c["params"] for c in found}
     fig, axes = plt.subplots(2, 2, figsize=(8, 6), dpi=100, sharex=True)
     for ax, n in zip(axes.flat, NOISE, strict=True):
@@ -78,7 +78,7 @@ def plot(found: list[dict], path: Path) -> None:
             points = [m for m in models if by.get((m, n))]
             if not points:
                 continue
-            stats = [_stats([100 * c["accuracy"] for c in by[(m, n)]]) for m in points]
+            stats = [mean_std([100 * c["accuracy"] for c in by[(m, n)]]) for m in points]
             ax.errorbar(
                 [params[m] for m in points],
                 [s[0] for s in stats],

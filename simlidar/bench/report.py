@@ -22,14 +22,16 @@ def paper_numbers() -> dict:
     return tomllib.loads((content_dir("baselines") / PAPER_FILE).read_text())
 
 
-def _stats(values: list[float]) -> tuple[float, float, int]:
+def mean_std(values: list[float]) -> tuple[float, float, int]:
     """Mean, sample standard deviation (ddof 1; 0 for one value) and count."""
     std = float(np.std(values, ddof=1)) if len(values) > 1 else 0.0
     return float(np.mean(values)), std, len(values)
 
 
-def _pct(values: list[float]) -> str:
-    mean, std, n = _stats([100 * v for v in values])
+def percent(values: list[float]) -> str:
+    """Fractions ``values`` as a report's percentage: ``mean ± std`` (the mean alone for one
+    value), two decimals."""
+    mean, std, n = mean_std([100 * v for v in values])
     return f"{mean:.2f} ± {std:.2f}" if n > 1 else f"{mean:.2f}"
 
 
@@ -37,7 +39,8 @@ def _num(value, fmt: str = "{:.3g}") -> str:
     return "–" if value is None else fmt.format(value)
 
 
-def _groups(cells: list[dict], *keys: str) -> dict:
+def group_by(cells: list[dict], *keys: str) -> dict:
+    """``cells`` by the values of ``keys``: {(value, ...): [cell, ...]}, in the cells' order."""
     groups = defaultdict(list)
     for c in cells:
         groups[tuple(c[k] for k in keys)].append(c)
@@ -72,7 +75,7 @@ def accuracy_by_noise(cells: list[dict], paper: dict) -> list[str]:
         return []
     levels = sorted({c["noise"] for c in sim})
     models = sorted({c["model"] for c in sim})
-    by = _groups(sim, "model", "noise")
+    by = group_by(sim, "model", "noise")
     classes = sorted({c["classes"] for c in sim})
     chance = " and ".join(f"{100 / k:.2f} % ({k} classes)" for k in classes)
     lines = [
@@ -86,7 +89,7 @@ def accuracy_by_noise(cells: list[dict], paper: dict) -> list[str]:
     ]
     for m in models:
         row = [
-            f"{_pct([c['accuracy'] for c in by[m, v]])} ({len(by[m, v])}){_marks(by[m, v])}"
+            f"{percent([c['accuracy'] for c in by[m, v]])} ({len(by[m, v])}){_marks(by[m, v])}"
             if by[m, v]
             else "–"
             for v in levels
@@ -129,7 +132,7 @@ def still_improving(cell: dict) -> bool:
 
 def _spread(cells: list[dict]) -> bool:
     """Whether a group of seeds' accuracies spread over more than SPREAD_POINTS."""
-    return _stats([100 * c["accuracy"] for c in cells])[1] > SPREAD_POINTS
+    return mean_std([100 * c["accuracy"] for c in cells])[1] > SPREAD_POINTS
 
 
 CAPPED, OPEN, SPREAD = "†", "§", "‡"
@@ -182,7 +185,7 @@ def training_table(cells: list[dict]) -> list[str]:
         "| minutes a cell (mean, max) | minutes in all |",
         "|---" * 10 + "|",
     ]
-    for (model,), runs in sorted(_groups(cells, "model").items()):
+    for (model,), runs in sorted(group_by(cells, "model").items()):
         stops = [c.get("stopped", "time" if c.get("stopped_by_time") else "epochs") for c in runs]
         budget = sorted({str(c.get("budget", {}).get("epochs", "recipe")) for c in runs})
         run = [c["epochs"] for c in runs]
@@ -203,7 +206,7 @@ def by_model(cells: list[dict], paper: dict) -> list[str]:
     """Per dataset: accuracy, decision time, data ratio, energy, latency, size by model."""
     lines = []
     kitti = paper["kitti"]["accuracy"]
-    for (dataset,), group in sorted(_groups(cells, "dataset").items()):
+    for (dataset,), group in sorted(group_by(cells, "dataset").items()):
         source = group[0]["source"]
         lines += [
             f"## {dataset}",
@@ -218,7 +221,7 @@ def by_model(cells: list[dict], paper: dict) -> list[str]:
             "latency ms | samples/s | params | footprint MB | epochs |",
             "|---" * 13 + "|",
         ]
-        for (model,), runs in sorted(_groups(group, "model").items()):
+        for (model,), runs in sorted(group_by(group, "model").items()):
             early = [c for c in runs if c.get("early")]
             if early:
 
@@ -255,7 +258,7 @@ def by_model(cells: list[dict], paper: dict) -> list[str]:
                 timing = ["–"] * 6  # a spiking CNN: no event-driven evaluator yet
             capped = _marks(runs, MARKS[:1])  # the epochs column: the time cap only
             lines.append(
-                f"| {model} | {_pct([c['accuracy'] for c in runs])} | "
+                f"| {model} | {percent([c['accuracy'] for c in runs])} | "
                 + " | ".join(timing)
                 + f" | {_mean(runs, lambda c: c['latency_ms']):.3f}"
                 f" | {_mean(runs, lambda c: c['throughput_per_s']):.0f}"
@@ -309,10 +312,10 @@ def plot_accuracy(cells: list[dict], paper: dict, path: Path) -> bool:
     if not sim:
         return False
     fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
-    for (model,), runs in sorted(_groups(sim, "model").items()):
-        by = _groups(runs, "noise")
+    for (model,), runs in sorted(group_by(sim, "model").items()):
+        by = group_by(runs, "noise")
         levels = sorted(k[0] for k in by)
-        stats = [_stats([100 * c["accuracy"] for c in by[(v,)]]) for v in levels]
+        stats = [mean_std([100 * c["accuracy"] for c in by[(v,)]]) for v in levels]
         ax.errorbar(
             levels,
             [s[0] for s in stats],
@@ -385,7 +388,7 @@ def plot_confusions(cells: list[dict], path: Path) -> bool:
     if not cells:
         return False
     first = sorted({c["dataset"] for c in cells})[0]
-    group = _groups([c for c in cells if c["dataset"] == first], "model")
+    group = group_by([c for c in cells if c["dataset"] == first], "model")
     fig, axes = plt.subplots(1, len(group), figsize=(3 * len(group), 3.2), dpi=100, squeeze=False)
     for ax, ((model,), runs) in zip(axes[0], sorted(group.items())):
         matrix = np.sum([np.array(c["confusion"]) for c in runs], axis=0).astype(float)

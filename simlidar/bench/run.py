@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from simlidar import __version__
+from simlidar.atomic import clean_stale, temporary_of, write_file
 from simlidar.bench import metrics
 from simlidar.bench.cells import (
     cell_id,
@@ -67,9 +68,7 @@ def write_json(path: Path, data, indent: int | None = 1) -> None:
         text = _NUMBERS.sub(
             lambda m: "[" + ", ".join(m[0][1:-1].replace(",", " ").split()) + "]", text
         )
-    tmp = path.with_name(f".{path.name}.partial")
-    tmp.write_text(text + "\n")
-    tmp.replace(path)
+    write_file(path, lambda tmp: tmp.write_text(text + "\n"))
 
 
 def machine() -> dict:
@@ -119,9 +118,13 @@ def claim(out: Path, suite: Suite) -> None:
             write_json(marker, _ownership(suite))  # the same suite and data, the file edited
         (out / "cells").mkdir(exist_ok=True)  # removed by hand: its cells are run again
         return
-    litter = {"cells", ".suite.json.partial"}  # what a claim that failed midway left
+    # what a claim that failed midway left: cells/, suite.json's temporaries (a killed
+    # write's; .suite.json.partial, a fixed name, from simlidar before write_file)
+    litter = {"cells", ".suite.json.partial"}
     if out.exists() and any(
-        p.name not in litter or (p.is_dir() and any(p.iterdir())) for p in out.iterdir()
+        (p.name not in litter and temporary_of(p.name) != marker.name)
+        or (p.name == "cells" and p.is_dir() and any(p.iterdir()))
+        for p in out.iterdir()
     ):
         raise DatasetError(
             f"--out {out}: not empty and not a benchmark output directory; "
@@ -130,10 +133,11 @@ def claim(out: Path, suite: Suite) -> None:
     created = not out.exists()
     try:
         (out / "cells").mkdir(parents=True, exist_ok=True)
-        write_json(marker, _ownership(suite))
-    except BaseException:  # undo, so that a rerun can claim the folder
-        shutil.rmtree(out if created else out / "cells", ignore_errors=True)
+        clean_stale(out)  # a killed claim's temporary of suite.json (a live one's stays)
         (out / ".suite.json.partial").unlink(missing_ok=True)
+        write_json(marker, _ownership(suite))
+    except BaseException:  # undo, so that a rerun can claim the folder (write_json left none)
+        shutil.rmtree(out if created else out / "cells", ignore_errors=True)
         raise
 
 

@@ -19,8 +19,27 @@ from simlidar.cli.report import report
 from simlidar.cli.training import bench, train
 
 
+def _version(ctx: click.Context, _param, value: bool) -> None:
+    """``--version``: the package's version and the machine's ray-casting path (Embree's
+    shared buffers, or the slower fallback: :mod:`simlidar.sensor.embree`)."""
+    if not value or ctx.resilient_parsing:
+        return
+    from simlidar.sensor.embree import ray_casting
+
+    click.echo(f"simlidar, version {__version__}")
+    click.echo(f"ray casting: {ray_casting()}")
+    ctx.exit()
+
+
 @click.group(cls=Group)
-@click.version_option(__version__, prog_name="simlidar")
+@click.option(
+    "--version",
+    is_flag=True,
+    expose_value=False,
+    is_eager=True,
+    callback=_version,
+    help="Show the version and the ray-casting path, and exit.",
+)
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-line errors.")
 @click.pass_context
 def main(ctx: click.Context, debug: bool) -> None:

@@ -94,7 +94,7 @@ class _SplitRows:
         for f in (getattr(self, "_h5", None) or {}).values():
             try:
                 f.close()
-            except Exception:  # noqa: BLE001 - h5py half torn down at interpreter exit
+            except Exception:  # h5py half torn down at interpreter exit
                 pass
 
 

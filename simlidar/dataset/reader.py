@@ -20,7 +20,7 @@ from simlidar.dataset.schema import (
 )
 from simlidar.dataset.shards import find_split_files, shard_of
 from simlidar.dataset.version import GENERATOR, PHYSICAL_VERSION, SCAN_VERSION, SOURCES, major
-from simlidar.errors import ConfigError, DatasetError, shown
+from simlidar.errors import ConfigError, DatasetError, first_line, shown
 from simlidar.resources import check_memory, size_text
 
 
@@ -80,10 +80,6 @@ def _decode(value):
     return value  # str, int, float, or something no rule accepts (h5py.Empty, ...)
 
 
-def _first_line(exc: Exception) -> str:
-    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-
-
 def read_attrs(f: h5py.File) -> tuple[dict, list[str]]:
     """The decoded attributes of an open split file, and the problems of those that cannot be
     read at all (a type h5py cannot convert)."""
@@ -91,12 +87,12 @@ def read_attrs(f: h5py.File) -> tuple[dict, list[str]]:
     try:
         names = list(f.attrs)
     except (OSError, RuntimeError, ValueError, TypeError) as exc:
-        return {}, [f"{f.filename}: attributes unreadable ({_first_line(exc)})"]
+        return {}, [f"{f.filename}: attributes unreadable ({first_line(exc)})"]
     for name in names:
         try:
             attrs[name] = _decode(f.attrs[name])
         except (OSError, RuntimeError, ValueError, TypeError) as exc:
-            problems.append(f"{f.filename}: attribute {name!r} unreadable ({_first_line(exc)})")
+            problems.append(f"{f.filename}: attribute {name!r} unreadable ({first_line(exc)})")
     return attrs, problems
 
 
@@ -223,7 +219,7 @@ def read_split_info(path: Path) -> SplitInfo:
             size, height, width = f["delays"].shape
             info = SplitInfo(path, size, width, attrs, height)
     except OSError as exc:
-        raise DatasetError(f"{path}: cannot read as HDF5 ({_first_line(exc)})") from None
+        raise DatasetError(f"{path}: cannot read as HDF5 ({first_line(exc)})") from None
     check_version(path, attrs["dataset_version"], info.source, written_version(attrs))
     return info
 

@@ -146,5 +146,5 @@ class SplitWriter:
         self.datasets = {}
         try:
             self.file.close()
-        except Exception:  # noqa: BLE001 - a failed flush of a file about to be deleted
+        except Exception:  # a failed flush of a file about to be deleted
             pass

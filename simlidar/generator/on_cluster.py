@@ -7,8 +7,9 @@ from pathlib import Path
 from simlidar.cluster import run_tasks
 from simlidar.content import content_dir
 from simlidar.errors import DatasetError
-from simlidar.generator.generate import _one_blas_thread, write_shard
+from simlidar.generator.shard import write_shard
 from simlidar.generator.simulate import simulate
+from simlidar.processes import one_blas_thread
 from simlidar.scene.recipe import load_catalog
 
 
@@ -54,7 +55,7 @@ def _cluster_shard(config, noise_levels, where, shard, temps, batch_size) -> str
                 "folder on a file system that every worker shares"
             )
     configs = [config.with_noise(level) for level in noise_levels]
-    _one_blas_thread()  # as the forked workers of --workers
+    one_blas_thread()  # as the forked workers of --workers
     batches = (simulate(config, catalog, *job) for job in shard.batches(batch_size))
     write_shard(configs, catalog, shard, folders, batches, batch_size)
     return shard.name

@@ -20,7 +20,9 @@ from simlidar.sensor.raycast import MAX_BATCH, cast
 from simlidar.sensor.rays import column_centres_deg, emission_times_ns, window_rays
 
 SPLIT_IDS = {"train": 0, "test": 1, "sweep": 2}  # random stream keys (sweep: full frames)
-_FIXED_COLUMNS = 2  # per attempt: rotation phase, delay shift
+# The uniform columns an attempt draws before its layout's and object's: rotation phase,
+# delay shift (a sweep's frame draws the same, simulate_frames in generator/sweep.py)
+FIXED_COLUMNS = 2
 
 
 @dataclass(frozen=True)
@@ -141,7 +143,7 @@ def simulate(
 
     lc, oc = catalog.layout_columns, catalog.object_columns
     azimuth = column_centres_deg(width, config.fov_deg)  # negative: left half of the window
-    columns = _FIXED_COLUMNS + lc + oc
+    columns = FIXED_COLUMNS + lc + oc
     range_m = np.full((n, sensor.beams, width), np.nan)
     surface = np.zeros((n, sensor.beams, width), np.uint8)
     pose = np.full((n, 3), np.nan)
@@ -159,8 +161,8 @@ def simulate(
             catalog,
             layout[pending],
             obj[pending],
-            u[:, _FIXED_COLUMNS : _FIXED_COLUMNS + lc],
-            u[:, _FIXED_COLUMNS + lc :],
+            u[:, FIXED_COLUMNS : FIXED_COLUMNS + lc],
+            u[:, FIXED_COLUMNS + lc :],
             origins,
             directions,
             index[pending] % MAX_BATCH,

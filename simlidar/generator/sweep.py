@@ -35,7 +35,7 @@ from simlidar.dataset.writer import SplitWriter
 from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.pulses import quantise_range
-from simlidar.generator.simulate import _FIXED_COLUMNS, class_plan, factors, sample_stream
+from simlidar.generator.simulate import FIXED_COLUMNS, class_plan, factors, sample_stream
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.model import Sensor, row_order
@@ -122,14 +122,14 @@ def simulate_frames(config: GeneratorConfig, catalog: Catalog, start: int, stop:
     free = np.stack([g.random(2) for g in streams])
     layout, obj = factors(plan, labels, free, len(catalog.layouts), len(catalog.objects))
     lc = catalog.layout_columns
-    u = np.stack([g.random(_FIXED_COLUMNS + lc + catalog.object_columns) for g in streams])
+    u = np.stack([g.random(FIXED_COLUMNS + lc + catalog.object_columns) for g in streams])
     origins, directions = sweep_rays(sensor, u[:, 0])
     scene = build_batch(
         catalog,
         layout,
         obj,
-        u[:, _FIXED_COLUMNS : _FIXED_COLUMNS + lc],
-        u[:, _FIXED_COLUMNS + lc :],
+        u[:, FIXED_COLUMNS : FIXED_COLUMNS + lc],
+        u[:, FIXED_COLUMNS + lc :],
     )
     hits = cast(scene, origins, directions, index % MAX_BATCH, sensor.max_range_m, incidence=True)
     r = quantise_range(hits.range_m, sensor)

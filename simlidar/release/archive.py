@@ -25,7 +25,7 @@ import urllib.parse
 import urllib.request
 from pathlib import Path
 
-from simlidar.atomic import Temporary, claim_folder, install
+from simlidar.atomic import Temporary, claim_folder, install, write_files
 from simlidar.dataset.schema import SPLITS
 from simlidar.dataset.shards import find_split_files
 from simlidar.errors import ConfigError, DatasetError
@@ -70,30 +70,23 @@ def pack(path: str | Path, out: str | Path | None = None) -> tuple[Path, Path]:
     archive = out / f"{path.name}.tar.gz"
     checksum = archive.with_name(archive.name + ".sha256")
     files = sorted(p for p in path.iterdir() if p.is_file() and not is_os_litter(p.name))
-    work = Temporary(out, archive.name)
-    try:
-        tmp = work.path / archive.name
-        with open(tmp, "wb") as raw:
-            os.fchmod(raw.fileno(), 0o644)  # a published archive is readable by all
-            with (
-                gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz,
-                tarfile.open(fileobj=gz, mode="w", format=tarfile.PAX_FORMAT) as tar,
-            ):
-                tar.addfile(_info(path.name, tarfile.DIRTYPE, 0))
-                for file in files:
-                    with open(file, "rb", opener=_no_follow) as f:
-                        size = os.fstat(f.fileno()).st_size
-                        tar.addfile(_info(f"{path.name}/{file.name}", tarfile.REGTYPE, size), f)
-        tmp_sum = work.path / checksum.name
+
+    def write(temporaries: list[Path]) -> None:
+        tmp, tmp_sum = temporaries
+        with (
+            open(tmp, "wb") as raw,
+            gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz,
+            tarfile.open(fileobj=gz, mode="w", format=tarfile.PAX_FORMAT) as tar,
+        ):
+            tar.addfile(_info(path.name, tarfile.DIRTYPE, 0))
+            for file in files:
+                with open(file, "rb", opener=_no_follow) as f:
+                    size = os.fstat(f.fileno()).st_size
+                    tar.addfile(_info(f"{path.name}/{file.name}", tarfile.REGTYPE, size), f)
         tmp_sum.write_text(f"{sha256_file(tmp)}  {archive.name}\n")
-        tmp_sum.chmod(0o644)
-        # both are complete before either is in place: a full disk leaves neither
-        tmp.replace(archive)
-        tmp_sum.replace(checksum)
-    except OSError as exc:
-        raise DatasetError(f"{archive}: cannot write ({exc.strerror or exc})") from None
-    finally:
-        work.release()
+
+    # both complete before either is in place (a full disk leaves neither), readable by all
+    write_files([archive, checksum], write, mode=0o644)
     return archive, checksum
 
 
@@ -137,7 +130,7 @@ def _download(url: str, target: Path, timeout: float, progress: bool) -> None:
     from tqdm import tqdm
 
     try:
-        with urllib.request.urlopen(url, timeout=timeout) as response:  # noqa: S310
+        with urllib.request.urlopen(url, timeout=timeout) as response:
             expected = response.headers.get("Content-Length")
             expected = int(expected) if expected is not None else None
             received = 0
@@ -186,7 +179,7 @@ def _download(url: str, target: Path, timeout: float, progress: bool) -> None:
 
 def _sidecar_sha256(url: str, timeout: float) -> str:
     try:
-        with urllib.request.urlopen(url + ".sha256", timeout=timeout) as response:  # noqa: S310
+        with urllib.request.urlopen(url + ".sha256", timeout=timeout) as response:
             text = response.read(4096).decode("ascii", "replace")
     except (urllib.error.URLError, OSError) as exc:
         raise FetchError(

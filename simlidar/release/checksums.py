@@ -93,14 +93,7 @@ def write_text(path: Path, text: str) -> Path:
     """Replace the file ``path`` with ``text`` (:func:`simlidar.atomic.write_file`: a
     temporary renamed over it, so a link there is replaced, never written through), with the
     mode of a file written in place (0666 less the umask: 0644 as a rule)."""
-
-    def write(tmp: Path) -> None:
-        tmp.write_text(text)
-        umask = os.umask(0o022)
-        os.umask(umask)
-        tmp.chmod(0o666 & ~umask)  # the temporary is made 0600
-
-    return write_file(path, write)
+    return write_file(path, lambda tmp: tmp.write_text(text))
 
 
 def read_sums(path: Path) -> dict[str, str]:

@@ -6,7 +6,6 @@ import h5py
 import numpy as np
 
 from simlidar.dataset.reader import (
-    _first_line,
     check_attributes,
     check_version,
     datasets_of,
@@ -22,7 +21,7 @@ from simlidar.dataset.schema import (
     split_source,
 )
 from simlidar.dataset.shards import find_split_files, shard_of, split_of
-from simlidar.errors import DatasetError
+from simlidar.errors import DatasetError, first_line
 from simlidar.release.card import read_front_matter
 from simlidar.release.checksums import check_sums
 
@@ -37,7 +36,7 @@ def _check_split(
     try:
         f = h5py.File(path, "r")
     except OSError as exc:
-        return [f"{path}: cannot read as HDF5 ({_first_line(exc)})"], None
+        return [f"{path}: cannot read as HDF5 ({first_line(exc)})"], None
     with f:
         attrs, problems = read_attrs(f)
         missing = [k for k in REQUIRED_ATTRS if k not in f.attrs]
@@ -112,7 +111,7 @@ def _check_split(
             if "event_count" in shapes:
                 problems += _check_events(path, f)
         except OSError as exc:  # a chunk that does not decompress
-            problems.append(f"{path}: unreadable data ({_first_line(exc)})")
+            problems.append(f"{path}: unreadable data ({first_line(exc)})")
     return sorted(set(problems), key=problems.index), size
 
 

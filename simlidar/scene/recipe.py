@@ -10,7 +10,6 @@ a hostile or runaway recipe from taking the memory of the machine (the expressio
 
 import hashlib
 import json
-import math
 import stat
 import tomllib
 from dataclasses import dataclass, field, replace
@@ -19,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simlidar.content import PLAIN_NAME, PLAIN_NAME_RULE, content_dir, file_kind
+from simlidar.content import PLAIN_NAME, PLAIN_NAME_RULE, content_dir, file_kind, finite_number
 from simlidar.errors import RecipeError, shown
 from simlidar.scene import expr
 from simlidar.scene.primitives import DEFAULT_SEGMENTS, KINDS, template
@@ -215,44 +214,34 @@ def _check_keys(where: str, table: dict, allowed: set[str], required: set[str]) 
         raise RecipeError(f"{where}: key '{key}' is missing")
 
 
-def _is_number(v) -> bool:
-    """A finite int or float, not a bool; an integer too large for a float is no number."""
-    if isinstance(v, bool) or not isinstance(v, int | float):
-        return False
-    try:
-        return math.isfinite(v)
-    except OverflowError:
-        return False
-
-
 @cache
 def _triangles(kind: str, segments: int) -> int:
     return len(template(kind, segments).triangles)
 
 
 def _param(where: str, key: str, name: str, spec) -> Param:
-    if _is_number(spec):
+    if finite_number(spec):
         return Param(name, "fixed", (float(spec),))
-    if isinstance(spec, list) and len(spec) == 2 and all(map(_is_number, spec)):
+    if isinstance(spec, list) and len(spec) == 2 and all(map(finite_number, spec)):
         if spec[0] > spec[1]:
             raise _fail(where, key, "a range [low, high] with low <= high", spec)
         return Param(name, "uniform", (float(spec[0]), float(spec[1])))
     if isinstance(spec, dict) and set(spec) == {"int"}:
         v = spec["int"]
-        integers = isinstance(v, list) and all(isinstance(x, int) and _is_number(x) for x in v)
+        integers = isinstance(v, list) and all(isinstance(x, int) and finite_number(x) for x in v)
         if not (integers and len(v) == 2 and 0 <= v[0] <= v[1]):
             raise _fail(where, key + ".int", "[low, high], integers with 0 <= low <= high", v)
         return Param(name, "int", (float(v[0]), float(v[1])))
     if isinstance(spec, dict) and set(spec) == {"choice"}:
         v = spec["choice"]
-        if not (isinstance(v, list) and v and all(map(_is_number, v))):
+        if not (isinstance(v, list) and v and all(map(finite_number, v))):
             raise _fail(where, key + ".choice", "a non-empty list of numbers", v)
         return Param(name, "choice", tuple(float(x) for x in v))
     raise _fail(where, key, "a number, [low, high], {int = [low, high]} or {choice = [...]}", spec)
 
 
 def _expression(where: str, key: str, value, known: set[str]):
-    if _is_number(value):
+    if finite_number(value):
         return expr.compile_tree(expr.parse(repr(float(value))))
     if not isinstance(value, str):
         raise _fail(where, key, "a number or an expression string", value)
@@ -403,7 +392,7 @@ def _visible(where: str, visible, surfaces: list[str]) -> tuple[tuple[int, int, 
                 rule["surface"],
             )
         hits = rule["min_hits"]
-        if not (isinstance(hits, int) and _is_number(hits) and hits >= 1):
+        if not (isinstance(hits, int) and finite_number(hits) and hits >= 1):
             raise _fail(where, f"{key}.min_hits", "a positive integer", hits)
         side = rule.get("side", "any")
         if side not in ("any", "left", "right"):

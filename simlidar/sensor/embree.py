@@ -17,10 +17,12 @@ is read from the object's memory. The layout is checked once per process without
 pointer: the object size, the ``device`` field holding the very device object passed in, and
 the public ``is_committed`` field moving when Python sets it. Embree must report major version
 4. Where any of this fails, or raises, :func:`attach_triangles` uses ``TriangleMesh``: slower,
-same hits.
+same hits. It then says so once per process (a warning naming the cause), and
+:func:`ray_casting` (``simlidar --version``) tells which path this machine takes.
 """
 
 import ctypes
+import warnings
 from functools import cache
 
 import numpy as np
@@ -70,19 +72,24 @@ def _layout_ok(scene_type, device) -> bool:
 
 
 @cache
-def _embree():
-    """(ctypes handle on embreex's Embree, the EmbreeScene class checked), or None."""
+def _probe():
+    """(ctypes handle on embreex's Embree, the EmbreeScene class checked), or (None, why not)."""
     try:
         return _open()
-    except Exception:  # an embreex or Embree unlike the one this module knows: fall back
-        return None
+    except Exception as exc:  # an embreex or Embree unlike the one this module knows: fall back
+        return None, f"probing embreex raised {type(exc).__name__}: {exc}"
+
+
+def _embree():
+    """(ctypes handle on embreex's Embree, the EmbreeScene class checked), or None."""
+    return _probe()[0]
 
 
 def _open():
     import embreex.rtcore_scene as rtcs
 
     if not _layout_ok(rtcs.EmbreeScene, device()):
-        return None
+        return None, "embreex's EmbreeScene has a C layout this module does not know"
     lib = ctypes.CDLL(rtcs.__file__)  # embreex's module: its symbols are embreex's Embree
     p, size, enum = ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int
     for name, restype, argtypes in [
@@ -101,17 +108,33 @@ def _open():
         fn.restype, fn.argtypes = restype, argtypes
     handle = lib.rtcNewDevice(None)
     if not handle:
-        return None
+        return None, "Embree could not make a device"
     try:
         major = lib.rtcGetDeviceProperty(handle, _PROPERTY_VERSION_MAJOR)
     finally:
         lib.rtcReleaseDevice(handle)
-    return (lib, rtcs.EmbreeScene) if major == 4 else None
+    if major != 4:
+        return None, f"embreex's Embree is version {major}; expected 4"
+    return (lib, rtcs.EmbreeScene), ""
 
 
 def shared_buffers() -> bool:
     """Whether :func:`attach_triangles` shares numpy buffers with Embree on this machine."""
     return _embree() is not None
+
+
+def ray_casting() -> str:
+    """Which path ray casting takes on this machine, in a few words (``simlidar --version``)."""
+    if shared_buffers():
+        return "Embree 4, triangles shared with numpy (simlidar.sensor.embree)"
+    why = _probe()[1] or "shared buffers unavailable"
+    return f"embreex's TriangleMesh, a copy a triangle: slower, the same hits ({why})"
+
+
+@cache
+def _say_fallback() -> None:
+    """The fallback's one warning in this process."""
+    warnings.warn(f"ray casting through {ray_casting()}", stacklevel=2)
 
 
 def attach_triangles(embree_scene, triangles: np.ndarray, shared: bool = True):
@@ -128,6 +151,9 @@ def attach_triangles(embree_scene, triangles: np.ndarray, shared: bool = True):
     opened = _embree() if shared else None
     if opened is None:
         import embreex.mesh_construction as mc
+
+        if shared:
+            _say_fallback()
 
         return mc.TriangleMesh(embree_scene, triangles)
     lib, scene_type = opened

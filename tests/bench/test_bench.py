@@ -28,11 +28,9 @@ import shutil
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
 
 from simlidar.bench.run import run_suite
 from simlidar.bench.suite import load_suite, suite_names
-from simlidar.cli import main
 from simlidar.errors import ConfigError, DatasetError
 
 TINY = """
@@ -304,29 +302,25 @@ def test_bad_suites_are_named(tmp_path, text, message):
         load_suite(path)
 
 
-def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets):
-    runner = CliRunner()
+def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets, cli):
     out = tmp_path / "out"
-    ok = runner.invoke(
-        main,
-        [
-            "bench",
-            "--suite",
-            str(tiny_suite),
-            "--models",
-            "cnn",
-            "--dataset",
-            str(datasets[0.1]),
-            "--out",
-            str(out),
-        ],
+    ok = cli(
+        "bench",
+        "--suite",
+        str(tiny_suite),
+        "--models",
+        "cnn",
+        "--dataset",
+        str(datasets[0.1]),
+        "--out",
+        str(out),
     )
     assert ok.exit_code == 0, ok.output
     assert "1 cells in" in ok.output and "cnn" in ok.output
     results = (out / "results.json").read_bytes()
 
     def fails(args, code, text):
-        result = runner.invoke(main, ["bench", *args])
+        result = cli("bench", *args)
         assert result.exit_code == code, result.output
         assert text in result.output and "Traceback" not in result.output
         errors = [line for line in result.output.splitlines() if line.startswith("Error")]
@@ -349,7 +343,7 @@ def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets):
         "cannot read as HDF5",
     )
     fails(["--suite", "quick", "--out", str(out)], 1, "belongs to suite 'tiny'")
-    other = runner.invoke(main, ["bench", "--suite", "quick", "--out", str(out)])
+    other = cli("bench", "--suite", "quick", "--out", str(out))
     assert "--force" not in other.output and "expected a new --out directory" in other.output
     fails(["--suite", str(tiny_suite), "--epochs", "0"], 2, "'--epochs': 0 is not in the range")
     fails(["--suite", str(tiny_suite), "--max-seconds", "-1"], 2, "'--max-seconds'")
@@ -385,7 +379,7 @@ def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets):
             *["--out", str(where), "--epochs", "2", "--max-seconds", "inf", "--json"],
         ]
 
-    longer = runner.invoke(main, ["bench", *longer_args(tmp_path / "e2")])
+    longer = cli("bench", *longer_args(tmp_path / "e2"))
     assert longer.exit_code == 0, longer.output
     cell = json.loads(longer.stdout)["cells"][0]
     assert cell["budget"] == {"epochs": 2, "max_seconds": None}  # no time cap
@@ -401,7 +395,7 @@ def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets):
     cell_file.write_text(
         cell_file.read_text().replace('"max_seconds": null', '"max_seconds": Infinity')
     )
-    again = runner.invoke(main, ["bench", *longer_args(tmp_path / "e2")])
+    again = cli("bench", *longer_args(tmp_path / "e2"))
     assert again.exit_code == 0, again.output
     assert "Infinity" in cell_file.read_text()  # not run again
 
@@ -602,7 +596,7 @@ def test_a_deleted_cells_folder_is_made_again(tiny_suite, tmp_path, datasets):
 
 
 @pytest.mark.parametrize("blocker", ["file", "dangling link"])
-def test_something_in_the_way_of_a_generated_dataset_is_named(tmp_path, blocker):
+def test_something_in_the_way_of_a_generated_dataset_is_named(tmp_path, blocker, cli):
     path = tmp_path / "gen.toml"
     path.write_text(GENERATED + "validation = 0\n")
     out = tmp_path / "out"
@@ -613,7 +607,7 @@ def test_something_in_the_way_of_a_generated_dataset_is_named(tmp_path, blocker)
         dataset.write_text("not a dataset")
     else:
         dataset.symlink_to(tmp_path / "nowhere")
-    done = CliRunner().invoke(main, ["bench", "--suite", str(path), "--out", str(out)])
+    done = cli("bench", "--suite", str(path), "--out", str(out))
     assert done.exit_code == 1 and done.stderr.count("\n") == 1, done.output
     assert done.stderr == (
         f"Error: --out {out}: {dataset} is in the way of the suite's dataset of that name (not "

@@ -29,13 +29,11 @@ import math
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
 
 from simlidar.bench.merge import SCHEMA, check_cell, read_cell
 from simlidar.bench.run import run_suite
 from simlidar.bench.suite import load_suite
 from simlidar.bench.train import STOPS
-from simlidar.cli import main
 from simlidar.errors import ResultsError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.generate import generate
@@ -89,10 +87,6 @@ def folder_of(root: Path, cells: dict, suite: str | None = "copied") -> Path:
     if suite is not None:
         (root / "suite.json").write_text(json.dumps({"name": suite}))
     return root
-
-
-def report(*args):
-    return CliRunner().invoke(main, ["report", *map(str, args)])
 
 
 def refused(result, text: str, code: int = 1) -> str:
@@ -231,9 +225,9 @@ def tiny_runs(tmp_path_factory, catalog):
     return runs
 
 
-def test_the_paper_run_and_a_tiny_bench_merge_into_one_report(tiny_runs, tmp_path):
+def test_the_paper_run_and_a_tiny_bench_merge_into_one_report(tiny_runs, tmp_path, cli):
     out = tmp_path / "merged"
-    result = report(PAPER, tiny_runs["mine"], "--out", out)
+    result = cli("report", PAPER, tiny_runs["mine"], "--out", out)
     assert result.exit_code == 0, result.output
     assert f"86 cells of 2 runs in {out}" in result.output
     results = json.loads((out / "results.json").read_text())
@@ -270,16 +264,16 @@ def test_the_paper_run_and_a_tiny_bench_merge_into_one_report(tiny_runs, tmp_pat
     assert sorted(p.name for p in out.parent.iterdir()) == ["merged"]  # no temporaries left
 
     # a second report into the same --out replaces the first
-    again = report(tiny_runs["mine"], "--out", out)
+    again = cli("report", tiny_runs["mine"], "--out", out)
     assert again.exit_code == 0, again.output
     assert len(json.loads((out / "results.json").read_text())["cells"]) == 2
     assert "cnn (paper)" not in (out / "report.md").read_text()
 
 
-def test_a_folder_whose_dataset_holds_other_data_is_refused(tiny_runs, tmp_path):
+def test_a_folder_whose_dataset_holds_other_data_is_refused(tiny_runs, tmp_path, cli):
     out = tmp_path / "new" / "merged"
     line = refused(
-        report(PAPER, tiny_runs["clash"], "--out", out),
+        cli("report", PAPER, tiny_runs["clash"], "--out", out),
         "dataset simlidar-32c-noise0.1-paper-v2.0.0: ",
     )
     assert "were made from different data of that name" in line
@@ -287,7 +281,7 @@ def test_a_folder_whose_dataset_holds_other_data_is_refused(tiny_runs, tmp_path)
     assert not (tmp_path / "new").exists()  # nothing written, not even --out's parent
 
 
-def test_a_cell_without_a_data_digest_is_refused_beside_another_folders(tmp_path):
+def test_a_cell_without_a_data_digest_is_refused_beside_another_folders(tmp_path, cli):
     name = "simlidar-32c-noise0.1-paper-v2.0.0__cnn__seed0"
     blind = paper_cell()
     blind["inputs"]["splits_sha256"] = None
@@ -295,35 +289,35 @@ def test_a_cell_without_a_data_digest_is_refused_beside_another_folders(tmp_path
     check_cell(blind, "null digest")  # a dataset without SHA256SUMS: valid on its own
     a = folder_of(tmp_path / "a", {name: paper_cell()})
     b = folder_of(tmp_path / "b", {name.replace("seed0", "seed7"): blind})
-    line = refused(report(a, b, "--out", tmp_path / "out"), "records no data digest")
+    line = refused(cli("report", a, b, "--out", tmp_path / "out"), "records no data digest")
     assert "seed7.json" in line and "seed0.json" in line
     assert not (tmp_path / "out").exists()
-    assert report(b, "--out", tmp_path / "out").exit_code == 0  # alone it is fine
+    assert cli("report", b, "--out", tmp_path / "out").exit_code == 0  # alone it is fine
 
 
-def test_two_different_cells_of_one_dataset_model_and_seed_are_refused(tmp_path):
+def test_two_different_cells_of_one_dataset_model_and_seed_are_refused(tmp_path, cli):
     name = "simlidar-32c-noise0.1-paper-v2.0.0__cnn__seed0"
     a = folder_of(tmp_path / "a", {name: paper_cell()})
     b = folder_of(tmp_path / "b", {name: dict(paper_cell(), accuracy=0.5)})
     line = refused(
-        report(a, b, "--out", tmp_path / "out"),
+        cli("report", a, b, "--out", tmp_path / "out"),
         "cell (simlidar-32c-noise0.1-paper-v2.0.0, cnn, seed 0) is in",
     )
     assert f"{a / 'cells' / name}.json and in {b / 'cells' / name}.json" in line
     assert "(key 'accuracy')" in line and not (tmp_path / "out").exists()
     copy = folder_of(tmp_path / "copy", {name: paper_cell()})  # identical: kept once
-    merged = report(a, copy, a, "--out", tmp_path / "out")
+    merged = cli("report", a, copy, a, "--out", tmp_path / "out")
     assert merged.exit_code == 0, merged.output
     assert "1 cells of 2 runs" in merged.output
 
 
-def test_one_models_seeds_from_two_folders_share_one_row(tmp_path):
+def test_one_models_seeds_from_two_folders_share_one_row(tmp_path, cli):
     cells = {p.stem: json.loads(p.read_text()) for p in (PAPER / "cells").glob("*__cnn__*")}
     first = {k: v for k, v in cells.items() if not k.endswith("seed2")}
     second = {k: v for k, v in cells.items() if k.endswith("seed2")}
     a = folder_of(tmp_path / "a", first, suite="paper")
     b = folder_of(tmp_path / "b", second, suite="paper")
-    result = report(a, b, "--out", tmp_path / "out")
+    result = cli("report", a, b, "--out", tmp_path / "out")
     assert result.exit_code == 0, result.output
     text = (tmp_path / "out" / "report.md").read_text()
     # the committed report's row, from two folders
@@ -333,47 +327,51 @@ def test_one_models_seeds_from_two_folders_share_one_row(tmp_path):
     assert "suite a + b" in text.splitlines()[0]  # two runs of one suite: named by folder
 
 
-def test_bad_folders_and_cells_are_refused_in_one_line_with_nothing_written(tmp_path):
+def test_bad_folders_and_cells_are_refused_in_one_line_with_nothing_written(tmp_path, cli):
     name = "simlidar-32c-noise0.1-paper-v2.0.0__cnn__seed0"
     good = folder_of(tmp_path / "good", {name: paper_cell()})
     out = tmp_path / "out"
     broken = folder_of(
         tmp_path / "broken", {name.replace("cnn", "x"): dict(paper_cell(), accuracy=1.5)}
     )
-    line = refused(report(good, broken, "--out", out), "key 'accuracy': 1.5 is greater")
+    line = refused(cli("report", good, broken, "--out", out), "key 'accuracy': 1.5 is greater")
     assert line.startswith(f"Error: {broken / 'cells'}")
     empty = tmp_path / "empty"
     empty.mkdir()
-    refused(report(good, empty, "--out", out), "no finished cells (cells/*.json)")
-    refused(report(tmp_path / "missing", "--out", out), "not a folder; expected a benchmark")
+    refused(cli("report", good, empty, "--out", out), "no finished cells (cells/*.json)")
+    refused(cli("report", tmp_path / "missing", "--out", out), "not a folder; expected a benchmark")
     junk = folder_of(tmp_path / "junk", {})
     (junk / "cells" / "x.json").write_text("{not json")
-    refused(report(junk, "--out", out), "x.json: cannot be read (Expecting property name")
+    refused(cli("report", junk, "--out", out), "x.json: cannot be read (Expecting property name")
     (junk / "cells" / "x.json").write_text("[1, 2]")
-    refused(report(junk, "--out", out), "x.json: the cell: [1, 2] is not of type 'object'")
+    refused(cli("report", junk, "--out", out), "x.json: the cell: [1, 2] is not of type 'object'")
     assert not out.exists()
 
     # --out: a folder of other files is refused and left as it was; a file too; '' is usage
     other = tmp_path / "other"
     other.mkdir()
     (other / "notes.txt").write_text("mine")
-    refused(report(good, "--out", other), "not empty and not a folder written by simlidar report")
+    refused(
+        cli("report", good, "--out", other), "not empty and not a folder written by simlidar report"
+    )
     assert [p.name for p in other.iterdir()] == ["notes.txt"]
-    refused(report(good, "--out", good), "not empty and not a folder written by simlidar report")
+    refused(
+        cli("report", good, "--out", good), "not empty and not a folder written by simlidar report"
+    )
     (tmp_path / "file").write_text("x")
-    refused(report(good, "--out", tmp_path / "file"), "is a file", code=2)  # as every --out
-    refused(report(good, "--out", ""), "'' is empty", code=2)
+    refused(cli("report", good, "--out", tmp_path / "file"), "is a file", code=2)  # as every --out
+    refused(cli("report", good, "--out", ""), "'' is empty", code=2)
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "broken", "empty", "file", "good", "junk", "other",
     ]  # fmt: skip
 
 
-def test_the_committed_outside_models_merge_with_the_paper_run(tmp_path):
+def test_the_committed_outside_models_merge_with_the_paper_run(tmp_path, cli):
     """docs/benchmark.md's leaderboard: the snnTorch and Norse examples' run on the paper
     suite's data beside every shipped model, with the paper's row (both runs' splits are the
     paper's size)."""
     out = tmp_path / "leaderboard"
-    result = report(PAPER, ROOT / "benchmark/results/outside", "--out", out)
+    result = cli("report", PAPER, ROOT / "benchmark/results/outside", "--out", out)
     assert result.exit_code == 0, result.output
     text = (out / "report.md").read_text()
     assert "| *paper: SNN 256-400-32* | 99.83 | 96.16 | 82.66 | 68.16 |" in text

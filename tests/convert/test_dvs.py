@@ -227,19 +227,15 @@ def test_verify_checks_that_events_tile_the_samples(dvs_dataset, tmp_path):
     assert "test.h5: 'event_start' and 'event_count' do not tile the" in problems
 
 
-def test_cli_converts_and_the_dense_snn_benches_on_it(tmp_path):
+def test_cli_converts_and_the_dense_snn_benches_on_it(tmp_path, cli):
     """`simlidar convert dvs-barrel` then `simlidar bench --dataset` with the paper's DVS
     network (hidden layer narrowed): the path runs; accuracy is not the point."""
-    from click.testing import CliRunner
 
-    from simlidar.cli import main
-
-    runner = CliRunner()
     mat = write_mat(tmp_path / "tiny.mat", fields=("x", "y", "p", "ts"))
     args = ["convert", "dvs-barrel", str(mat), "--out", str(tmp_path / "data"), "--json"]
-    missing = runner.invoke(main, args)
+    missing = cli(*args)
     assert missing.exit_code == 2 and "expected one character" in missing.output
-    done = runner.invoke(main, [*args, "--labels", "AABB7"])
+    done = cli(*args, "--labels", "AABB7")
     assert done.exit_code == 0, done.output
     path = json.loads(done.output)["path"]
     snn = tmp_path / "snn_small.toml"
@@ -247,20 +243,17 @@ def test_cli_converts_and_the_dense_snn_benches_on_it(tmp_path):
         'model = "snn"\n[architecture]\nhidden = [20]\n[training]\n'
         'optimizer = "adam"\nlr = 1e-3\nbatch_size = 2\nepochs = 1\n'
     )
-    bench = runner.invoke(
-        main,
-        [
-            "bench",
-            "--models",
-            str(snn),
-            "--dataset",
-            path,
-            "--out",
-            str(tmp_path / "b"),
-            "--validation",
-            "0",
-            "--json",
-        ],
+    bench = cli(
+        "bench",
+        "--models",
+        str(snn),
+        "--dataset",
+        path,
+        "--out",
+        str(tmp_path / "b"),
+        "--validation",
+        "0",
+        "--json",
     )
     assert bench.exit_code == 0, bench.output
     (cell,) = json.loads(bench.output)["cells"]

@@ -372,30 +372,23 @@ def test_the_card_and_croissant_are_made_from_the_files(kitti_dataset, caplog):
     assert not any("not standard" in r.getMessage() for r in caplog.records)
 
 
-def test_simlidar_verify_and_info_take_a_converted_dataset(kitti_dataset):
-    from click.testing import CliRunner
-
-    from simlidar.cli import main
+def test_simlidar_verify_and_info_take_a_converted_dataset(kitti_dataset, cli):
 
     sizes = split_sizes(kitti_dataset)
-    done = CliRunner().invoke(main, ["verify", str(kitti_dataset)])
+    done = cli("verify", str(kitti_dataset))
     assert done.exit_code == 0, done.output
     assert f"OK (dataset version 1.0.0, train {sizes['train']}, test {sizes['test']}" in done.output
-    done = CliRunner().invoke(main, ["info", str(kitti_dataset)])
+    done = cli("info", str(kitti_dataset))
     assert done.exit_code == 0 and "Truck" in done.output
 
 
-def test_cli_converts_the_sample_and_benches_it_end_to_end(kitti_root, kitti_dataset, tmp_path):
+def test_cli_converts_the_sample_and_benches_it_end_to_end(
+    kitti_root, kitti_dataset, tmp_path, cli
+):
     """`simlidar convert kitti` then `simlidar bench --dataset`: the paper's KITTI pair (the
     spiking CNN, here narrowed, and the CNN) trains and scores on the real crops."""
-    from click.testing import CliRunner
 
-    from simlidar.cli import main
-
-    runner = CliRunner()
-    done = runner.invoke(
-        main, ["convert", "kitti", str(kitti_root), "--out", str(tmp_path / "data"), "--json"]
-    )
+    done = cli("convert", "kitti", str(kitti_root), "--out", str(tmp_path / "data"), "--json")
     assert done.exit_code == 0, done.output
     record = json.loads(done.output)
     assert record["splits"] == split_sizes(kitti_dataset)
@@ -410,11 +403,11 @@ def test_cli_converts_the_sample_and_benches_it_end_to_end(kitti_root, kitti_dat
         f'models = ["cnn", "{scnn}"]\ndatasets = ["{record["path"]}"]\n[budget]\nepochs = 1\n'
     )
     args = ["bench", "--suite", str(suite), "--out", str(tmp_path / "b"), "--json"]
-    few = runner.invoke(main, args)  # a few crops: nothing to hold out for model selection
+    few = cli(*args)  # a few crops: nothing to hold out for model selection
     assert few.exit_code == 2 and not (tmp_path / "b").exists()
     assert few.output.count("\n") == 1 and "recipe cnn: key 'training.validation': " in few.output
     assert "--validation 0" in few.output
-    bench = runner.invoke(main, [*args, "--validation", "0"])
+    bench = cli(*args, "--validation", "0")
     assert bench.exit_code == 0, bench.output
     cells = json.loads(bench.output)["cells"]
     assert {c["model"] for c in cells} == {"cnn", "scnn_small"}
@@ -425,5 +418,5 @@ def test_cli_converts_the_sample_and_benches_it_end_to_end(kitti_root, kitti_dat
     report = (tmp_path / "b" / "report.md").read_text()
     assert "The paper on KITTI" in report and "scnn 96.62 %" in report
 
-    bad = runner.invoke(main, ["convert", "kitti", str(tmp_path / "nowhere")])
+    bad = cli("convert", "kitti", str(tmp_path / "nowhere"))
     assert bad.exit_code == 1 and "expected the KITTI object benchmark" in bad.output

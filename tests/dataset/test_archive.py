@@ -1,14 +1,12 @@
 """pack and fetch against a real HTTP server on 127.0.0.1, started by the test."""
 
 import hashlib
-import http.server
 import io
 import os
 import shutil
 import subprocess
 import sys
 import tarfile
-import threading
 import time
 from pathlib import Path
 
@@ -17,63 +15,6 @@ import pytest
 from simlidar.errors import DatasetError
 from simlidar.release.archive import FetchError, fetch, pack
 from simlidar.release.checksums import sha256_file
-
-
-class _Handler(http.server.SimpleHTTPRequestHandler):
-    release = threading.Event()  # set at teardown so a hanging request ends
-
-    def log_message(self, *args):  # keep the test output clean
-        pass
-
-    def do_GET(self):
-        if self.path.startswith("/truncated/"):
-            body = (Path(self.directory) / self.path.split("/", 2)[2]).read_bytes()
-            self.send_response(200)
-            self.send_header("Content-Length", str(len(body)))
-            self.end_headers()
-            self.wfile.write(body[: len(body) // 2])  # then the connection closes
-            self.close_connection = True
-            return
-        if self.path.startswith("/trickle/"):  # a byte every 0.1 s, for ever
-            self.send_response(200)
-            self.send_header("Content-Length", "1000000")
-            self.end_headers()
-            while not self.release.wait(timeout=0.1):
-                try:
-                    self.wfile.write(b"x")
-                    self.wfile.flush()
-                except OSError:  # the client gave up
-                    return
-            return
-        if self.path.startswith("/hang/"):
-            self.release.wait(timeout=10)  # never answers within the client's timeout
-            return
-        super().do_GET()
-
-
-@pytest.fixture
-def server(tmp_path):
-    """(base URL, served folder) of a server that stops when the test ends."""
-    root = tmp_path / "www"
-    root.mkdir()
-    _Handler.release.clear()
-    httpd = http.server.ThreadingHTTPServer(
-        ("127.0.0.1", 0), lambda *a: _Handler(*a, directory=str(root))
-    )
-    thread = threading.Thread(target=httpd.serve_forever, args=(0.05,), daemon=True)
-    thread.start()
-    yield f"http://127.0.0.1:{httpd.server_address[1]}", root
-    _Handler.release.set()
-    httpd.shutdown()
-    httpd.server_close()
-    thread.join(timeout=5)
-
-
-@pytest.fixture
-def packed(datasets, server):
-    """The small dataset packed into the served folder: (archive, its sha256)."""
-    archive, checksum = pack(datasets[0.1], server[1])
-    return archive, checksum.read_text().split()[0]
 
 
 def test_pack_is_reproducible_and_checksummed(datasets, tmp_path):

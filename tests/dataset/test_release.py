@@ -76,16 +76,13 @@ def test_the_card_is_made_from_the_files_alone(datasets, copy):
     assert render_card(copy) == (datasets[0.1] / "README.md").read_text()
 
 
-def test_the_regenerate_command_gives_the_same_bytes(datasets, tmp_path):
-    from click.testing import CliRunner
-
-    from simlidar.cli import main
+def test_the_regenerate_command_gives_the_same_bytes(datasets, tmp_path, cli):
 
     text = (datasets[0.5] / "README.md").read_text()
     command = text.split("## Regenerate")[1].split("```\n")[1].strip()
     assert command.startswith("simlidar generate ")
     args = command.split()[1:] + ["--out", str(tmp_path)]
-    assert CliRunner().invoke(main, args).exit_code == 0
+    assert cli(*args).exit_code == 0
     again = tmp_path / datasets[0.5].name
     for name in ("train.h5", "test.h5", "README.md", "croissant.json", "SHA256SUMS"):
         assert (again / name).read_bytes() == (datasets[0.5] / name).read_bytes(), name
@@ -213,36 +210,12 @@ def test_front_matter_errors_are_named(copy):
     assert np.isfinite(1.0)
 
 
-def _agreeing(copy):
-    """Make the card and SHA256SUMS agree with the split files as they now are."""
-    from simlidar.release.card import write_card
-    from simlidar.release.checksums import write_sums
-
-    with h5py.File(copy / "train.h5", "r") as f:
-        size = f["labels"].shape[0]
-    card = copy / "README.md"
-    write_card(copy, card.read_text().replace("num_examples: 96", f"num_examples: {size}"))
-    write_sums(copy)
-
-
-def _bomb(copy, n=20_000_000, rows=None, stored=False):
-    """Every dataset of train.h5 declared with ``n`` rows: contiguous (``rows`` None) or in
-    gzip chunks of ``rows`` rows, never written, or (``stored``) each chunk one byte."""
-    with h5py.File(copy / "train.h5", "a") as f:
-        for name in list(f):
-            dtype, tail = f[name].dtype, f[name].shape[1:]
-            del f[name]
-            options = dict(chunks=(rows, *tail), compression="gzip") if rows else {}
-            ds = f.create_dataset(name, shape=(n, *tail), dtype=dtype, **options)
-            for start in range(0, n, rows) if stored else ():
-                ds.id.write_direct_chunk((start,) + (0,) * len(tail), b"\0")
-    _agreeing(copy)
-
-
-def test_an_hdf5_bomb_is_refused_before_anything_is_allocated(copy, tmp_path, address_limit):
+def test_an_hdf5_bomb_is_refused_before_anything_is_allocated(
+    copy, tmp_path, address_limit, hdf5_bomb
+):
     from simlidar.release.archive import pack
 
-    _bomb(copy, rows=256)
+    hdf5_bomb(copy, rows=256)
     assert (copy / "train.h5").stat().st_size < 1_000_000  # 20,000,000 samples declared
     problems = verify(copy)
     assert any(
@@ -275,21 +248,21 @@ def test_an_hdf5_bomb_is_refused_before_anything_is_allocated(copy, tmp_path, ad
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
 
 
-def test_a_contiguous_dataset_never_written_is_refused(copy):
-    _bomb(copy, n=2_000_000)  # contiguous: no storage allocated until written
+def test_a_contiguous_dataset_never_written_is_refused(copy, hdf5_bomb):
+    hdf5_bomb(copy, n=2_000_000)  # contiguous: no storage allocated until written
     problems = "\n".join(verify(copy))
     assert "'delays' declares (2000000, 16, 16) float32 (1.9 GiB) but stores 0 B;" in problems
 
 
-def test_chunks_compressed_beyond_gzip_are_refused(copy):
-    _bomb(copy, rows=65_536, stored=True)  # every chunk stored, one byte each
+def test_chunks_compressed_beyond_gzip_are_refused(copy, hdf5_bomb):
+    hdf5_bomb(copy, rows=65_536, stored=True)  # every chunk stored, one byte each
     problems = "\n".join(verify(copy))
     expected = "'delays' declares (20000000, 16, 16) float32 (19.1 GiB) but stores 306 B in 306 "
     assert f"{expected}of 306 chunks" in problems
 
 
 @pytest.mark.parametrize("kind", ["external", "soft"])
-def test_a_dataset_that_links_elsewhere_is_refused(copy, tmp_path, kind):
+def test_a_dataset_that_links_elsewhere_is_refused(copy, tmp_path, kind, agreeing):
     other = tmp_path / "other.h5"
     with h5py.File(copy / "train.h5", "r") as f, h5py.File(other, "w") as o:
         o["delays"] = f["delays"][:]
@@ -298,7 +271,7 @@ def test_a_dataset_that_links_elsewhere_is_refused(copy, tmp_path, kind):
         del f["delays"]
         link = h5py.ExternalLink(str(other), "delays") if kind == "external" else None
         f["delays"] = link if link is not None else h5py.SoftLink("/kept")
-    _agreeing(copy)
+    agreeing(copy)
     what = "ExternalLink" if kind == "external" else "SoftLink"
     message = f"'delays' is an HDF5 {what}, expected a dataset in the file"
     assert any(message in p for p in verify(copy))
@@ -362,17 +335,14 @@ def test_anything_but_a_regular_file_in_a_dataset_fails_verify(copy, tmp_path, m
 
 
 @pytest.mark.parametrize("name", [SUMS, "README.md"])
-def test_card_refuses_a_link_and_never_writes_through_it(copy, tmp_path, name):
-    from click.testing import CliRunner
-
-    from simlidar.cli import main
+def test_card_refuses_a_link_and_never_writes_through_it(copy, tmp_path, name, cli):
 
     target = tmp_path / "elsewhere"
     target.write_bytes((copy / name).read_bytes())
     (copy / name).unlink()
     (copy / name).symlink_to(target)
     before = target.read_bytes()
-    result = CliRunner().invoke(main, ["card", str(copy)])
+    result = cli("card", str(copy))
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert result.stderr.strip() == (
         f"Error: {copy / name}: is not a regular file (a link or a folder); expected the "

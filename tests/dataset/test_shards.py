@@ -158,14 +158,11 @@ def test_info_card_croissant_and_checksums_describe_the_shards(sharded, caplog):
     assert set(TRAIN + TEST) <= set(read_sums(sharded))
 
 
-def test_the_cards_command_writes_the_same_shards(sharded, tmp_path):
-    from click.testing import CliRunner
-
-    from simlidar.cli import main
+def test_the_cards_command_writes_the_same_shards(sharded, tmp_path, cli):
 
     command = (sharded / "README.md").read_text().split("## Regenerate")[1].split("```\n")[1]
     args = command.split()[1:] + ["--out", str(tmp_path), "--workers", "2"]
-    result = CliRunner().invoke(main, args)
+    result = cli(*args)
     assert result.exit_code == 0, result.output
     assert read_sums(tmp_path / sharded.name) == read_sums(sharded)
 
@@ -247,10 +244,10 @@ def test_a_card_count_that_disagrees_is_named(sharded, tmp_path):
 
 
 def test_a_failed_run_leaves_no_shard_behind(catalog, small_config, tmp_path, monkeypatch):
-    import simlidar.generator.generate as gen
+    import simlidar.generator.shard as shard
 
     calls = []
-    real = gen.split_rows
+    real = shard.split_rows
 
     def failing(*args):
         calls.append(1)
@@ -258,7 +255,7 @@ def test_a_failed_run_leaves_no_shard_behind(catalog, small_config, tmp_path, mo
             raise RuntimeError("disk gone")
         return real(*args)
 
-    monkeypatch.setattr(gen, "split_rows", failing)
+    monkeypatch.setattr(shard, "split_rows", failing)
     with pytest.raises(RuntimeError, match="disk gone"):
         generate(
             small_config, [0.1], catalog, tmp_path, batch_size=16, progress=False, shard_samples=40
@@ -266,12 +263,9 @@ def test_a_failed_run_leaves_no_shard_behind(catalog, small_config, tmp_path, mo
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_bad_shard_size_is_one_line(tmp_path):
-    from click.testing import CliRunner
+def test_a_bad_shard_size_is_one_line(tmp_path, cli):
 
-    from simlidar.cli import main
-
-    result = CliRunner().invoke(main, ["generate", "--shard-size", "0", "--out", str(tmp_path)])
+    result = cli("generate", "--shard-size", "0", "--out", str(tmp_path))
     assert result.exit_code == 2
     assert "Invalid value for '--shard-size': 0 is not in the range x>=1." in result.output
     assert list(tmp_path.iterdir()) == []

@@ -272,12 +272,8 @@ def test_a_variant_object_keeps_its_placement_and_may_change_it(catalog_copy):
         ("layouts", "x" * 65),
     ],
 )
-def test_catalog_names_are_plain_names(catalog_copy, tmp_path, key, name):
+def test_catalog_names_are_plain_names(catalog_copy, tmp_path, key, name, cli):
     import shutil
-
-    from click.testing import CliRunner
-
-    from simlidar.cli import main
 
     outside = tmp_path / "x" / "layouts"
     outside.mkdir(parents=True)
@@ -294,9 +290,7 @@ def test_catalog_names_are_plain_names(catalog_copy, tmp_path, key, name):
     assert f"key '{key}': expected names of letters, digits, '_' or '-'" in message
     assert "\n" not in message
     out = tmp_path / "out"
-    result = CliRunner().invoke(
-        main, ["generate", "--scenes", str(catalog_copy), "--train-size", "32", "--out", str(out)]
-    )
+    result = cli("generate", "--scenes", str(catalog_copy), "--train-size", "32", "--out", str(out))
     assert result.exit_code == 1 and "Traceback" not in result.output, result.output
     assert result.stderr.count("\n") == 1 and f"key '{key}'" in result.stderr
     assert not out.exists()

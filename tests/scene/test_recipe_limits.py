@@ -4,9 +4,7 @@
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
 
-from simlidar.cli import main
 from simlidar.errors import RecipeError
 from simlidar.scene import expr
 from simlidar.scene.expr import MAX_EXPRESSION_CHARS, MAX_EXPRESSION_DEPTH
@@ -25,7 +23,7 @@ def _edit(root: Path, name: str, old: str, new: str) -> Path:
     return path
 
 
-def _refused(root: Path, *words: str) -> str:
+def _refused(cli, root: Path, *words: str) -> str:
     """The catalog at ``root`` is refused with one RecipeError line holding ``words``, and
     ``simlidar scenes`` prints that line after "Error: " and exits with code 1."""
     with pytest.raises(RecipeError) as err:
@@ -34,17 +32,18 @@ def _refused(root: Path, *words: str) -> str:
     assert "\n" not in message and len(message) < 400 + len(str(root))
     for word in words:
         assert word in message
-    result = CliRunner().invoke(main, ["scenes", "--scenes", str(root)])
+    result = cli("scenes", "--scenes", str(root))
     assert result.exit_code == 1
     assert result.stderr == f"Error: {message}\n"
     assert result.stdout == "" and "Traceback" not in result.output
     return message
 
 
-def test_a_repeat_beyond_any_array_size_is_refused(catalog_copy):
+def test_a_repeat_beyond_any_array_size_is_refused(catalog_copy, cli):
     # was: loaded, then ValueError "Maximum allowed size exceeded" when the scenes were built
     _edit(catalog_copy, TUNNEL, "repeat = 2", "repeat = 99999999999999999999")
     _refused(
+        cli,
         catalog_copy,
         f"{WALL}: key 'repeat'",
         f"an integer in 1..{MAX_REPEAT}",
@@ -75,10 +74,10 @@ def test_a_repeat_beyond_any_array_size_is_refused(catalog_copy):
         ),
     ],
 )
-def test_a_repeat_over_the_limit_is_refused(catalog_copy, name, old, new, words):
+def test_a_repeat_over_the_limit_is_refused(catalog_copy, name, old, new, words, cli):
     # was: loaded, then 7.6 GB in 30 s for a million copies before a MemoryError
     _edit(catalog_copy, name, old, new)
-    _refused(catalog_copy, *words)
+    _refused(cli, catalog_copy, *words)
 
 
 @pytest.mark.parametrize(
@@ -93,10 +92,10 @@ def test_a_repeat_over_the_limit_is_refused(catalog_copy, name, old, new, words)
         ),
     ],
 )
-def test_a_long_or_deep_expression_is_refused_before_parsing(catalog_copy, text, words):
+def test_a_long_or_deep_expression_is_refused_before_parsing(catalog_copy, text, words, cli):
     # was: RecursionError or MemoryError inside Python's parser (or later, in compile)
     _edit(catalog_copy, TUNNEL, WALL_HEIGHT, f'"{text}"]')
-    _refused(catalog_copy, f"{WALL}: key 'size[2]'", *words)
+    _refused(cli, catalog_copy, f"{WALL}: key 'size[2]'", *words)
 
 
 def test_the_expression_limits_hold_at_any_size_and_are_not_too_tight():
@@ -117,26 +116,30 @@ def test_the_expression_limits_hold_at_any_size_and_are_not_too_tight():
         assert float(expr.evaluate(expr.compile_tree(expr.parse(fits)), {})) > 0
 
 
-def test_a_binary_recipe_is_refused(catalog_copy):
+def test_a_binary_recipe_is_refused(catalog_copy, cli):
     # was: UnicodeDecodeError
     (catalog_copy / TUNNEL).write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(range(256)) * 4)
-    _refused(catalog_copy, "tunnel.toml: expected UTF-8 text, got byte 0x89 at offset 0")
+    _refused(cli, catalog_copy, "tunnel.toml: expected UTF-8 text, got byte 0x89 at offset 0")
 
 
 @pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero")
-def test_a_recipe_linked_to_an_endless_device_is_refused(catalog_copy):
+def test_a_recipe_linked_to_an_endless_device_is_refused(catalog_copy, cli):
     # was: MemoryError after reading /dev/zero into memory
     (catalog_copy / TUNNEL).unlink()
     (catalog_copy / TUNNEL).symlink_to("/dev/zero")
     _refused(
-        catalog_copy, "tunnel.toml: expected a regular file, got a character device", "(/dev/zero)"
+        cli,
+        catalog_copy,
+        "tunnel.toml: expected a regular file, got a character device",
+        "(/dev/zero)",
     )
 
 
-def test_an_oversized_recipe_file_is_refused(catalog_copy):
+def test_an_oversized_recipe_file_is_refused(catalog_copy, cli):
     # was: read and parsed whatever its size
     path = _edit(catalog_copy, TUNNEL, 'description = "', 'description = "' + "x" * 70_000)
     _refused(
+        cli,
         catalog_copy,
         f"tunnel.toml: expected a file of at most {MAX_RECIPE_BYTES} bytes",
         f"got {path.stat().st_size} bytes",
@@ -165,6 +168,6 @@ HUGE = "0x" + "f" * 300  # a TOML integer of 1200 bits: too large for a float
         ('kind = "arch"', 'kind = ["arch"]', ["primitive[2]: key 'kind'", "got ['arch']"]),
     ],
 )
-def test_hostile_values_are_refused(catalog_copy, old, new, words):
+def test_hostile_values_are_refused(catalog_copy, old, new, words, cli):
     _edit(catalog_copy, TUNNEL, old, new)
-    _refused(catalog_copy, "tunnel.toml", *words)
+    _refused(cli, catalog_copy, "tunnel.toml", *words)

@@ -67,11 +67,15 @@ def test_a_surprise_while_probing_turns_the_shared_path_off(monkeypatch):
         raise AttributeError("an embreex unlike the one known")
 
     monkeypatch.setattr(embree, "_open", unlike)
-    embree._embree.cache_clear()
+    embree._probe.cache_clear()
     try:
         assert not embree.shared_buffers()
+        assert embree.ray_casting() == (
+            "embreex's TriangleMesh, a copy a triangle: slower, the same hits (probing embreex "
+            "raised AttributeError: an embreex unlike the one known)"
+        )
     finally:
-        embree._embree.cache_clear()
+        embree._probe.cache_clear()
 
 
 def test_only_an_embreex_scene_is_accepted():
@@ -81,11 +85,32 @@ def test_only_an_embreex_scene_is_accepted():
         embree.attach_triangles(object(), np.ones((1, 3, 3)))
 
 
-def test_without_the_shared_path_the_cast_falls_back(catalog, monkeypatch):
+def test_without_the_shared_path_the_cast_falls_back_and_says_so_once(catalog, monkeypatch):
     scene, origins, directions = _batch(catalog, 32, 2)
     slots = np.arange(32)
     expected = cast(scene, origins, directions, slots, 100.0)
     monkeypatch.setattr(embree, "_embree", lambda: None)
     assert not embree.shared_buffers()
-    got = cast(scene, origins, directions, slots, 100.0)
+    embree._say_fallback.cache_clear()
+    try:
+        with pytest.warns(UserWarning, match="ray casting through embreex's TriangleMesh") as said:
+            got = cast(scene, origins, directions, slots, 100.0)
+            cast(scene, origins, directions, slots, 100.0)
+    finally:
+        embree._say_fallback.cache_clear()
+    assert len(said) == 1  # once a process, not once a batch
     np.testing.assert_array_equal(got.range_m, expected.range_m)
+
+
+def test_the_version_says_which_ray_casting_path_is_in_use(monkeypatch, cli):
+
+    shared = cli("--version")
+    assert shared.exit_code == 0
+    assert shared.stdout.splitlines()[1] == f"ray casting: {embree.ray_casting()}"
+    monkeypatch.setattr(embree, "_probe", lambda: (None, "embreex's Embree is version 3"))
+    fallback = cli("--version")
+    assert fallback.exit_code == 0
+    assert fallback.stdout.splitlines()[1] == (
+        "ray casting: embreex's TriangleMesh, a copy a triangle: slower, the same hits "
+        "(embreex's Embree is version 3)"
+    )

@@ -9,9 +9,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from simlidar.cli import main
 from simlidar.data import delay_unit_ns, spike_threshold, to_events
 from simlidar.dataset.reader import read_split_info
 from simlidar.errors import ConfigError
@@ -22,17 +20,13 @@ from simlidar.sensor.rays import emission_times_ns, scan_window_ns
 SMALL = ["--train-size", "64", "--test-size", "32", "--profile", "physical"]
 
 
-def run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
-
-
 @pytest.fixture(scope="module")
-def twins(tmp_path_factory):
+def twins(tmp_path_factory, cli):
     """A flash and a scan dataset of the same seed and options."""
     out = tmp_path_factory.mktemp("twins")
     paths = {}
     for timing in ("flash", "scan"):
-        result = run("generate", *SMALL, "--timing", timing, "--out", out, "--json")
+        result = cli("generate", *SMALL, "--timing", timing, "--out", out, "--json")
         assert result.exit_code == 0, result.output
         paths[timing] = Path(json.loads(result.stdout)["datasets"][0]["path"])
     return paths
@@ -107,10 +101,10 @@ def test_scan_delays_are_arrival_times_of_the_flash_twin(twins):
     assert delay_unit_ns(read_split_info(flash / "train.h5").attrs) == tof_max
 
 
-def test_a_scan_dataset_says_so_everywhere(twins):
+def test_a_scan_dataset_says_so_everywhere(twins, cli):
     scan = twins["scan"]
-    assert run("verify", scan).exit_code == 0
-    info = run("info", scan)
+    assert cli("verify", scan).exit_code == 0
+    info = cli("info", scan)
     assert "600 RPM, scan timing" in info.stdout and "dataset version 3.0.0" in info.stdout
     card = (scan / "README.md").read_text()
     assert "| timing | `scan`: a delay is the pulse's arrival time" in card
@@ -120,24 +114,24 @@ def test_a_scan_dataset_says_so_everywhere(twins):
     assert "| timing | `flash`" in flash_card and "emission_ns" not in flash_card.split("## Gen")[0]
 
 
-def test_the_card_command_makes_the_scan_dataset_again(twins, tmp_path):
+def test_the_card_command_makes_the_scan_dataset_again(twins, tmp_path, cli):
     scan = twins["scan"]
     card = (scan / "README.md").read_text()
     command = card.split("## Regenerate")[1].split("```\n")[1].strip().split()
-    again = run(*command[1:], "--out", tmp_path)
+    again = cli(*command[1:], "--out", tmp_path)
     assert again.exit_code == 0, again.output
     for name in ("train.h5", "test.h5"):
         assert (tmp_path / scan.name / name).read_bytes() == (scan / name).read_bytes()
 
 
-def test_a_scan_file_without_emission_times_fails_verify(twins, tmp_path):
+def test_a_scan_file_without_emission_times_fails_verify(twins, tmp_path, cli):
     import shutil
 
     copy = tmp_path / twins["scan"].name
     shutil.copytree(twins["scan"], copy)
     with h5py.File(copy / "test.h5", "a") as f:
         del f["emission_ns"]
-    result = run("verify", copy)
+    result = cli("verify", copy)
     assert result.exit_code != 0 and "dataset 'emission_ns' missing" in result.output
 
 
@@ -159,7 +153,6 @@ def test_events_of_a_scan_sample_come_in_sweep_order(twins):
 
 
 def test_early_decisions_are_reported_in_sweep_time(twins):
-    pytest.importorskip("torch")
     from simlidar.bench.early import early_decisions
     from simlidar.bench.train import train
     from simlidar.models.registry import load_recipe
@@ -190,14 +183,14 @@ def test_timing_is_checked_and_stored_only_when_scan():
         GeneratorConfig(timing="sweep")
 
 
-def test_a_bad_timing_is_one_line_and_writes_nothing(tmp_path):
-    result = run("generate", *SMALL, "--timing", "sweep", "--out", tmp_path)
+def test_a_bad_timing_is_one_line_and_writes_nothing(tmp_path, cli):
+    result = cli("generate", *SMALL, "--timing", "sweep", "--out", tmp_path)
     assert result.exit_code == 2
     assert "'sweep' is not one of 'flash', 'scan'" in result.output
     assert "Traceback" not in result.output and list(tmp_path.iterdir()) == []
 
 
-def test_a_window_finer_than_the_firing_cycles_is_refused(tmp_path):
+def test_a_window_finer_than_the_firing_cycles_is_refused(tmp_path, cli):
     """Columns closer than one firing cycle would share firings (the same pulses twice)."""
     sensor = default_sensor()
     widest = GeneratorConfig(width=180)  # 36 deg / 0.199 deg a cycle at 600 RPM
@@ -207,6 +200,6 @@ def test_a_window_finer_than_the_firing_cycles_is_refused(tmp_path):
     expected = "width=181: columns 0.1989 deg apart, closer than the 0.1991 deg.*at most 180"
     with pytest.raises(ConfigError, match=expected):
         GeneratorConfig(width=181)
-    result = run("generate", "--width", 200, "--out", tmp_path / "out")
+    result = cli("generate", "--width", 200, "--out", tmp_path / "out")
     assert result.exit_code == 2 and "expected at most 180 columns over 36 deg" in result.output
     assert not (tmp_path / "out").exists()

@@ -172,6 +172,7 @@ def test_a_copied_sensor_file_loads_under_its_own_name(tmp_path):
         ({"rpm": 610.0}, "rpm=610.0: expected 300 to 1200 in steps of 60"),
         ({"firing_interval_us": -2.304}, "firing_interval_us=-2.304: expected a positive"),
         ({"rpm": "fast"}, "key 'rpm': expected a finite number, got 'fast'"),
+        ({"cycle_us": 10**400}, "key 'cycle_us': expected a finite number, got 1000"),
         ({"cycle_us": None}, "key 'cycle_us' is missing"),
         ({"colour": 1}, "key 'colour': expected one of"),
         ({"elevations_deg": [1.0, 2.0]}, "vertical_offsets_mm: 16 values: expected 2"),

@@ -7,9 +7,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from simlidar.cli import main
 from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.sweep import (
@@ -29,10 +27,6 @@ from simlidar.sensor.rays import (
 )
 
 FRAMES = 12
-
-
-def run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
 
 
 @pytest.fixture(scope="module")
@@ -140,8 +134,8 @@ def test_pcd_header_and_body_agree(frames, tmp_path):
     assert np.array_equal(np.frombuffer(body, POINT_DTYPE), points)
 
 
-def test_the_cli_writes_a_sweep_and_its_exports(tmp_path):
-    result = run("sweep", "--frames", 2, "--export", "kitti,pcd", "--out", tmp_path, "--json")
+def test_the_cli_writes_a_sweep_and_its_exports(tmp_path, cli):
+    result = cli("sweep", "--frames", 2, "--export", "kitti,pcd", "--out", tmp_path, "--json")
     assert result.exit_code == 0, result.output
     path = Path(json.loads(result.stdout)["path"])
     assert path.name == "simlidar-sweep-32c-vlp16-2f-seed0-v1.1.0"
@@ -163,7 +157,7 @@ def test_the_cli_writes_a_sweep_and_its_exports(tmp_path):
     with h5py.File(path / "frames.h5") as f:
         assert f["range_m"].shape == (2, 16, 1808) and f["range_m"].chunks == (1, 16, 1808)
         assert f.attrs["format"] == "simlidar-sweep"
-    again = run("sweep", "--frames", 2, "--out", tmp_path)
+    again = cli("sweep", "--frames", 2, "--out", tmp_path)
     assert again.exit_code == 1 and "already exists: pass --force" in again.output
 
 
@@ -176,8 +170,8 @@ def test_the_cli_writes_a_sweep_and_its_exports(tmp_path):
         (["--sensor", "hdl99"], "sensor 'hdl99': expected one of"),
     ],
 )
-def test_bad_sweep_options_are_one_line_and_write_nothing(tmp_path, args, message):
-    result = run("sweep", *args, "--out", tmp_path / "out")
+def test_bad_sweep_options_are_one_line_and_write_nothing(tmp_path, args, message, cli):
+    result = cli("sweep", *args, "--out", tmp_path / "out")
     assert result.exit_code == 2
     assert message in result.output and "Traceback" not in result.output
     assert not (tmp_path / "out").exists()
@@ -200,21 +194,21 @@ def test_sweep_config_is_checked():
         SweepConfig(frames=0)
 
 
-def test_hdl64e_sweep_crops_read_the_distance_of_the_truck(tmp_path):
+def test_hdl64e_sweep_crops_read_the_distance_of_the_truck(tmp_path, cli):
     """The sim half of a sim-to-real pair: an HDL-64E sweep exported in the KITTI layout and
     cropped by `simlidar convert kitti`, the very projection of the real frames. As the
     converter's test reads KITTI's truck at 63.5 m, the simulated truck's crop reads the
     distance of its rear face, known from the frame's stored box."""
-    done = run(
+    done = cli(
         "sweep", "--frames", 4, "--sensor", "hdl64e", "--export", "kitti", "--out", tmp_path,
         "--json",
     )  # fmt: skip
     assert done.exit_code == 0, done.output
     sweep_dir = Path(json.loads(done.stdout)["path"])
-    converted = run("convert", "kitti", sweep_dir, "--out", tmp_path / "crops")
+    converted = cli("convert", "kitti", sweep_dir, "--out", tmp_path / "crops")
     assert converted.exit_code == 0, converted.output
     crops = tmp_path / "crops" / "kitti-front-50x118-sim-v1.0.0"
-    assert run("verify", crops).exit_code == 0
+    assert cli("verify", crops).exit_code == 0
     with h5py.File(sweep_dir / "frames.h5") as f:
         length, _, _, x, y, _, yaw = f["object_box"][3]  # frame 3: tunnel/truck
         assert f["object"][3] == 3
@@ -237,19 +231,19 @@ def test_hdl64e_sweep_crops_read_the_distance_of_the_truck(tmp_path):
     assert labels[0] == "Truck" and float(labels[13]) == pytest.approx(x, abs=1e-3)
 
 
-def test_a_sweep_converts_without_its_kitti_export_to_the_same_bytes(tmp_path):
+def test_a_sweep_converts_without_its_kitti_export_to_the_same_bytes(tmp_path, cli):
     """`simlidar convert kitti` reads a sweep's frames.h5 directly when the KITTI files are
     not on disk: the same crops and input hash as from the exported folder."""
     made = {}
     for kind, extra in (("exported", ["--export", "kitti"]), ("direct", [])):
-        done = run(
+        done = cli(
             "sweep", "--frames", 6, "--sensor", "hdl64e", *extra, "--out", tmp_path / kind,
             "--json",
         )  # fmt: skip
         assert done.exit_code == 0, done.output
         sweep_dir = Path(json.loads(done.stdout)["path"])
         assert (sweep_dir / "velodyne").is_dir() == (kind == "exported")
-        converted = run("convert", "kitti", sweep_dir, "--out", tmp_path / kind / "crops")
+        converted = cli("convert", "kitti", sweep_dir, "--out", tmp_path / kind / "crops")
         assert converted.exit_code == 0, converted.output
         made[kind] = tmp_path / kind / "crops" / "kitti-front-50x118-sim-v1.0.0"
     for split in ("train.h5", "test.h5"):
@@ -257,11 +251,11 @@ def test_a_sweep_converts_without_its_kitti_export_to_the_same_bytes(tmp_path):
         assert exported == (made["direct"] / split).read_bytes()
     with h5py.File(made["direct"] / "train.h5") as f:
         assert len(f["labels"]) > 0 and json.loads(f.attrs["simulated_from"])["sweep"]
-    assert run("verify", made["direct"]).exit_code == 0
+    assert cli("verify", made["direct"]).exit_code == 0
 
 
-def test_a_folder_that_is_neither_kitti_nor_a_sweep_is_named(tmp_path):
+def test_a_folder_that_is_neither_kitti_nor_a_sweep_is_named(tmp_path, cli):
     (tmp_path / "frames.h5").write_bytes(b"not hdf5")
-    result = run("convert", "kitti", tmp_path, "--out", tmp_path / "out")
+    result = cli("convert", "kitti", tmp_path, "--out", tmp_path / "out")
     assert result.exit_code != 0
     assert "expected the KITTI object benchmark's training layout" in result.output
