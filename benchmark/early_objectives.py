@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from paper_table import ROOT, run_cells  # noqa: E402
+from paper_table import ROOT, run_cells
 
 RECIPE = "snn_simlidar_tuned"
 EPOCHS = 30  # as benchmark/early_tradeoff.py's published curve

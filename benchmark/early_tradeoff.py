@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from paper_table import ROOT, datasets, done, run_cells  # noqa: E402
+from paper_table import ROOT, datasets, done, run_cells
 
 
 def main(argv=None) -> int:

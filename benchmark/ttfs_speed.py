@@ -26,9 +26,9 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from simlidar.bench.train import _loss, _optimizer  # noqa: E402
-from simlidar.models.registry import build_model, load_recipe  # noqa: E402
-from simlidar.models.training import TrainingConfig  # noqa: E402
+from simlidar.bench.train import batch_loss, make_optimizer
+from simlidar.models.registry import build_model, load_recipe
+from simlidar.models.training import TrainingConfig
 
 PAIRS = (  # (spiking, conventional, input shape, batch, target ratio)
     ("scnn_kitti", "cnn", (1, 50, 118), 10, 5.0),
@@ -48,10 +48,10 @@ def trainer(name: str, x, y, classes: int):
     recipe = load_recipe(name)
     training = TrainingConfig.from_table(recipe["training"])
     model = build_model(recipe, tuple(x.shape[1:]), classes, torch.Generator().manual_seed(0))
-    optimizer = _optimizer(model.parameters(), training)
+    optimizer = make_optimizer(model.parameters(), training)
 
     def step():
-        _, total = _loss(model, x, y, training)
+        _, total = batch_loss(model, x, y, training)
         optimizer.zero_grad()
         total.backward()
         optimizer.step()

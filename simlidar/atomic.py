@@ -22,7 +22,6 @@ import errno
 import fcntl
 import os
 import re
-import secrets
 import shutil
 import tempfile
 import warnings
@@ -175,21 +174,9 @@ def claim_folder(out: Path) -> bool:
     return created
 
 
-def new_temporary(folder: Path, prefix: str, suffix: str = "") -> tuple[int, Path]:
-    """A new empty file ``<folder>/<prefix><random><suffix>``, opened for writing: (its file
-    descriptor, its path). As ``tempfile.mkstemp``, but with the mode every other output gets,
-    0666 less the umask (0644 usually): mkstemp's 0600 made ``preview.png`` and checkpoints
-    private beside public splits and cards."""
-    for _ in range(100):
-        path = folder / f"{prefix}{secrets.token_hex(4)}{suffix}"
-        try:
-            return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), path
-        except FileExistsError:
-            continue
-    raise FileExistsError(errno.EEXIST, "no unused temporary name", str(folder / prefix))
-
-
-def write_files(paths: list[str | Path], write, mode: int | None = None) -> list[Path]:
+def write_files(
+    paths: list[str | Path], write, mode: int | None = None, what: str = ""
+) -> list[Path]:
     """Write the files ``paths`` of one folder all or none: ``write(temporaries)`` writes a
     temporary of each, of the same name, in a locked temporary folder beside them
     (:class:`Temporary`; a killed run's is removed by the next :func:`claim_folder` there), and
@@ -200,6 +187,7 @@ def write_files(paths: list[str | Path], write, mode: int | None = None) -> list
 
     mode : the files' permission bits; None: what the writer's ``open`` gave (0666 less the
         umask, as every other output)
+    what : what the files are, for the error ("the checkpoint": "cannot write the checkpoint")
     """
     paths = [Path(p) for p in paths]
     folder = paths[0].parent
@@ -208,7 +196,9 @@ def write_files(paths: list[str | Path], write, mode: int | None = None) -> list
     try:
         work = Temporary(folder, paths[0].name)
     except OSError as exc:
-        raise DatasetError(f"{paths[0]}: cannot write ({exc.strerror or exc})") from None
+        raise DatasetError(
+            f"{paths[0]}: cannot write{what and ' '}{what} ({exc.strerror or exc})"
+        ) from None
     try:
         temporaries = [work.path / p.name for p in paths]
         write(temporaries)
@@ -217,15 +207,17 @@ def write_files(paths: list[str | Path], write, mode: int | None = None) -> list
         for temporary, path in zip(temporaries, paths):
             os.replace(temporary, path)
     except OSError as exc:
-        raise DatasetError(f"{paths[0]}: cannot write ({exc.strerror or exc})") from None
+        raise DatasetError(
+            f"{paths[0]}: cannot write{what and ' '}{what} ({exc.strerror or exc})"
+        ) from None
     finally:
         work.release()
     return paths
 
 
-def write_file(path: str | Path, write, mode: int | None = None) -> Path:
+def write_file(path: str | Path, write, mode: int | None = None, what: str = "") -> Path:
     """Write the one file ``path`` through ``write(temporary)``: :func:`write_files`."""
-    return write_files([path], lambda temporaries: write(temporaries[0]), mode)[0]
+    return write_files([path], lambda temporaries: write(temporaries[0]), mode, what)[0]
 
 
 def temporary_of(name: str) -> str | None:

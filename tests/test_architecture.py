@@ -12,13 +12,6 @@ PACKAGE = Path(simlidar.__file__).parent
 ROOT = PACKAGE.parent
 # The package and the scripts that use it (tests may reach into a module's private parts)
 USERS = [PACKAGE, ROOT / "benchmark", ROOT / "examples"]
-# Private names of simlidar/bench/train.py still used elsewhere, until they are made public
-# there (that file is being edited): each entry is checked to be still needed
-PENDING = {
-    ("simlidar/bench/bound.py", "simlidar.bench.train._better"),
-    ("benchmark/ttfs_speed.py", "simlidar.bench.train._loss"),
-    ("benchmark/ttfs_speed.py", "simlidar.bench.train._optimizer"),
-}
 # lowest first; a module may import its own stage and those before it
 STAGES = [
     {
@@ -189,8 +182,7 @@ def test_no_module_uses_another_modules_private_names():
         for path in sorted(folder.rglob("*.py"))
         for name in private_uses(path, known)
     }
-    assert sorted(used - PENDING) == []
-    assert sorted(PENDING - used) == []  # made public: drop it from PENDING
+    assert sorted(used) == []
 
 
 def test_the_checker_sees_a_private_name(tmp_path):

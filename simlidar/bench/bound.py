@@ -23,7 +23,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from simlidar.bench.train import SELECTION, _better, validation_split
+from simlidar.bench.train import SELECTION, better_score, validation_split
 from simlidar.models import ttfs
 from simlidar.models.conventional import mlp
 
@@ -108,7 +108,7 @@ def fit(
         with torch.no_grad():
             out = model(xv)
         score = ((out.argmax(1) == yv).float().mean().item(), F.cross_entropy(out, yv).item())
-        if _better(score, best):
+        if better_score(score, best):
             best, best_epoch = score, epoch
             best_state = {n: t.clone() for n, t in model.state_dict().items()}
         elif epoch - best_epoch >= config.patience:

@@ -23,7 +23,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from simlidar.atomic import new_temporary
+from simlidar.atomic import write_file
 from simlidar.dataset.loaders import load_split, spike_threshold, split_info
 from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.pulses import noisy_delays
@@ -79,7 +79,7 @@ class TrainResult:
         }
 
 
-def _optimizer(params, training: TrainingConfig):
+def make_optimizer(params, training: TrainingConfig):
     if training.optimizer == "adam":
         return torch.optim.Adam(params, lr=training.lr)
     return torch.optim.SGD(params, lr=training.lr, momentum=training.momentum)
@@ -91,7 +91,7 @@ def is_spiking(model: torch.nn.Module) -> bool:
     return spec_of(model).spiking
 
 
-def _loss(
+def batch_loss(
     model: torch.nn.Module,
     x: torch.Tensor,
     y: torch.Tensor,
@@ -286,7 +286,9 @@ def check_output(
         )
 
 
-def _better(score: tuple[float, float | None], best: tuple[float, float | None] | None) -> bool:
+def better_score(
+    score: tuple[float, float | None], best: tuple[float, float | None] | None
+) -> bool:
     """A higher validation accuracy, or the same with a lower (finite) validation loss."""
     if best is None or score[0] != best[0]:
         return best is None or score[0] > best[0]
@@ -350,7 +352,7 @@ def train(
     fresh_noise = None
     if training.noise_augment:
         fresh_noise = _fresh_noise(dataset, attrs, seed, rows)
-    optimizer = _optimizer(model.parameters(), training)
+    optimizer = make_optimizer(model.parameters(), training)
     epochs, budget, batch = training.epochs, training.max_seconds, training.batch_size
     schedule = None
     if training.lr_schedule == "cosine":
@@ -370,7 +372,7 @@ def train(
         for i in range(0, len(order), batch):
             rows = order[i : i + batch]
             x = encode(x_train[rows].to(device), spec, silent_from)
-            loss, total = _loss(model, x, y_train[rows].to(device), now, spec)
+            loss, total = batch_loss(model, x, y_train[rows].to(device), now, spec)
             optimizer.zero_grad()
             total.backward()
             if training.clip_grad_norm:
@@ -387,7 +389,7 @@ def train(
             bar.set_postfix(loss=f"{record['loss']:.3f}", val=f"{score[0]:.3f}")
             if annealed:
                 best_epoch = epoch  # the schedule's end decides: validation only reports
-            elif _better(score, best):
+            elif better_score(score, best):
                 best, best_epoch = score, epoch
                 best_state = copy.deepcopy(model.state_dict())
         else:
@@ -499,21 +501,7 @@ def save_checkpoint(result: TrainResult, path: str | Path) -> Path:
     }
     buffer = io.BytesIO()  # torch's own writer reports a full disk as "file write failed"
     torch.save(data, buffer)
-    try:
-        fd, tmp = new_temporary(path.parent, f".{path.name}.partial-")
-    except OSError as exc:
-        raise DatasetError(f"{path}: cannot write the checkpoint ({exc.strerror})") from None
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(buffer.getbuffer())
-        os.replace(tmp, path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise DatasetError(f"{path}: cannot write the checkpoint ({exc.strerror or exc})") from None
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
+    return write_file(path, lambda tmp: tmp.write_bytes(buffer.getbuffer()), what="the checkpoint")
 
 
 def load_checkpoint(path: str | Path, input_shape, classes):

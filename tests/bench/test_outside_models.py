@@ -13,9 +13,7 @@ from pathlib import Path
 
 import pytest
 import torch
-from click.testing import CliRunner
 
-from simlidar.cli import main
 from simlidar.errors import ConfigError
 from simlidar.models.registry import build_model, load_recipe
 
@@ -101,11 +99,7 @@ def _suite(tmp_path, datasets, epochs=1):
     return path
 
 
-def _bench(*args):
-    return CliRunner().invoke(main, ["bench", *map(str, args)])
-
-
-def test_a_plain_torch_module_by_name_and_by_file(plain_module, tmp_path, datasets):
+def test_a_plain_torch_module_by_name_and_by_file(plain_module, tmp_path, datasets, cli):
     recipe = load_recipe("outside_plain:build")
     assert recipe["name"] == "outside_plain.build" and recipe["training"]["epochs"] == 30
     model = build_model(recipe, (1, 16, 16), 32)
@@ -117,7 +111,8 @@ def test_a_plain_torch_module_by_name_and_by_file(plain_module, tmp_path, datase
         '[training]\noptimizer = "adam"\nlr = 1e-2\nbatch_size = 32\nepochs = 2\n'
     )
     out = tmp_path / "b"
-    result = _bench(
+    result = cli(
+        "bench",
         "--suite",
         _suite(tmp_path, datasets),
         "--models",
@@ -135,9 +130,10 @@ def test_a_plain_torch_module_by_name_and_by_file(plain_module, tmp_path, datase
         assert cell["macs"] == 256 * 32  # one linear layer, counted like the baselines'
 
 
-def test_a_model_with_its_own_fit_is_scored_only(plain_module, tmp_path, datasets):
+def test_a_model_with_its_own_fit_is_scored_only(plain_module, tmp_path, datasets, cli):
     out = tmp_path / "b"
-    result = _bench(
+    result = cli(
+        "bench",
         "--suite",
         _suite(tmp_path, datasets),
         "--models",
@@ -165,9 +161,9 @@ def test_a_model_with_its_own_fit_is_scored_only(plain_module, tmp_path, dataset
         ("outside_plain:breaks", "forward on a batch of 2 delays inputs raised RuntimeError"),
     ],
 )
-def test_bad_builders_are_one_line(plain_module, tmp_path, datasets, model, words):
+def test_bad_builders_are_one_line(plain_module, tmp_path, datasets, model, words, cli):
     out = tmp_path / "b"
-    result = _bench("--suite", _suite(tmp_path, datasets), "--models", model, "--out", out)
+    result = cli("bench", "--suite", _suite(tmp_path, datasets), "--models", model, "--out", out)
     assert result.exit_code in (1, 2), result.output
     assert "Traceback" not in result.output
     lines = [line for line in result.output.splitlines() if "rror" in line]
@@ -175,38 +171,45 @@ def test_bad_builders_are_one_line(plain_module, tmp_path, datasets, model, word
     assert not (out / "cells").exists() or not list((out / "cells").iterdir())
 
 
-def test_a_module_that_fails_to_import_is_named(tmp_path, datasets):
+def test_a_module_that_fails_to_import_is_named(tmp_path, datasets, cli):
     (tmp_path / "broken.py").write_text("import torch\nraise ImportError('needs a GPU build')\n")
     recipe = tmp_path / "broken.toml"
     recipe.write_text(
         'model = "broken.py:build"\n[architecture]\n[training]\nlr = 1\n'
         "batch_size = 1\nepochs = 1\n"
     )
-    result = _bench(
-        "--suite", _suite(tmp_path, datasets), "--models", recipe, "--out", tmp_path / "b"
+    result = cli(
+        "bench", "--suite", _suite(tmp_path, datasets), "--models", recipe, "--out", tmp_path / "b"
     )
     assert result.exit_code == 2 and "importing 'broken.py' raised ImportError: needs a GPU" in (
         result.output
     )
 
 
-def test_a_device_this_machine_lacks_is_refused(tmp_path, datasets):
+def test_a_device_this_machine_lacks_is_refused(tmp_path, datasets, cli):
     if torch.cuda.is_available():
         pytest.skip("this machine has a GPU")
-    result = _bench(
-        "--suite", _suite(tmp_path, datasets), "--device", "cuda", "--out", tmp_path / "b"
+    result = cli(
+        "bench", "--suite", _suite(tmp_path, datasets), "--device", "cuda", "--out", tmp_path / "b"
     )
     assert result.exit_code == 2 and "--device cuda: torch sees no CUDA device" in result.output
     assert not (tmp_path / "b").exists()
 
 
 @pytest.mark.parametrize("example", ["snntorch_lif", "norse_lif"])
-def test_the_examples_train_and_score_through_bench(tmp_path, datasets, example):
+def test_the_examples_train_and_score_through_bench(tmp_path, datasets, example, cli):
     pytest.importorskip(example.split("_")[0])  # the extras simlidar[snntorch], [norse]
     out = tmp_path / "b"
     recipe = EXAMPLES / f"{example}.toml"
-    result = _bench(
-        "--suite", _suite(tmp_path, datasets, epochs=2), "--models", recipe, "--out", out, "--json"
+    result = cli(
+        "bench",
+        "--suite",
+        _suite(tmp_path, datasets, epochs=2),
+        "--models",
+        recipe,
+        "--out",
+        out,
+        "--json",
     )
     assert result.exit_code == 0, result.output
     (cell,) = json.loads(result.stdout)["cells"]
@@ -288,7 +291,7 @@ def test_the_examples_figures_are_neurobenchs(datasets, example):
     assert ops["dense"] == nb_ops["Dense"]
 
 
-def test_the_python_api_writes_the_cells_bench_writes(tmp_path, datasets):
+def test_the_python_api_writes_the_cells_bench_writes(tmp_path, datasets, cli):
     from simlidar.bench.api import bench_model
 
     def tiny_mlp(input_shape, classes, generator=None):
@@ -305,7 +308,7 @@ def test_the_python_api_writes_the_cells_bench_writes(tmp_path, datasets):
     ]
     assert (out / "report.md").is_file() and (out / "results.json").is_file()
     # the same keys as a cell the command line writes for a shipped model
-    result = _bench("--suite", _suite(tmp_path, datasets), "--out", tmp_path / "b", "--json")
+    result = cli("bench", "--suite", _suite(tmp_path, datasets), "--out", tmp_path / "b", "--json")
     (cli_cell,) = json.loads(result.stdout)["cells"]
     assert set(cells[0]) == set(cli_cell)
     again = bench_model(tiny_mlp, datasets[0.1], out=out, budget={"epochs": 2}, seeds=(0, 1))
@@ -378,7 +381,7 @@ def build(input_shape, classes, generator=None, steps=1):
 """
 
 
-def test_an_events_model_decides_as_its_latency_twin(tmp_path, datasets):
+def test_an_events_model_decides_as_its_latency_twin(tmp_path, datasets, cli):
     """One network declared on the "events" encoding and on "latency": the same spikes, so the
     same weights, test predictions and decision figures."""
     (tmp_path / "stepped.py").write_text(STEPPED)
@@ -393,8 +396,15 @@ def test_an_events_model_decides_as_its_latency_twin(tmp_path, datasets):
         )
         recipes.append(str(recipe))
     out = tmp_path / "b"
-    result = _bench(
-        "--suite", _suite(tmp_path, datasets), "--models", ",".join(recipes), "--out", out, "--json"
+    result = cli(
+        "bench",
+        "--suite",
+        _suite(tmp_path, datasets),
+        "--models",
+        ",".join(recipes),
+        "--out",
+        out,
+        "--json",
     )
     assert result.exit_code == 0, result.output
     cells = {c["spec"]["encoding"]: c for c in json.loads(result.stdout)["cells"]}
@@ -420,7 +430,9 @@ def test_an_events_model_decides_as_its_latency_twin(tmp_path, datasets):
         ('encoding = "delays"', "encoding='delays' with output 'stepped_spikes': expected"),
     ],
 )
-def test_a_stepped_model_that_disagrees_with_its_spec_is_one_line(tmp_path, datasets, spec, words):
+def test_a_stepped_model_that_disagrees_with_its_spec_is_one_line(
+    tmp_path, datasets, spec, words, cli
+):
     (tmp_path / "stepped.py").write_text(STEPPED)
     recipe = tmp_path / "wrong.toml"
     recipe.write_text(
@@ -429,7 +441,7 @@ def test_a_stepped_model_that_disagrees_with_its_spec_is_one_line(tmp_path, data
         '[training]\noptimizer = "adam"\nlr = 1e-2\nbatch_size = 32\nepochs = 1\n'
     )
     out = tmp_path / "b"
-    result = _bench("--suite", _suite(tmp_path, datasets), "--models", recipe, "--out", out)
+    result = cli("bench", "--suite", _suite(tmp_path, datasets), "--models", recipe, "--out", out)
     assert result.exit_code == 2 and "Traceback" not in result.output
     (line,) = [line for line in result.output.splitlines() if "rror" in line]
     assert "wrong" in line and __import__("re").search(words, line), result.output
@@ -464,18 +476,15 @@ def test_neuron_spikes_of_unknown_timing_are_counted_per_sample_over_the_window(
     assert counts[:3].abs().sum() == 0 and counts[3].tolist() == [3.0, 0.0, 6.0]
 
 
-def test_train_prints_a_model_that_trained_itself(plain_module, datasets, tmp_path):
-    result = CliRunner().invoke(
-        main,
-        [
-            "train",
-            "--model",
-            "outside_plain:fitted",
-            "--dataset",
-            str(datasets[0.1]),
-            "--out",
-            str(tmp_path / "runs"),
-        ],
+def test_train_prints_a_model_that_trained_itself(plain_module, datasets, tmp_path, cli):
+    result = cli(
+        "train",
+        "--model",
+        "outside_plain:fitted",
+        "--dataset",
+        datasets[0.1],
+        "--out",
+        tmp_path / "runs",
     )
     assert result.exit_code == 0, result.output
     assert "outside_plain.fitted: test accuracy" in result.output

@@ -13,10 +13,8 @@ from pathlib import Path
 
 import pytest
 import torch
-from click.testing import CliRunner
 
 from simlidar.bench.train import load_checkpoint, predictions, save_checkpoint, train
-from simlidar.cli import main
 from simlidar.dataset.loaders import load_split
 from simlidar.errors import ConfigError
 from simlidar.models.registry import load_recipe
@@ -60,21 +58,18 @@ def test_training_learns_and_is_seeded(datasets, tmp_path):
     assert early["energy_pj_mean"]["45.0"] > early["energy_pj_mean"]["0.37"] > 0
 
 
-def test_the_train_command(datasets, tmp_path):
-    result = CliRunner().invoke(
-        main,
-        [
-            "train",
-            "--model",
-            "snn_simlidar",
-            "--dataset",
-            str(datasets[0.1]),
-            "--out",
-            str(tmp_path),
-            "--epochs",
-            "1",
-            "--json",
-        ],
+def test_the_train_command(datasets, tmp_path, cli):
+    result = cli(
+        "train",
+        "--model",
+        "snn_simlidar",
+        "--dataset",
+        str(datasets[0.1]),
+        "--out",
+        str(tmp_path),
+        "--epochs",
+        "1",
+        "--json",
     )
     assert result.exit_code == 0, result.output
     record = json.loads(result.stdout)
@@ -85,31 +80,28 @@ def test_the_train_command(datasets, tmp_path):
     predicted = predictions(model, torch.from_numpy(x)[:, None])
     accuracy = float((predicted.numpy() == y).mean())
     assert record["test_accuracy"] == round(accuracy, 4)  # as train prints it
-    text = CliRunner().invoke(
-        main,
-        [
-            "train",
-            "--model",
-            "snn_simlidar",
-            "--dataset",
-            str(datasets[0.1]),
-            "--out",
-            str(tmp_path),
-            "--epochs",
-            "1",
-        ],
+    text = cli(
+        "train",
+        "--model",
+        "snn_simlidar",
+        "--dataset",
+        str(datasets[0.1]),
+        "--out",
+        str(tmp_path),
+        "--epochs",
+        "1",
     )
     assert text.exit_code == 0 and "snn_simlidar: test accuracy" in text.stdout
     assert "event-driven: accuracy" in text.stdout and "pJ at 45 pJ/spike" in text.stdout
     assert "epoch 1 of 1 kept (best validation accuracy of 32 held-out samples)" in text.stdout
     assert (tmp_path / "snn_simlidar-seed0.pt").is_file()
     base = ["train", "--model", "mlp", "--dataset", str(datasets[0.1]), "--out", str(tmp_path)]
-    whole = CliRunner().invoke(main, [*base, "--epochs", "3", "--validation", "0", "--json"])
+    whole = cli(*base, "--epochs", "3", "--validation", "0", "--json")
     assert whole.exit_code == 0, whole.output
     record = json.loads(whole.stdout)
     assert record["validation_size"] == 0 and record["best_epoch"] == 2
     for option, value in (("--validation", "1"), ("--validation", "-0.5"), ("--patience", "0")):
-        bad = CliRunner().invoke(main, [*base, option, value])
+        bad = cli(*base, option, value)
         assert bad.exit_code == 2 and f"Invalid value for '{option}'" in bad.stderr
 
 
@@ -156,7 +148,7 @@ def test_logit_scale_fire_penalty_and_cosine_schedule_train(datasets):
 
 
 def test_the_penalties_enter_the_loss_as_the_recipe_weighs_them():
-    from simlidar.bench.train import _loss
+    from simlidar.bench.train import batch_loss
     from simlidar.models import ttfs
     from simlidar.models.registry import build_model
 
@@ -165,15 +157,15 @@ def test_the_penalties_enter_the_loss_as_the_recipe_weighs_them():
     x = torch.rand(8, 1, 16, 16, generator=torch.Generator().manual_seed(1))
     y = torch.arange(8)
     training = TrainingConfig(lr=1e-3, batch_size=8, epochs=1)  # no penalty, no l2
-    base, total = _loss(model, x, y, training)
+    base, total = batch_loss(model, x, y, training)
     assert total == base
     spikes = model.spikes(x)
     fire = ttfs.target_fire_penalty(spikes[-2].flatten(1), model.layers[-1].weight, y, 5.0)
     early = ttfs.target_time(spikes[-1], y)
     assert fire > 0 and early > 0
-    _, total = _loss(model, x, y, replace(training, fire_penalty=2.0, fire_margin=5.0))
+    _, total = batch_loss(model, x, y, replace(training, fire_penalty=2.0, fire_margin=5.0))
     assert total.item() == pytest.approx((base + 2.0 * fire).item())
-    _, total = _loss(model, x, y, replace(training, early_penalty=3.0))
+    _, total = batch_loss(model, x, y, replace(training, early_penalty=3.0))
     assert total.item() == pytest.approx((base + 3.0 * early).item())
 
 
@@ -263,13 +255,10 @@ def test_training_keys_are_checked(datasets, key, value, message):
         train(recipe, datasets[0.1], epochs=1, progress=False)
 
 
-def test_train_errors_are_one_line(tmp_path):
-    runner = CliRunner()
-    bad = runner.invoke(main, ["train", "--model", "nope", "--dataset", str(tmp_path)])
+def test_train_errors_are_one_line(tmp_path, cli):
+    bad = cli("train", "--model", "nope", "--dataset", tmp_path)
     assert bad.exit_code == 2 and "model recipe 'nope'" in bad.stderr
-    missing = runner.invoke(
-        main, ["train", "--model", "snn_simlidar", "--dataset", str(tmp_path / "x")]
-    )
+    missing = cli("train", "--model", "snn_simlidar", "--dataset", tmp_path / "x")
     assert missing.exit_code == 1 and "expected a dataset directory" in missing.stderr
 
 
@@ -300,17 +289,17 @@ def test_noise_augment_draws_the_noise_anew_each_epoch(datasets):
     assert [h["loss"] for h in a.history] == [h["loss"] for h in b.history]
 
 
-def test_the_train_command_says_what_a_cosine_schedule_kept(datasets, tmp_path):
+def test_the_train_command_says_what_a_cosine_schedule_kept(datasets, tmp_path, cli):
     recipe = tmp_path / "mlp_cosine.toml"
     text = (Path(__file__).parents[2] / "baselines" / "mlp.toml").read_text()
     recipe.write_text(text.replace("[training]", '[training]\nlr_schedule = "cosine"'))
     base = ["train", "--model", str(recipe), "--dataset", str(datasets[0.1])]
     base += ["--out", str(tmp_path / "runs"), "--validation", "0.34"]
-    whole = CliRunner().invoke(main, [*base, "--epochs", "3"])
+    whole = cli(*base, "--epochs", "3")
     assert whole.exit_code == 0, whole.output
     assert "epoch 3 of 3 kept (the last of its cosine schedule; validation accuracy" in whole.stdout
     assert "ran every epoch" in whole.stdout and "warning" not in whole.stderr
-    cut = CliRunner().invoke(main, [*base, "--epochs", "5", "--max-seconds", "0"])
+    cut = cli(*base, "--epochs", "5", "--max-seconds", "0")
     assert cut.exit_code == 0, cut.output
     assert "epoch 1 of 1 kept (the last of its cosine schedule" in cut.stdout
     assert "stopped by the time cap" in cut.stdout
@@ -319,7 +308,7 @@ def test_the_train_command_says_what_a_cosine_schedule_kept(datasets, tmp_path):
         "annealed (learning rate 0.001 in that epoch)"
     )
     plain = ["train", "--model", "mlp", "--dataset", str(datasets[0.1]), "--out", str(tmp_path)]
-    capped = CliRunner().invoke(main, [*plain, "--epochs", "5", "--max-seconds", "0"])
+    capped = cli(*plain, "--epochs", "5", "--max-seconds", "0")
     assert capped.exit_code == 0 and "warning" not in capped.stderr  # constant rate: no schedule
 
 
