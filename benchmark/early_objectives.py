@@ -50,6 +50,7 @@ VARIANTS = {
     "far-exp1": (FAR, {"early_penalty": 1.0, "early_form": "exp"}),
     "far-rel1": (FAR, {"early_penalty": 1.0, "early_form": "relative"}),
     "far-exp0.03": (FAR, {"early_penalty": 0.03, "early_form": "exp"}),
+    "far-exp0.15": (FAR, {"early_penalty": 0.15, "early_form": "exp"}),
     "far-exp0.2": (FAR, {"early_penalty": 0.2, "early_form": "exp"}),
     "far-exp0.3": (FAR, {"early_penalty": 0.3, "early_form": "exp"}),
     "far-exp0.5": (FAR, {"early_penalty": 0.5, "early_form": "exp"}),
