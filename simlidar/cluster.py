@@ -16,7 +16,7 @@ import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-from simlidar.errors import ConfigError, DatasetError
+from simlidar.errors import ConfigError, DatasetError, first_line
 
 LOCAL = "local"  # --scheduler local: a LocalCluster on this machine
 CONNECT_SECONDS = 10  # how long to wait for a scheduler's answer before calling it unreachable
@@ -66,7 +66,7 @@ def _unreachable(address: str, exc: BaseException) -> ConfigError:
     if isinstance(exc, TimeoutError):
         cause = f"no Dask answer within {CONNECT_SECONDS} s"
     elif isinstance(exc, OSError | ValueError | TypeError) and str(exc):
-        cause = str(exc).splitlines()[0]
+        cause = first_line(exc)
     else:  # garbage read as Dask's frames: MemoryError, a decoding error, ...
         cause = f"it answered, but not in Dask's protocol ({type(exc).__name__})"
     return ConfigError(

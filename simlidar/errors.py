@@ -44,3 +44,9 @@ def first_line(exc: BaseException) -> str:
     """The first line of ``exc``'s message for a one-line error (its type's name when it has
     none): h5py's and the OS's errors can run to several lines."""
     return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+
+
+def raised(exc: BaseException) -> str:
+    """``"ValueError: <the first line of its message>"`` (the name alone without a message): how
+    a one-line error says what the user's code raised."""
+    return f"{type(exc).__name__}: {first_line(exc)}" if str(exc) else type(exc).__name__

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from simlidar.atomic import write_file
 from simlidar.bench.metrics import MAC_PJ
 from simlidar.content import content_dir
 from simlidar.dataset.version import GENERATOR
@@ -303,15 +304,13 @@ def _stepped_columns(runs: list[dict]) -> list[str]:
 
 
 def plot_accuracy(cells: list[dict], paper: dict, path: Path) -> bool:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: no global backend state
 
     sim = [c for c in cells if c["source"] == GENERATOR]
     if not sim:
         return False
-    fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
+    fig = Figure(figsize=(6, 4), dpi=100)
+    ax = fig.subplots()
     for (model,), runs in sorted(group_by(sim, "model").items()):
         by = group_by(runs, "noise")
         levels = sorted(k[0] for k in by)
@@ -340,18 +339,14 @@ def plot_accuracy(cells: list[dict], paper: dict, path: Path) -> bool:
     ax.legend(fontsize=7)
     ax.set_title("Sim LiDAR: accuracy vs noise (mean ± std over seeds)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, metadata={"Software": None})
-    plt.close(fig)
+    write_file(path, lambda tmp: fig.savefig(tmp, format="png", metadata={"Software": None}))
     return True
 
 
 def plot_decisions(cells: list[dict], path: Path) -> bool:
     """Histograms of decision times and input spikes consumed (dense spiking networks), from
     the cells that carry ``per_sample``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: no global backend state
 
     runs = defaultdict(lambda: {"decision_time_ns": [], "input_spikes": []})
     for cell in cells:
@@ -361,7 +356,8 @@ def plot_decisions(cells: list[dict], path: Path) -> bool:
                 runs[key][name] += [v for v in cell["per_sample"][name] if v is not None]
     if not runs:
         return False
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.5), dpi=100)
+    fig = Figure(figsize=(9, 3.5), dpi=100)
+    axes = fig.subplots(1, 2)
     for key, values in sorted(runs.items()):
         if values["decision_time_ns"]:
             axes[0].hist(values["decision_time_ns"], bins=40, histtype="step", label=key)
@@ -373,23 +369,20 @@ def plot_decisions(cells: list[dict], path: Path) -> bool:
     axes[1].legend(fontsize=6)
     fig.suptitle("When the spiking network decides (event-driven, all seeds)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, metadata={"Software": None})
-    plt.close(fig)
+    write_file(path, lambda tmp: fig.savefig(tmp, format="png", metadata={"Software": None}))
     return True
 
 
 def plot_confusions(cells: list[dict], path: Path) -> bool:
     """Row-normalised confusion matrices, one per model, at each model's first dataset."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: no global backend state
 
     if not cells:
         return False
     first = sorted({c["dataset"] for c in cells})[0]
     group = group_by([c for c in cells if c["dataset"] == first], "model")
-    fig, axes = plt.subplots(1, len(group), figsize=(3 * len(group), 3.2), dpi=100, squeeze=False)
+    fig = Figure(figsize=(3 * len(group), 3.2), dpi=100)
+    axes = fig.subplots(1, len(group), squeeze=False)
     for ax, ((model,), runs) in zip(axes[0], sorted(group.items())):
         matrix = np.sum([np.array(c["confusion"]) for c in runs], axis=0).astype(float)
         matrix /= np.maximum(matrix.sum(axis=1, keepdims=True), 1)
@@ -400,8 +393,12 @@ def plot_confusions(cells: list[dict], path: Path) -> bool:
         ax.tick_params(labelsize=5)
     fig.suptitle(f"Confusion matrices on {first} (rows normalised, all seeds)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, metadata={"Software": None}, bbox_inches="tight")  # keeps axis labels
-    plt.close(fig)
+    write_file(  # bbox "tight" keeps the axis labels
+        path,
+        lambda tmp: fig.savefig(
+            tmp, format="png", metadata={"Software": None}, bbox_inches="tight"
+        ),
+    )
     return True
 
 
@@ -494,5 +491,5 @@ def write_report(results: dict, out: Path, sampled: list[dict] | None = None) ->
         "",
     ]
     path = out / "report.md"
-    path.write_text("\n".join(lines))
+    write_file(path, lambda tmp: tmp.write_text("\n".join(lines)))
     return path

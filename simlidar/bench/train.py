@@ -25,7 +25,7 @@ import torch.nn.functional as F
 
 from simlidar.atomic import write_file
 from simlidar.dataset.loaders import load_split, spike_threshold, split_info
-from simlidar.errors import ConfigError, DatasetError
+from simlidar.errors import ConfigError, DatasetError, raised
 from simlidar.generator.pulses import noisy_delays
 from simlidar.models.protocol import (
     STEPPED_SPIKES,
@@ -255,7 +255,7 @@ def check_output(
     except Exception as exc:
         raise ConfigError(
             f"{where}: the model's forward on a batch of 2 {spec.encoding} inputs raised "
-            f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+            f"{raised(exc)}"
         ) from None
     finally:
         model.train(was_training)

@@ -13,7 +13,7 @@ import h5py
 import numpy as np
 
 from simlidar.dataset.schema import CHUNK_SAMPLES
-from simlidar.errors import DatasetError
+from simlidar.errors import DatasetError, first_line
 
 
 def attrs_fit(attrs: dict) -> bool:
@@ -130,7 +130,7 @@ class SplitWriter:
             yield
         except (OSError, RuntimeError) as exc:
             code = getattr(exc, "errno", None)
-            cause = os.strerror(code) if code else str(exc).splitlines()[0]
+            cause = os.strerror(code) if code else first_line(exc)
             raise DatasetError(f"{self.path}: cannot write ({cause})") from None
 
     def close(self) -> None:

@@ -25,7 +25,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from simlidar.content import content_dir
-from simlidar.errors import ConfigError
+from simlidar.errors import ConfigError, raised
 from simlidar.models.protocol import spec_of
 from simlidar.models.training import TrainingConfig
 
@@ -75,10 +75,7 @@ def builder(name: str, base: Path | None = None) -> Callable:
     except ConfigError:
         raise
     except Exception as exc:  # the user's module failed while importing: say how
-        raise ConfigError(
-            f"builder {name!r}: importing {where!r} raised {type(exc).__name__}: "
-            f"{str(exc).splitlines()[0] if str(exc) else ''}"
-        ) from None
+        raise ConfigError(f"builder {name!r}: importing {where!r} raised {raised(exc)}") from None
     found = getattr(module, function, None)
     if not callable(found):
         raise ConfigError(f"builder {name!r}: {where!r} has no function {function!r}")
@@ -220,10 +217,7 @@ def build_model(recipe: dict, input_shape: tuple[int, ...], classes: int, genera
     except Exception as exc:
         if name in BUILDERS:
             raise
-        raise ConfigError(
-            f"{where}: builder {name!r} raised {type(exc).__name__}: "
-            f"{str(exc).splitlines()[0] if str(exc) else ''}"
-        ) from None
+        raise ConfigError(f"{where}: builder {name!r} raised {raised(exc)}") from None
     if not isinstance(model, torch.nn.Module):
         raise ConfigError(
             f"{where}: builder {name!r} returned {type(model).__name__}; expected a torch.nn.Module"

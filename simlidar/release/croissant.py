@@ -3,6 +3,7 @@
 import json
 from pathlib import Path
 
+from simlidar.atomic import write_file
 from simlidar.dataset.schema import SPLITS
 from simlidar.release.checksums import sha256_file
 
@@ -117,6 +118,5 @@ def field(
 
 def write_croissant(path: str | Path, document: dict) -> Path:
     """(Re)write ``croissant.json`` of a dataset directory."""
-    out = Path(path) / CROISSANT
-    out.write_text(json.dumps(document, indent=2) + "\n")
-    return out
+    text = json.dumps(document, indent=2) + "\n"
+    return write_file(Path(path) / CROISSANT, lambda tmp: tmp.write_text(text))

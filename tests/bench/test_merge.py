@@ -48,6 +48,8 @@ SCRIPT_CELLS = {
     "paper-table": "benchmark/paper_table.py",
     "scan-timing": "benchmark/scan_timing.py",
     "early-tradeoff": "benchmark/early_tradeoff.py",
+    "early-objectives": "benchmark/early_objectives.py",
+    "early-objectives-crops": "benchmark/early_objectives.py",
 }
 TINY = """
 name = "tiny"
