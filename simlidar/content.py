@@ -47,30 +47,60 @@ def file_kind(mode: int) -> str:
     return next((name for test, name in _FILE_KINDS if test(mode)), "a special file")
 
 
-def read_named_toml(path: Path, where: str, what: str, max_bytes: int) -> dict:
-    """The parsed TOML of a content file (a profile, a sensor) whose stem becomes part of
-    dataset names; ConfigError starting with ``where`` for a bad name, a missing, oversized,
-    unreadable or non-TOML file. ``what`` names the kind of file in the size message."""
+def shipped_or_path(name_or_path: str | Path, folder: str) -> tuple[Path, bool]:
+    """(the file, whether it was named as shipped content): a bare name (no ``/`` and no
+    ``.toml``) is ``<folder>/<name>.toml`` of the shipped content ``folder``; anything else is
+    a path. The one rule for profiles, sensors, model recipes and suites."""
+    text = str(name_or_path)
+    if not text.endswith(".toml") and "/" not in text:
+        return content_dir(folder) / f"{text}.toml", True
+    return Path(text), False
+
+
+def read_toml(path: Path, max_bytes: int, error=ConfigError, where: str | None = None) -> dict:
+    """Parse a TOML file: a regular file (or a link to one) of at most ``max_bytes`` bytes of
+    UTF-8; never reads more than ``max_bytes`` + 1 bytes. Any problem is an ``error`` (a
+    :class:`~simlidar.errors.SimlidarError` class) starting with ``where`` (default: the
+    path): not found, not a regular file, too large, not UTF-8, not TOML, nested too deeply."""
+    where = where or str(path)
+    try:
+        mode = path.stat().st_mode
+        if not stat.S_ISREG(mode):
+            kind = file_kind(mode)
+            target = f" ({path.resolve()})" if path.is_symlink() else ""
+            raise error(f"{where}: expected a regular file, got {kind}{target}")
+        with path.open("rb") as f:
+            data = f.read(max_bytes + 1)
+    except FileNotFoundError:
+        raise error(f"{where}: file not found") from None
+    except (OSError, ValueError) as exc:  # ValueError: a NUL character in the path
+        raise error(f"{where}: cannot read the file ({exc})") from None
+    if len(data) > max_bytes:
+        size = max(len(data), path.stat().st_size)
+        raise error(f"{where}: expected a file of at most {max_bytes} bytes, got {size} bytes")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(
+            f"{where}: expected UTF-8 text, got byte 0x{data[exc.start]:02x} at offset {exc.start}"
+        ) from None
+    try:
+        return tomllib.loads(text)
+    except RecursionError:
+        raise error(f"{where}: not valid TOML (arrays or tables nested too deeply)") from None
+    except ValueError as exc:  # TOMLDecodeError, or an integer of more than 4300 digits
+        raise error(f"{where}: not valid TOML ({exc})") from None
+
+
+def read_named_toml(path: Path, where: str, max_bytes: int) -> dict:
+    """:func:`read_toml` of a content file (a profile, a sensor) whose stem becomes part of
+    dataset names, so the name is checked first; ConfigError starting with ``where``."""
     if not _NAME.match(path.stem):
         raise ConfigError(
             f"{where}: file name {path.stem!r}: expected lower-case letters, "
             "digits, '_', '-' or '.' (it becomes part of dataset names)"
         )
-    try:
-        if not path.is_file():
-            raise ConfigError(f"{where}: file not found")
-        if path.stat().st_size > max_bytes:
-            raise ConfigError(
-                f"{where}: {path.stat().st_size} bytes: expected {what} of at most "
-                f"{max_bytes} bytes"
-            )
-        return tomllib.loads(path.read_bytes()[:max_bytes].decode("utf-8"))
-    except UnicodeDecodeError:
-        raise ConfigError(f"{where}: expected a UTF-8 TOML text file") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{where}: not valid TOML ({exc})") from None
-    except OSError as exc:
-        raise ConfigError(f"{where}: cannot read ({exc.strerror})") from None
+    return read_toml(path, max_bytes, ConfigError, where)
 
 
 def key_error(where: str, key: str, expected: str, got) -> ConfigError:

@@ -391,3 +391,33 @@ def test_a_dataset_carrying_a_subfolder_is_not_installed(server, datasets, tmp_p
     (line,) = _error_lines(result)
     assert line.startswith("Error: fetch failed at verify: ") and "payload: is a folder" in line
     assert not out.exists() or not any(out.iterdir())
+
+
+@pytest.mark.parametrize("kind", ["profile", "sensor", "model", "suite"])
+def test_every_content_file_is_read_by_the_one_hardened_reader(tmp_path, cli, kind):
+    """Profiles, sensors, model recipes and suites share content.read_toml: a folder, bytes
+    that are not UTF-8 and an oversized file each end in one line naming the file and what
+    was expected (before, a folder was "file not found" or "expected one of [...]", and suites
+    and model recipes had no size limit)."""
+    command = {
+        "profile": ["generate", "--out", tmp_path / "o", "--profile"],
+        "sensor": ["generate", "--out", tmp_path / "o", "--sensor"],
+        "model": ["train", "--dataset", tmp_path, "--model"],
+        "suite": ["bench", "--out", tmp_path / "o", "--suite"],
+    }[kind]
+    folder = tmp_path / "folder.toml"
+    folder.mkdir()
+    latin = tmp_path / "latin.toml"
+    latin.write_bytes(b'description = "caf\xe9"\n')
+    big = tmp_path / "big.toml"
+    big.write_text("# pad\n" * 200_000)
+    for path, words in [
+        (folder, "expected a regular file, got a folder"),
+        (latin, "expected UTF-8 text, got byte 0xe9 at offset 18"),
+        (big, "expected a file of at most"),
+    ]:
+        result = cli(*command, path)
+        assert result.exit_code in (1, 2) and "Traceback" not in result.output, result.output
+        (line,) = [x for x in result.output.splitlines() if "rror" in x]
+        assert str(path) in line and words in line, (kind, line)
+    assert not (tmp_path / "o").exists()

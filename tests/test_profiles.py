@@ -69,8 +69,8 @@ GOOD = (
         (GOOD.replace('description = "x"\n', ""), "key 'description' is missing"),
         (GOOD.replace('description = "x"', "description = 3"), "key 'description'"),
         ("variation = [", "not valid TOML"),
-        (b"\xff\xfe\x00binary", "expected a UTF-8 TOML text file"),
-        ("# pad\n" * 20000, "expected a profile of at most"),
+        (b"\xff\xfe\x00binary", "expected UTF-8 text, got byte 0xff at offset 0"),
+        ("# pad\n" * 20000, "expected a file of at most 65536 bytes, got 120000 bytes"),
     ],
 )
 def test_a_bad_profile_file_is_one_line_naming_file_and_key(tmp_path, text, expected, cli):

@@ -27,11 +27,10 @@ A suite is a TOML file (``benchmark/<name>.toml`` or any path)::
 import hashlib
 import json
 import re
-import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from simlidar.content import content_dir
+from simlidar.content import content_dir, read_toml, shipped_or_path
 from simlidar.errors import ConfigError, shown
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.profiles import DEFAULT_PROFILE, load_profile
@@ -44,6 +43,7 @@ KEYS = {"name", "description", "models", "seeds", "board_power_w", "generate", "
 # A board's power, watts: 100 kW is a rack of accelerators. Beyond it (inf, 1e308) the energy
 # estimate, power x latency, overflowed to a bare Infinity in results.json.
 MAX_BOARD_POWER_W = 100_000
+MAX_SUITE_BYTES = 1024 * 1024  # a suite lists models and datasets: far less than this
 BUDGET_KEYS = ("epochs", "max_seconds", "validation", "patience")  # also a cell's rules
 SEED = Range(0, 2**63, "an integer", high_open=True)  # a training seed (as train's --seed)
 
@@ -98,18 +98,13 @@ def _budget(path: Path, table: dict, key: str) -> dict:
 
 def load_suite(name_or_path: str | Path) -> Suite:
     """A suite by name (``benchmark/<name>.toml``) or path, every key checked."""
-    path = Path(name_or_path)
-    if not path.suffix:
-        path = content_dir("benchmark") / f"{name_or_path}.toml"
-    if not path.is_file():
+    path, shipped = shipped_or_path(name_or_path, "benchmark")
+    if shipped and not path.is_file():
         raise ConfigError(
             f"suite {str(name_or_path)!r}: expected one of {suite_names()} or a .toml file"
         )
-    raw = path.read_bytes()
-    try:
-        data = tomllib.loads(raw.decode())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"suite {path}: not valid TOML ({exc})") from None
+    data = read_toml(path, MAX_SUITE_BYTES, ConfigError, f"suite {path}")
+    raw = path.read_bytes()  # its digest names the suite's settings
     for key in data:
         if key not in KEYS:
             raise ConfigError(f"suite {path}: unknown key '{key}': expected one of {sorted(KEYS)}")

@@ -16,7 +16,13 @@ the listening window.
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from simlidar.content import content_dir, finite_number, key_error, read_named_toml
+from simlidar.content import (
+    content_dir,
+    finite_number,
+    key_error,
+    read_named_toml,
+    shipped_or_path,
+)
 from simlidar.errors import ConfigError, shown
 
 DEFAULT_PROFILE = "paper"
@@ -64,18 +70,13 @@ def load_profile(name_or_path: str | Path) -> Profile:
 
     Raises ConfigError naming the file, the key and what was expected.
     """
-    text = str(name_or_path)
-    path = Path(text)
-    if not text.endswith(".toml") and "/" not in text:
-        path = content_dir("profiles") / f"{text}.toml"
-        if not path.is_file():
-            raise ConfigError(
-                f"profile {text!r}: expected one of {profile_names()} or a .toml file"
-            )
+    path, shipped = shipped_or_path(name_or_path, "profiles")
+    if shipped and not path.is_file():
+        raise ConfigError(
+            f"profile {str(name_or_path)!r}: expected one of {profile_names()} or a .toml file"
+        )
     where = f"profile {path}"
-    return checked_profile(
-        where, path.stem, read_named_toml(path, where, "a profile", MAX_PROFILE_BYTES)
-    )
+    return checked_profile(where, path.stem, read_named_toml(path, where, MAX_PROFILE_BYTES))
 
 
 def checked_profile(where: str, name: str, data: dict) -> Profile:

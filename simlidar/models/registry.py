@@ -20,11 +20,10 @@ import importlib.util
 import os
 import re
 import sys
-import tomllib
 from collections.abc import Callable
 from pathlib import Path
 
-from simlidar.content import content_dir
+from simlidar.content import content_dir, read_toml, shipped_or_path
 from simlidar.errors import ConfigError, raised
 from simlidar.models.protocol import spec_of
 from simlidar.models.training import TrainingConfig
@@ -41,6 +40,7 @@ BUILDERS = {
     "resnet": ("conventional", "resnet"),
 }
 
+MAX_MODEL_RECIPE_BYTES = 64 * 1024  # a model recipe is a few dozen lines
 
 # builders handed over in this process (simlidar.bench.api): key -> (function, fingerprint)
 _REGISTERED: dict[str, tuple[Callable, str | None]] = {}
@@ -140,19 +140,14 @@ def load_recipe(name_or_path: str | Path) -> dict:
             "training": dict(OUTSIDE_TRAINING),
             "name": model_name(name),
         }
-    path = Path(name_or_path)
-    if not path.suffix:
-        path = content_dir("baselines") / f"{name_or_path}.toml"
-    if not path.is_file():
+    path, shipped = shipped_or_path(name_or_path, "baselines")
+    if shipped and not path.is_file():
         names = sorted(p.stem for p in content_dir("baselines").glob("*.toml"))
         raise ConfigError(
             f"model recipe {str(name_or_path)!r}: expected one of {names}, a .toml file or "
             "an outside builder 'package.module:function'"
         )
-    try:
-        recipe = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML ({exc})") from None
+    recipe = read_toml(path, MAX_MODEL_RECIPE_BYTES)
     for key in ("model", "architecture", "training"):
         if key not in recipe:
             raise ConfigError(f"{path}: key '{key}' is missing")

@@ -10,15 +10,13 @@ a hostile or runaway recipe from taking the memory of the machine (the expressio
 
 import hashlib
 import json
-import stat
-import tomllib
 from dataclasses import dataclass, field, replace
 from functools import cache
 from pathlib import Path
 
 import numpy as np
 
-from simlidar.content import PLAIN_NAME, PLAIN_NAME_RULE, content_dir, file_kind, finite_number
+from simlidar.content import PLAIN_NAME, PLAIN_NAME_RULE, content_dir, finite_number, read_toml
 from simlidar.errors import RecipeError, shown
 from simlidar.scene import expr
 from simlidar.scene.primitives import DEFAULT_SEGMENTS, KINDS, template
@@ -173,37 +171,8 @@ def _fail(where: str, key: str, expected: str, got) -> RecipeError:
 
 
 def _read_toml(path: Path) -> dict:
-    """Parse a TOML file: a regular file (or a link to one) of at most MAX_RECIPE_BYTES bytes
-    of UTF-8. Never reads more than MAX_RECIPE_BYTES + 1 bytes."""
-    try:
-        mode = path.stat().st_mode
-        if not stat.S_ISREG(mode):
-            kind = file_kind(mode)
-            target = f" ({path.resolve()})" if path.is_symlink() else ""
-            raise RecipeError(f"{path}: expected a regular file, got {kind}{target}")
-        with path.open("rb") as f:
-            data = f.read(MAX_RECIPE_BYTES + 1)
-    except FileNotFoundError:
-        raise RecipeError(f"{path}: file not found") from None
-    except (OSError, ValueError) as exc:  # ValueError: a NUL character in the path
-        raise RecipeError(f"{path}: cannot read the file ({exc})") from None
-    if len(data) > MAX_RECIPE_BYTES:
-        size = max(len(data), path.stat().st_size)
-        raise RecipeError(
-            f"{path}: expected a file of at most {MAX_RECIPE_BYTES} bytes, got {size} bytes"
-        )
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise RecipeError(
-            f"{path}: expected UTF-8 text, got byte 0x{data[exc.start]:02x} at offset {exc.start}"
-        ) from None
-    try:
-        return tomllib.loads(text)
-    except RecursionError:
-        raise RecipeError(f"{path}: not valid TOML (arrays or tables nested too deeply)") from None
-    except ValueError as exc:  # TOMLDecodeError, or an integer of more than 4300 digits
-        raise RecipeError(f"{path}: not valid TOML ({exc})") from None
+    """A scene catalog's TOML file (:func:`simlidar.content.read_toml`, RecipeError)."""
+    return read_toml(path, MAX_RECIPE_BYTES, RecipeError)
 
 
 def _check_keys(where: str, table: dict, allowed: set[str], required: set[str]) -> None:

@@ -17,7 +17,13 @@ from dataclasses import dataclass, fields, replace
 from functools import lru_cache
 from pathlib import Path
 
-from simlidar.content import content_dir, finite_number, key_error, read_named_toml
+from simlidar.content import (
+    content_dir,
+    finite_number,
+    key_error,
+    read_named_toml,
+    shipped_or_path,
+)
 from simlidar.errors import ConfigError, shown
 
 SPEED_OF_LIGHT_M_PER_S = 299_792_458.0
@@ -278,12 +284,11 @@ def load_sensor(name_or_path: str | Path) -> Sensor:
 
     Raises ConfigError naming the file, the key and what was expected.
     """
-    text = str(name_or_path)
-    path = Path(text)
-    if not text.endswith(".toml") and "/" not in text:
-        path = content_dir("sensors") / f"{text}.toml"
-        if not path.is_file():
-            raise ConfigError(f"sensor {text!r}: expected one of {sensor_names()} or a .toml file")
+    path, shipped = shipped_or_path(name_or_path, "sensors")
+    if shipped and not path.is_file():
+        raise ConfigError(
+            f"sensor {str(name_or_path)!r}: expected one of {sensor_names()} or a .toml file"
+        )
     try:
         stamp = path.stat()
         stamp = (stamp.st_mtime_ns, stamp.st_size)
@@ -297,7 +302,7 @@ def _load(text: str, stamp) -> Sensor:
     """The sensor of file ``text``, cached by path and (mtime, size) ``stamp``."""
     path = Path(text)
     where = f"sensor {path}"
-    data = read_named_toml(path, where, "a sensor file", MAX_SENSOR_BYTES)
+    data = read_named_toml(path, where, MAX_SENSOR_BYTES)
     values = _checked(where, data)
     try:
         return Sensor(name=path.stem, **values)
