@@ -303,7 +303,7 @@ def bench(
                 f"--remeasure re-measures the finished cells of --out as they "
                 f"were trained; expected no {extra[0]}"
             )
-        from simlidar.bench.run import remeasure as run_remeasure
+        from simlidar.bench.measure import remeasure as run_remeasure
 
         results = run_remeasure(out, chosen, progress=not as_json)
     else:

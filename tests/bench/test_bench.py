@@ -141,7 +141,7 @@ def test_a_suite_runs_reruns_and_reports(tiny_suite, tmp_path, datasets):
     assert len(data["history"]) == 1
 
     # re-measuring from the checkpoints gives the same figures, keeps the training record
-    from simlidar.bench.run import remeasure
+    from simlidar.bench.measure import remeasure
 
     first = sorted((out / "cells").glob("*.json"))[0]
     measured = json.loads(first.read_text())
@@ -580,10 +580,10 @@ def test_seeds_that_disagree_are_marked_and_training_is_tabled():
 
 
 def test_suite_json_names_a_shipped_suite_by_its_repository_path(tiny_suite):
-    from simlidar.bench.run import _shown
+    from simlidar.bench.outdir import suite_shown
 
-    assert _shown(load_suite("quick")) == "benchmark/quick.toml"  # not the install path
-    assert _shown(load_suite(tiny_suite)) == str(tiny_suite)
+    assert suite_shown(load_suite("quick")) == "benchmark/quick.toml"  # not the install path
+    assert suite_shown(load_suite(tiny_suite)) == str(tiny_suite)
 
 
 def test_a_deleted_cells_folder_is_made_again(tiny_suite, tmp_path, datasets):

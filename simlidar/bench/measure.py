@@ -1,0 +1,139 @@
+"""What a benchmark cell measures on its trained model (:func:`measure`), and measuring every
+finished cell of a run again from its checkpoint (:func:`remeasure`)."""
+
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from simlidar.bench import metrics
+from simlidar.bench.early import early_decisions
+from simlidar.bench.outdir import claim, collect, read_cell, write_json
+from simlidar.bench.stepped import stepped_decisions
+from simlidar.bench.suite import Suite
+from simlidar.bench.train import predictions
+from simlidar.dataset.loaders import load_split, spike_threshold
+from simlidar.dataset.reader import dataset_splits
+from simlidar.errors import DatasetError
+from simlidar.models.protocol import STEPPED_SPIKES, ModelSpec, encode, spec_of
+from simlidar.models.training import TrainingConfig
+
+METRICS = "neurobench-2.3.0-definitions/v1"  # what measure() computes; a cell records it
+
+
+def measure(
+    model: torch.nn.Module,
+    recipe: dict,
+    dataset: Path,
+    suite: Suite,
+    predicted: np.ndarray,
+    timing: dict,
+    spec: ModelSpec | None = None,
+) -> dict:
+    """Everything a cell measures on its trained model (on the CPU) besides training:
+    accuracy, confusion, footprint, latency, NeuroBench's workload metrics, early decisions;
+    ``timing`` gets the seconds of each part, and is recorded. ``spec``: what the model
+    declares (default: :func:`~simlidar.models.protocol.spec_of` the model, the recipe's
+    ``[spec]`` over it)."""
+    attrs = dataset_splits(dataset)["test"].attrs
+    x, y = load_split(dataset, "test")
+    x = torch.from_numpy(x)[:, None]
+    classes = len(attrs["class_names"])
+    spec = spec or spec_of(model, recipe.get("spec"))
+    record = {
+        "accuracy": float(np.mean(predicted == y)),
+        "input_shape": list(x.shape[1:]),
+        **metrics.footprint(model),
+        "metrics": METRICS,
+        "lr_schedule": TrainingConfig.from_table(recipe["training"]).lr_schedule,
+    }
+    start = time.perf_counter()
+    if spec.output == STEPPED_SPIKES:
+        silent_from = spike_threshold(attrs)
+        stepped = stepped_decisions(model, x, y, spec, silent_from, per_sample=True)
+        record["per_sample"] = stepped.pop("per_sample")
+        record["stepped"] = stepped
+        timing["stepped_decisions"] = time.perf_counter() - start
+        start = time.perf_counter()
+        figures = metrics.stepped_figures(model, x, lambda b: encode(b, spec, silent_from))
+    elif spec.spiking:
+        early = None
+        if getattr(model, "event_driven", False):
+            early = early_decisions(model, dataset, per_sample=True)
+            record["per_sample"] = early.pop("per_sample")
+            record["early"] = early
+        timing["early_decisions"] = time.perf_counter() - start
+        start = time.perf_counter()
+        figures = metrics.spiking_figures(model, x, early)
+    else:
+        figures = metrics.conventional_figures(model, x, suite.board_power_w)
+    timing["latency_and_counts"] = time.perf_counter() - start
+    record.update(figures)
+    record["confusion"] = metrics.confusion_matrix(y, predicted, classes).tolist()
+    record["timing_seconds"] = {k: round(v, 2) for k, v in timing.items()}
+    return record
+
+
+def remeasure(out: Path, suite: Suite, progress: bool = True) -> dict:
+    """Measure every finished cell of ``out`` again from its checkpoint (no training): the
+    figures of :func:`measure` are replaced, the training record is kept. A checkpoint whose
+    test predictions do not give the cell's recorded accuracy is refused (it is not the cell's
+    model; one sample may differ, as float rounding differs with the thread count). Writes
+    results.json and the report; returns the results."""
+    from tqdm import tqdm
+
+    from simlidar.bench.report import write_report
+    from simlidar.bench.train import load_checkpoint
+
+    if not (out / "suite.json").is_file():
+        raise DatasetError(
+            f"--out {out}: no benchmark run to re-measure; expected a directory "
+            "written by simlidar bench"
+        )
+    claim(out, suite)  # the suite must own the directory
+    cells = sorted((out / "cells").glob("*.json"))
+    missing = [c.stem for c in cells if not (out / "checkpoints" / f"{c.stem}.pt").is_file()]
+    if missing:
+        raise DatasetError(
+            f"--out {out}: cell {missing[0]} has no checkpoint "
+            f"(checkpoints/{missing[0]}.pt; {len(missing)} cells lack one); "
+            "expected every cell's weights, as bench saves them"
+        )
+    for path in tqdm(cells, desc="re-measure", unit="cell", disable=not progress):
+        record = read_cell(path)
+        dataset = _dataset_of(out, suite, record["dataset"])
+        model, data = load_checkpoint(
+            out / "checkpoints" / f"{path.stem}.pt", tuple(record["input_shape"]), record["classes"]
+        )
+        x, y = load_split(dataset, "test")
+        spec = spec_of(model, data["recipe"].get("spec"))
+        silent_from = float(data.get("silent_from", 1.0))
+        predicted = predictions(
+            model, torch.from_numpy(x)[:, None], spec=spec, silent_from=silent_from
+        )
+        predicted = predicted.numpy()
+        if abs(float(np.sum(predicted == y)) - record["accuracy"] * len(y)) > 1.5:
+            raise DatasetError(
+                f"--out {out}: checkpoint of cell {path.stem} scores "
+                f"{np.mean(predicted == y):.4f}, the cell {record['accuracy']:.4f}; "
+                "expected the cell's own model"
+            )
+        timing = {k: v for k, v in record.get("timing_seconds", {}).items() if k == "train"}
+        record.update(measure(model, data["recipe"], dataset, suite, predicted, timing, spec))
+        write_json(path, record, indent=None)
+    results = collect(out, suite)
+    write_report(results, out)
+    return results
+
+
+def _dataset_of(out: Path, suite: Suite, name: str) -> Path:
+    """The directory of a cell's dataset: generated under ``<out>/datasets`` or one of the
+    suite's."""
+    for path in [out / "datasets" / name, *suite.datasets]:
+        if path.name == name and path.is_dir():
+            return path
+    raise DatasetError(
+        f"--out {out}: dataset {name} of a cell is not there; expected it under "
+        f"{out / 'datasets'} or among the suite's datasets"
+    )
