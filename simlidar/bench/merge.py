@@ -25,8 +25,8 @@ from pathlib import Path
 
 from simlidar import __version__
 from simlidar.atomic import building
-from simlidar.bench.report import write_report
 from simlidar.bench.outdir import machine, write_json
+from simlidar.bench.report import write_report
 from simlidar.errors import ResultsError
 
 SCHEMA = Path(__file__).with_name("cell.schema.json")

@@ -30,8 +30,8 @@ import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from simlidar.content import content_dir, read_toml, shipped_or_path
-from simlidar.errors import ConfigError, shown
+from simlidar.content import content_dir, key_error, read_toml, shipped_or_path
+from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.profiles import DEFAULT_PROFILE, load_profile
 from simlidar.models.registry import load_recipe
@@ -79,12 +79,8 @@ def suite_names() -> list[str]:
 
 
 def _fail(path: Path, key: str, expected: str, got) -> ConfigError:
-    return ConfigError(f"suite {path}: key '{key}': expected {expected}, got {shown(got)}")
-
-
-def _number(value, low: float, integer: bool = False) -> bool:
-    kinds = int if integer else int | float
-    return isinstance(value, kinds) and not isinstance(value, bool) and value >= low
+    """A suite file's bad key (:func:`simlidar.content.key_error`)."""
+    return key_error(f"suite {path}", key, expected, got)
 
 
 def _budget(path: Path, table: dict, key: str) -> dict:
@@ -171,8 +167,9 @@ def load_suite(name_or_path: str | Path) -> Suite:
         else:
             budget["*"].update(_budget(path, {key: value}, "budget"))
     power = data.get("board_power_w")
-    if power is not None and not (_number(power, 0) and power <= MAX_BOARD_POWER_W):
-        raise _fail(path, "board_power_w", f"watts in [0, {MAX_BOARD_POWER_W}]", power)
+    watts = Range(0, MAX_BOARD_POWER_W, "watts")
+    if power is not None and not watts.accepts(power):
+        raise _fail(path, "board_power_w", watts.expected(), power)
     return Suite(
         name=name,
         path=path,
