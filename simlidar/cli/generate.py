@@ -21,9 +21,9 @@ from simlidar.dataset.shards import SHARD_SAMPLES
 from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.generate import BATCH
-from simlidar.generator.profiles import DEFAULT_PROFILE
+from simlidar.generator.profiles import DEFAULT_PROFILE, profile_names
 from simlidar.generator.sweep import SweepConfig
-from simlidar.sensor.model import DEFAULT_SENSOR, load_sensor
+from simlidar.sensor.model import DEFAULT_SENSOR, load_sensor, sensor_names
 from simlidar.sensor.raycast import MAX_BATCH
 from simlidar.settings import help_of
 
@@ -42,7 +42,7 @@ def out_option(what: str):
 sensor_option = click.option(
     "--sensor",
     default=None,
-    help="Sensor model: a name in sensors/ (vlp16, hdl64e, hdl32e) or a .toml file; see "
+    help=f"Sensor model: a name in sensors/ ({', '.join(sensor_names())}) or a .toml file; see "
     f"`simlidar sensors`. Rows of a sample = its beams. [default: {DEFAULT_SENSOR}]",
 )
 
@@ -83,8 +83,8 @@ def catalog_for(scenes, classes: int):
 @click.option(
     "--profile",
     default=None,
-    help="Dataset profile: a name in profiles/ (paper, physical) or a .toml file; see "
-    f"`simlidar profiles`. [default: {DEFAULT_PROFILE}]",
+    help=f"Dataset profile: a name in profiles/ ({', '.join(profile_names())}) or a .toml "
+    f"file; see `simlidar profiles`. [default: {DEFAULT_PROFILE}]",
 )
 @setting_option(
     GeneratorConfig,

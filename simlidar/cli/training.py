@@ -5,6 +5,7 @@ from pathlib import Path
 
 import click
 
+from simlidar.bench.suite import suite_names
 from simlidar.cli.options import (
     IntegerRange,
     Workers,
@@ -209,7 +210,7 @@ def train(
     "--suite",
     default="quick",
     show_default=True,
-    help="Suite: a name in benchmark/ (quick, paper, physical) or a .toml file.",
+    help=f"Suite: a name in benchmark/ ({', '.join(suite_names())}) or a .toml file.",
 )
 @click.option(
     "--models",
