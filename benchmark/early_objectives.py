@@ -57,10 +57,16 @@ VARIANTS = {
     "far-rel0.1": (FAR, {"early_penalty": 0.1, "early_form": "relative"}),
     "far-exp0.1-from20": (FAR, {"early_penalty": 0.1, "early_form": "exp", "early_start": 20}),
     "far-exp0.2-from30": (FAR, {"early_penalty": 0.2, "early_form": "exp", "early_start": 30}),
+    "far-exp0.3-from30": (FAR, {"early_penalty": 0.3, "early_form": "exp", "early_start": 30}),
+    "far-exp0.5-from30": (FAR, {"early_penalty": 0.5, "early_form": "exp", "early_start": 30}),
+    "far-exp1-from30": (FAR, {"early_penalty": 1.0, "early_form": "exp", "early_start": 30}),
 }
 # variants trained longer than --epochs: the schedule's term starts once the run without it
 # would have converged (a cosine schedule over 60 epochs is at half its rate at epoch 30)
-OWN_EPOCHS = {"far-exp0.2-from30": 60}
+OWN_EPOCHS = {
+    v: 60
+    for v in ("far-exp0.2-from30", "far-exp0.3-from30", "far-exp0.5-from30", "far-exp1-from30")
+}
 # the spiking CNN on simulated HDL-64E crops (issue 33, item 5): --recipe scnn_kitti
 VARIANTS.update(
     {

@@ -28,6 +28,7 @@ datasets = [{paths}]
 [budget]
 epochs = {epochs}
 """
+TRAINING = '[training]\noptimizer = "adam"\nlr = 1e-2\nbatch_size = 32\nepochs = {epochs}\n'
 PLAIN = """
 import torch
 from torch import nn
@@ -99,6 +100,11 @@ def _suite(tmp_path, datasets, epochs=1):
     return path
 
 
+def _bench_json(cli, suite, models, out):
+    """``simlidar bench --json`` of ``models`` (comma-separated) on a suite, into ``out``."""
+    return cli("bench", "--suite", suite, "--models", models, "--out", out, "--json")
+
+
 def test_a_plain_torch_module_by_name_and_by_file(plain_module, tmp_path, datasets, cli):
     recipe = load_recipe("outside_plain:build")
     assert recipe["name"] == "outside_plain.build" and recipe["training"]["epochs"] == 30
@@ -107,20 +113,10 @@ def test_a_plain_torch_module_by_name_and_by_file(plain_module, tmp_path, datase
     (tmp_path / "r").mkdir()
     file_recipe = tmp_path / "r" / "mine.toml"
     file_recipe.write_text(
-        f'model = "../code/{plain_module.name}:build"\n[architecture]\n'
-        '[training]\noptimizer = "adam"\nlr = 1e-2\nbatch_size = 32\nepochs = 2\n'
+        f'model = "../code/{plain_module.name}:build"\n[architecture]\n' + TRAINING.format(epochs=2)
     )
     out = tmp_path / "b"
-    result = cli(
-        "bench",
-        "--suite",
-        _suite(tmp_path, datasets),
-        "--models",
-        f"outside_plain:build,{file_recipe}",
-        "--out",
-        out,
-        "--json",
-    )
+    result = _bench_json(cli, _suite(tmp_path, datasets), f"outside_plain:build,{file_recipe}", out)
     assert result.exit_code == 0, result.output
     cells = {c["model"]: c for c in json.loads(result.stdout)["cells"]}
     assert set(cells) == {"outside_plain.build", "mine"}
@@ -132,16 +128,7 @@ def test_a_plain_torch_module_by_name_and_by_file(plain_module, tmp_path, datase
 
 def test_a_model_with_its_own_fit_is_scored_only(plain_module, tmp_path, datasets, cli):
     out = tmp_path / "b"
-    result = cli(
-        "bench",
-        "--suite",
-        _suite(tmp_path, datasets),
-        "--models",
-        "outside_plain:fitted",
-        "--out",
-        out,
-        "--json",
-    )
+    result = _bench_json(cli, _suite(tmp_path, datasets), "outside_plain:fitted", out)
     assert result.exit_code == 0, result.output
     (cell,) = json.loads(result.stdout)["cells"]
     assert cell["stopped"] == "own-fit" and cell["epochs_run"] == 1
@@ -392,20 +379,11 @@ def test_an_events_model_decides_as_its_latency_twin(tmp_path, datasets, cli):
             'model = "stepped.py:build"\n[architecture]\nsteps = 6\n'
             '[spec]\noutput = "stepped_spikes"\n'
             f'encoding = "{encoding}"\nsteps = 6\nreadout = "first_spike"\n'
-            '[training]\noptimizer = "adam"\nlr = 1e-2\nbatch_size = 32\nepochs = 2\n'
+            + TRAINING.format(epochs=2)
         )
         recipes.append(str(recipe))
     out = tmp_path / "b"
-    result = cli(
-        "bench",
-        "--suite",
-        _suite(tmp_path, datasets),
-        "--models",
-        ",".join(recipes),
-        "--out",
-        out,
-        "--json",
-    )
+    result = _bench_json(cli, _suite(tmp_path, datasets), ",".join(recipes), out)
     assert result.exit_code == 0, result.output
     cells = {c["spec"]["encoding"]: c for c in json.loads(result.stdout)["cells"]}
     latency, events = cells["latency"], cells["events"]
@@ -437,8 +415,7 @@ def test_a_stepped_model_that_disagrees_with_its_spec_is_one_line(
     recipe = tmp_path / "wrong.toml"
     recipe.write_text(
         'model = "stepped.py:build"\n[architecture]\nsteps = 6\n'
-        f'[spec]\noutput = "stepped_spikes"\n{spec}\n'
-        '[training]\noptimizer = "adam"\nlr = 1e-2\nbatch_size = 32\nepochs = 1\n'
+        f'[spec]\noutput = "stepped_spikes"\n{spec}\n' + TRAINING.format(epochs=1)
     )
     out = tmp_path / "b"
     result = cli("bench", "--suite", _suite(tmp_path, datasets), "--models", recipe, "--out", out)

@@ -59,18 +59,8 @@ def test_training_learns_and_is_seeded(datasets, tmp_path):
 
 
 def test_the_train_command(datasets, tmp_path, cli):
-    result = cli(
-        "train",
-        "--model",
-        "snn_simlidar",
-        "--dataset",
-        str(datasets[0.1]),
-        "--out",
-        str(tmp_path),
-        "--epochs",
-        "1",
-        "--json",
-    )
+    one_epoch = ["train", "--model", "snn_simlidar", "--dataset", datasets[0.1], "--out", tmp_path]
+    result = cli(*one_epoch, "--epochs", "1", "--json")
     assert result.exit_code == 0, result.output
     record = json.loads(result.stdout)
     assert record["epochs"] == 1 and record["early"]["samples"] == 64
@@ -80,17 +70,7 @@ def test_the_train_command(datasets, tmp_path, cli):
     predicted = predictions(model, torch.from_numpy(x)[:, None])
     accuracy = float((predicted.numpy() == y).mean())
     assert record["test_accuracy"] == round(accuracy, 4)  # as train prints it
-    text = cli(
-        "train",
-        "--model",
-        "snn_simlidar",
-        "--dataset",
-        str(datasets[0.1]),
-        "--out",
-        str(tmp_path),
-        "--epochs",
-        "1",
-    )
+    text = cli(*one_epoch, "--epochs", "1")
     assert text.exit_code == 0 and "snn_simlidar: test accuracy" in text.stdout
     assert "event-driven: accuracy" in text.stdout and "pJ at 45 pJ/spike" in text.stdout
     assert "epoch 1 of 1 kept (best validation accuracy of 32 held-out samples)" in text.stdout
