@@ -68,6 +68,31 @@ def test_the_cluster_writes_the_bytes_of_one_process(
     )
 
 
+def _slow_appends():
+    """In a worker process: every batch a shard writer appends takes 0.2 s more, so that a
+    shard is being written for seconds and the test's poll cannot miss it however loaded the
+    machine is (the bytes are the same)."""
+    import time
+
+    from simlidar.dataset.writer import SplitWriter
+
+    append = SplitWriter.append
+
+    def slow(self, *args, **kwargs):
+        time.sleep(0.2)
+        return append(self, *args, **kwargs)
+
+    slow.original = append
+    SplitWriter.append = slow
+
+
+def _full_speed():
+    """Undo :func:`_slow_appends` in a worker that has it."""
+    from simlidar.dataset.writer import SplitWriter
+
+    SplitWriter.append = getattr(SplitWriter.append, "original", SplitWriter.append)
+
+
 def test_a_worker_killed_mid_shard_changes_nothing(cluster, catalog, tmp_path):
     address, client = cluster
     config = GeneratorConfig(train_size=1600, test_size=400)
@@ -75,6 +100,7 @@ def test_a_worker_killed_mid_shard_changes_nothing(cluster, catalog, tmp_path):
     out = tmp_path / "cluster"
     out.mkdir()
     done, errors = [], []
+    client.run(_slow_appends)  # the restarted worker (after the kill) writes at full speed
 
     def run():
         try:
@@ -111,6 +137,7 @@ def test_a_worker_killed_mid_shard_changes_nothing(cluster, catalog, tmp_path):
     assert _files(done[0].path) == _files(alone.path)
     assert [p.name for p in out.iterdir()] == [alone.path.name]  # no temporaries left
     client.wait_for_workers(2, timeout=60)  # the nanny restarted it, for the tests after
+    client.run(_full_speed)
 
 
 def test_a_worker_without_the_output_folder_says_so(small_config, catalog, tmp_path):

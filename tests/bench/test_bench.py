@@ -111,7 +111,6 @@ def test_a_suite_runs_reruns_and_reports(tiny_suite, tmp_path, datasets):
     for cell in cells:
         for key in ("dataset", "noise", "model", "seed", "accuracy", "latency_ms", "params"):
             assert key in cell
-        assert 0.0 <= cell["accuracy"] <= 1.0
         confusion = cell["confusion"]
         assert sum(map(sum, confusion)) == 64  # every test sample once
         assert cell["accuracy"] == pytest.approx(sum(r[i] for i, r in enumerate(confusion)) / 64)
