@@ -47,14 +47,19 @@ def file_kind(mode: int) -> str:
     return next((name for test, name in _FILE_KINDS if test(mode)), "a special file")
 
 
-def shipped_or_path(name_or_path: str | Path, folder: str) -> tuple[Path, bool]:
-    """(the file, whether it was named as shipped content): a bare name (no ``/`` and no
-    ``.toml``) is ``<folder>/<name>.toml`` of the shipped content ``folder``; anything else is
-    a path. The one rule for profiles, sensors, model recipes and suites."""
+def shipped_or_path(name_or_path: str | Path, folder: str, kind: str, other: str = "") -> Path:
+    """The file a user named: a bare name (no ``/`` and no ``.toml``) is ``<folder>/<name>.toml``
+    of the shipped content ``folder`` (a ConfigError ``<kind> '<name>': expected one of [...]
+    or a .toml file<other>`` when there is none); anything else is a path, read as such. The one
+    rule for profiles, sensors, model recipes and suites."""
     text = str(name_or_path)
-    if not text.endswith(".toml") and "/" not in text:
-        return content_dir(folder) / f"{text}.toml", True
-    return Path(text), False
+    if "/" in text or text.endswith(".toml"):
+        return Path(text)
+    path = content_dir(folder) / f"{text}.toml"
+    if not path.is_file():
+        names = sorted(p.stem for p in content_dir(folder).glob("*.toml"))
+        raise ConfigError(f"{kind} {text!r}: expected one of {names} or a .toml file{other}")
+    return path
 
 
 def read_toml(path: Path, max_bytes: int, error=ConfigError, where: str | None = None) -> dict:

@@ -35,7 +35,7 @@ __all__ = [  # and PulseDataset, made on first use (below)
 
 
 def __getattr__(name: str):
-    if name == "PulseDataset":
+    if name == "PulseDataset":  # on first use: it needs torch, the rest of this module does not
         from simlidar.dataset.loaders import PulseDataset
 
         return PulseDataset

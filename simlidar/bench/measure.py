@@ -12,7 +12,7 @@ from simlidar.bench.early import early_decisions
 from simlidar.bench.outdir import claim, collect, read_cell, write_json
 from simlidar.bench.stepped import stepped_decisions
 from simlidar.bench.suite import Suite
-from simlidar.bench.train import predictions
+from simlidar.bench.train import load_checkpoint, predictions
 from simlidar.dataset.loaders import load_split, spike_threshold
 from simlidar.dataset.reader import dataset_splits
 from simlidar.errors import DatasetError
@@ -84,7 +84,6 @@ def remeasure(out: Path, suite: Suite, progress: bool = True) -> dict:
     from tqdm import tqdm
 
     from simlidar.bench.report import write_report
-    from simlidar.bench.train import load_checkpoint
 
     if not (out / "suite.json").is_file():
         raise DatasetError(

@@ -94,11 +94,7 @@ def _budget(path: Path, table: dict, key: str) -> dict:
 
 def load_suite(name_or_path: str | Path) -> Suite:
     """A suite by name (``benchmark/<name>.toml``) or path, every key checked."""
-    path, shipped = shipped_or_path(name_or_path, "benchmark")
-    if shipped and not path.is_file():
-        raise ConfigError(
-            f"suite {str(name_or_path)!r}: expected one of {suite_names()} or a .toml file"
-        )
+    path = shipped_or_path(name_or_path, "benchmark", "suite")
     data = read_toml(path, MAX_SUITE_BYTES, ConfigError, f"suite {path}")
     raw = path.read_bytes()  # its digest names the suite's settings
     for key in data:

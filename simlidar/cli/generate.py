@@ -21,8 +21,10 @@ from simlidar.dataset.shards import SHARD_SAMPLES
 from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.generate import BATCH
-from simlidar.generator.profiles import DEFAULT_PROFILE, profile_names
-from simlidar.generator.sweep import SweepConfig
+from simlidar.generator.generate import generate as generate_datasets
+from simlidar.generator.profiles import DEFAULT_PROFILE, load_profile, profile_names
+from simlidar.generator.sweep import EXPORTS, SweepConfig
+from simlidar.generator.sweep import sweep as run_sweep
 from simlidar.sensor.model import DEFAULT_SENSOR, load_sensor, sensor_names
 from simlidar.sensor.raycast import MAX_BATCH
 from simlidar.settings import help_of
@@ -160,8 +162,6 @@ def generate(
     The profile (default: paper) decides the scene variation, the delay shift, what a missing
     return is written as and which pixels get the noise. --variation and --shift override its
     values; the dataset's name then says so (docs/profiles.md)."""
-    from simlidar.generator.generate import generate as run
-    from simlidar.generator.profiles import load_profile
 
     try:
         chosen = load_profile(profile if profile is not None else DEFAULT_PROFILE)
@@ -191,7 +191,7 @@ def generate(
         timing=timing,
     )
     start = time.perf_counter()
-    written = run(
+    written = generate_datasets(
         config,
         noise,
         catalog,
@@ -227,7 +227,6 @@ class ExportFormats(click.ParamType):
     name = "FORMATS"
 
     def convert(self, value, param, ctx):
-        from simlidar.generator.sweep import EXPORTS
 
         if isinstance(value, tuple):
             return value
@@ -261,13 +260,12 @@ def sweep(frames, classes, seed, variation, sensor, scenes, exports, out, force,
     scenes, with range, surface label, intensity proxy and emission time per point, into
     frames.h5, a bird's-eye picture (bev.png) and, with --export, point-cloud files
     (docs/sweeps.md)."""
-    from simlidar.generator.sweep import sweep as run
 
     chosen_sensor = chosen_sensor_of(sensor)
     catalog = catalog_for(scenes, classes)
     config = GeneratorConfig(classes=classes, seed=seed, variation=variation, sensor=chosen_sensor)
     start = time.perf_counter()
-    path = run(config, SweepConfig(frames=frames), catalog, out, exports, force=force)
+    path = run_sweep(config, SweepConfig(frames=frames), catalog, out, exports, force=force)
     seconds = time.perf_counter() - start
     if as_json:
         record = {"path": str(path), "frames": frames, "exports": list(exports)}
@@ -283,8 +281,6 @@ def sweep(frames, classes, seed, variation, sensor, scenes, exports, out, force,
 def sensors(as_json):
     """List the shipped sensor models (docs/sensor-model.md)."""
     from dataclasses import asdict
-
-    from simlidar.sensor.model import sensor_names
 
     shipped = [load_sensor(name) for name in sensor_names()]
     if as_json:
@@ -313,7 +309,6 @@ def sensors(as_json):
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def profiles(as_json):
     """List the shipped dataset profiles and their values (docs/profiles.md)."""
-    from simlidar.generator.profiles import DEFAULT_PROFILE, load_profile, profile_names
 
     shipped = [load_profile(name).to_dict() for name in profile_names()]
     if as_json:

@@ -149,7 +149,6 @@ class Scheduler(click.ParamType):
 
     def convert(self, value, param, ctx):
         from simlidar.cluster import check_scheduler
-        from simlidar.errors import ConfigError
 
         try:
             check_scheduler(str(value))

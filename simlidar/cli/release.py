@@ -13,6 +13,8 @@ from simlidar.cli.options import (
     OutFolder,
 )
 from simlidar.release.archive import MAX_TIMEOUT_S, TIMEOUT_S
+from simlidar.release.archive import fetch as fetch_dataset
+from simlidar.release.archive import pack as pack_dataset
 
 
 @click.command()
@@ -93,9 +95,8 @@ def verify(path):
 )
 def pack(path, out):
     """Verify a dataset and write <name>.tar.gz and its .sha256, ready to upload."""
-    from simlidar.release.archive import pack as run
 
-    archive, checksum = run(path, out)
+    archive, checksum = pack_dataset(path, out)
     click.echo(f"wrote {archive} and {checksum.name}")
 
 
@@ -128,6 +129,5 @@ def _hex_sha256(ctx, param, value):
 @click.option("--force", is_flag=True, help="Replace an existing dataset of the same name.")
 def fetch(url, sha256, out, timeout, force):
     """Download a dataset archive, check it, extract it safely, verify it, install it."""
-    from simlidar.release.archive import fetch as run
 
-    click.echo(f"installed {run(url, sha256, out, timeout=timeout, force=force)}")
+    click.echo(f"installed {fetch_dataset(url, sha256, out, timeout=timeout, force=force)}")

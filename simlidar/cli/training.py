@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from simlidar.bench.suite import suite_names
+from simlidar.bench.suite import load_suite, suite_names
 from simlidar.cli.options import (
     IntegerRange,
     Workers,
@@ -268,7 +268,6 @@ def bench(
     the same directory skips the cells already finished."""
     need_torch("bench")
     from simlidar.bench.run import run_suite
-    from simlidar.bench.suite import load_suite
 
     try:
         chosen = load_suite(suite)

@@ -31,7 +31,7 @@ from simlidar.generator.config import GeneratorConfig
 from simlidar.release.card import front_matter_block, hf_feature, hf_front_matter, table
 from simlidar.release.croissant import CONTEXT, field, file_objects
 from simlidar.release.info import dataset_info
-from simlidar.sensor.model import Sensor
+from simlidar.sensor.model import Sensor, load_sensor, sensor_names
 
 _DOCS = {  # one line per dataset of a split file; the full table is docs/dataset-format.md
     "delays": "normalised delays with noise: the network input (1.0 = no return)",
@@ -120,7 +120,6 @@ def regenerate_command(
     """The command that writes this dataset again, bit for bit (or the Python equivalent);
     ``shard_samples``: a shard size other than the default (:func:`shard_option`)."""
     from simlidar.generator.profiles import load_profile, profile_names
-    from simlidar.sensor.model import load_sensor, sensor_names
 
     default = GeneratorConfig()
     cli_fields = {

@@ -70,11 +70,7 @@ def load_profile(name_or_path: str | Path) -> Profile:
 
     Raises ConfigError naming the file, the key and what was expected.
     """
-    path, shipped = shipped_or_path(name_or_path, "profiles")
-    if shipped and not path.is_file():
-        raise ConfigError(
-            f"profile {str(name_or_path)!r}: expected one of {profile_names()} or a .toml file"
-        )
+    path = shipped_or_path(name_or_path, "profiles", "profile")
     where = f"profile {path}"
     return checked_profile(where, path.stem, read_named_toml(path, where, MAX_PROFILE_BYTES))
 

@@ -23,7 +23,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from simlidar.content import content_dir, read_toml, shipped_or_path
+from simlidar.content import read_toml, shipped_or_path
 from simlidar.errors import ConfigError, raised
 from simlidar.models.protocol import spec_of
 from simlidar.models.training import TrainingConfig
@@ -140,13 +140,8 @@ def load_recipe(name_or_path: str | Path) -> dict:
             "training": dict(OUTSIDE_TRAINING),
             "name": model_name(name),
         }
-    path, shipped = shipped_or_path(name_or_path, "baselines")
-    if shipped and not path.is_file():
-        names = sorted(p.stem for p in content_dir("baselines").glob("*.toml"))
-        raise ConfigError(
-            f"model recipe {str(name_or_path)!r}: expected one of {names}, a .toml file or "
-            "an outside builder 'package.module:function'"
-        )
+    other = " or an outside builder 'package.module:function'"
+    path = shipped_or_path(name_or_path, "baselines", "model recipe", other)
     recipe = read_toml(path, MAX_MODEL_RECIPE_BYTES)
     for key in ("model", "architecture", "training"):
         if key not in recipe:

@@ -284,11 +284,7 @@ def load_sensor(name_or_path: str | Path) -> Sensor:
 
     Raises ConfigError naming the file, the key and what was expected.
     """
-    path, shipped = shipped_or_path(name_or_path, "sensors")
-    if shipped and not path.is_file():
-        raise ConfigError(
-            f"sensor {str(name_or_path)!r}: expected one of {sensor_names()} or a .toml file"
-        )
+    path = shipped_or_path(name_or_path, "sensors", "sensor")
     try:
         stamp = path.stat()
         stamp = (stamp.st_mtime_ns, stamp.st_size)
