@@ -118,7 +118,7 @@ def dense_snn(
     return SpikingNet(layers, scale, direction, missing)
 
 
-def spiking_cnn(
+def spiking_cnn(  # the same keyword arguments as dense_snn on purpose: recipes name them
     input_shape,
     classes,
     generator=None,

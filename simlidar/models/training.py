@@ -25,6 +25,7 @@ NON_NEGATIVE = Range(0, None, "a finite number", finite=True)
 
 @dataclass(frozen=True)
 class TrainingConfig:
+    # one setting() each, with its own rule and help: the repeated shape is the declaration
     lr: float = setting(help="Learning rate.", rule=Range(0, None, "a number", low_open=True))
     batch_size: int = setting(help="Samples per step.", rule=Range(1, None, "an integer"))
     epochs: int = setting(help="Epoch cap.", rule=Range(1, MAX_EPOCHS, "an integer"))

@@ -75,6 +75,8 @@ def forward(z, w, min_excess, threads):
                     sum_wz[m] = swz
                     ex = sw - 1.0
                     # a filter without division, loose by a few ulps: the exact test follows
+                    # (the convolution kernel writes this loop out again, kept so: moving it
+                    # into a shared helper was not measured for speed in compiled code)
                     hit = (
                         open_[m]
                         & (ex > min_excess)
