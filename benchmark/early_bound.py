@@ -11,8 +11,8 @@ input spike, k in ``--ks`` and each sample's own count, for every seed. Each (da
 encoding) is a JSON file under ``--out``/runs (a rerun skips the ones present); then
 ``bound.json`` (every run), ``bound.md`` (a table) and ``bound.png`` (accuracy against input
 spikes consumed, one curve per dataset and encoding, seed spread as error bars, with the
-committed ``snn_simlidar_tuned`` cells of benchmark/results/paper as points: their median input
-spikes consumed and accuracy) are written from every run under ``--out``.
+committed ``snn_simlidar_tuned`` cells of benchmark/results/paper and /physical as points: their
+median input spikes consumed and accuracy) are written from every run under ``--out``.
 """
 
 import argparse
@@ -26,7 +26,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benchmark/results/early-bound"
-PAPER_CELLS = ROOT / "benchmark/results/paper/cells"
+SUITE_CELLS = [ROOT / f"benchmark/results/{suite}/cells" for suite in ("paper", "physical")]
 
 
 def main(argv=None) -> int:
@@ -74,7 +74,8 @@ def main(argv=None) -> int:
 def snn_points() -> list[dict]:
     """The committed snn_simlidar_tuned cells: dataset, seed, accuracy, input spikes."""
     points = []
-    for path in sorted(PAPER_CELLS.glob("*__snn_simlidar_tuned__seed*.json")):
+    paths = [p for cells in SUITE_CELLS for p in cells.glob("*__snn_simlidar_tuned__seed*.json")]
+    for path in sorted(paths):
         cell = json.loads(path.read_text())
         spikes = cell["per_sample"]["input_spikes"]
         points.append(
@@ -140,12 +141,10 @@ def report(out: Path) -> None:
 
 
 def plot(results: list[dict], points: list[dict], path: Path) -> None:
-    import matplotlib
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(8, 5))
+    fig = Figure(figsize=(8, 5))
+    ax = fig.subplots()
     noises = sorted({r["dataset"] for r in results})
     for r in results:
         rows = r["rows"]
@@ -169,7 +168,6 @@ def plot(results: list[dict], points: list[dict], path: Path) -> None:
     ax.set_title("How early a decision can be right: the bound and the networks")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 if __name__ == "__main__":
