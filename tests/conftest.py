@@ -66,19 +66,28 @@ def catalog_copy(tmp_path):
 
 
 @pytest.fixture
-def address_limit():
-    """``address_limit(n)``: a ``preexec_fn`` that runs a child process under an address-space
-    limit of ``n`` bytes (``ulimit -v``; never above a limit this process already has), so that
-    a regression that allocates what a hostile input declares fails in the child with a
-    MemoryError instead of taking the machine's memory."""
+def limited_python():
+    """``limited_python(args, nbytes, timeout=300)``: ``python <args>`` in a child process under
+    an address-space limit of ``nbytes`` (``ulimit -v``; never above a limit this process
+    already has), output captured as text, so that a regression that allocates what a hostile
+    input declares fails in the child with a MemoryError instead of taking the machine's
+    memory. Returns the ``CompletedProcess``."""
     import resource
+    import subprocess
+    import sys
 
-    def limit(nbytes: int):
+    def run(args, nbytes: int, timeout: float = 300):
         hard = resource.getrlimit(resource.RLIMIT_AS)[1]
         soft = nbytes if hard == resource.RLIM_INFINITY else min(nbytes, hard)
-        return lambda: resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+        return subprocess.run(
+            [sys.executable, *map(str, args)],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (soft, hard)),
+        )
 
-    return limit
+    return run
 
 
 @pytest.fixture(scope="session")

@@ -318,19 +318,13 @@ def test_a_seed_beyond_64_bits_is_refused_before_anything_is_written(tmp_path, c
 # 12. An HDF5 bomb (20,000,000 samples declared in a file of a few hundred KB): train and
 # bench refuse it in one line instead of "Unable to allocate 19.1 GiB". Real processes under
 # an 8 GiB address-space limit, so that a regression fails here instead of taking the machine.
-def test_train_and_bench_refuse_an_hdf5_bomb(datasets, tmp_path, address_limit, hdf5_bomb):
+def test_train_and_bench_refuse_an_hdf5_bomb(datasets, tmp_path, limited_python, hdf5_bomb):
     copy = _copy(datasets, tmp_path)
     hdf5_bomb(copy, rows=256)
     commands = _reading_commands(copy, tmp_path)
     limit = 8 * 2**30
     for name in ("train", "bench"):
-        result = subprocess.run(
-            [sys.executable, "-m", "simlidar.cli", *map(str, commands[name])],
-            capture_output=True,
-            text=True,
-            timeout=300,
-            preexec_fn=address_limit(limit),
-        )
+        result = limited_python(["-m", "simlidar.cli", *commands[name]], limit)
         assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr
         (line,) = result.stderr.strip().splitlines()
         assert line.startswith("Error: ") and "Unable to allocate" not in line, line

@@ -638,10 +638,8 @@ def test_a_full_disk_while_a_cell_is_written_gets_a_line_of_its_own(tiny_suite, 
 
 
 def test_a_suite_larger_than_the_machine_is_refused_before_anything_is_allocated(
-    tmp_path, address_limit
+    tmp_path, limited_python
 ):
-    import subprocess
-    import sys
 
     path = tmp_path / "huge.toml"
     path.write_text(
@@ -650,13 +648,7 @@ def test_a_suite_larger_than_the_machine_is_refused_before_anything_is_allocated
     )
     out = tmp_path / "out"
     limit = 8 * 2**30
-    result = subprocess.run(
-        [sys.executable, "-m", "simlidar.cli", "bench", "--suite", str(path), "--out", str(out)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        preexec_fn=address_limit(limit),
-    )
+    result = limited_python(["-m", "simlidar.cli", "bench", "--suite", path, "--out", out], limit)
     assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr
     (line,) = result.stderr.strip().splitlines()
     assert line.startswith(

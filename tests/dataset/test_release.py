@@ -17,8 +17,6 @@ Attack list of the hostile-directory tests below (each built by the test from a 
 
 import json
 import shutil
-import subprocess
-import sys
 
 import h5py
 import numpy as np
@@ -211,7 +209,7 @@ def test_front_matter_errors_are_named(copy):
 
 
 def test_an_hdf5_bomb_is_refused_before_anything_is_allocated(
-    copy, tmp_path, address_limit, hdf5_bomb
+    copy, tmp_path, limited_python, hdf5_bomb
 ):
     from simlidar.release.archive import pack
 
@@ -229,13 +227,7 @@ def test_an_hdf5_bomb_is_refused_before_anything_is_allocated(
     # here instead of allocating 19.1 GiB in the test process
     script = "import sys; from simlidar.data import load_split; load_split(sys.argv[1])"
     limit = 4 * 2**30
-    result = subprocess.run(
-        [sys.executable, "-c", script, str(copy)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        preexec_fn=address_limit(limit),
-    )
+    result = limited_python(["-c", script, copy], limit)
     assert (
         result.stderr.strip()
         .splitlines()[-1]

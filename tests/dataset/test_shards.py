@@ -271,21 +271,13 @@ def test_a_bad_shard_size_is_one_line(tmp_path, cli):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_shard_count_from_a_file_name_builds_no_list(datasets, tmp_path, address_limit):
-    import subprocess
-    import sys
+def test_a_shard_count_from_a_file_name_builds_no_list(datasets, tmp_path, limited_python):
 
     copy = tmp_path / "d"
     shutil.copytree(datasets[0.1], copy)
     (copy / "train.h5").rename(copy / "train-00000-of-9999999999.h5")
     for command in ("verify", "info", "card"):
-        result = subprocess.run(
-            [sys.executable, "-m", "simlidar.cli", command, str(copy)],
-            capture_output=True,
-            text=True,
-            timeout=120,
-            preexec_fn=address_limit(2 * 2**30),
-        )
+        result = limited_python(["-m", "simlidar.cli", command, copy], 2 * 2**30, timeout=120)
         assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr
         assert (
             f"{copy}: train shards incomplete (missing train-00001-of-9999999999.h5, "
