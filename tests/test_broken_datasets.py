@@ -117,11 +117,11 @@ def test_train_and_bench_refuse_a_broken_dataset_before_training(case, datasets,
 def test_a_failed_bench_claim_is_undone(tmp_path, monkeypatch, datasets):
     import errno
 
-    from simlidar.bench import run
+    from simlidar.bench import outdir
     from simlidar.bench.suite import load_suite
 
     calls = {"n": 0}
-    original = run.write_json
+    original = outdir.write_json
 
     def full(path, data, indent=1):
         calls["n"] += 1
@@ -129,11 +129,11 @@ def test_a_failed_bench_claim_is_undone(tmp_path, monkeypatch, datasets):
             raise OSError(errno.ENOSPC, "No space left on device")
         return original(path, data, indent)
 
-    monkeypatch.setattr(run, "write_json", full)
+    monkeypatch.setattr(outdir, "write_json", full)
     suite = load_suite("quick")
     out = tmp_path / "bench"
     with pytest.raises(OSError):
-        run.claim(out, suite)
+        outdir.claim(out, suite)
     assert not out.exists()  # undone
     out.mkdir()
     (out / "cells").mkdir()  # what an older simlidar left behind
@@ -142,7 +142,7 @@ def test_a_failed_bench_claim_is_undone(tmp_path, monkeypatch, datasets):
     (out / ".suite.json.partial-k1ll3d").mkdir()
     (out / ".suite.json.partial-k1ll3d" / "suite.json").write_text("{")
     (out / ".suite.json.partial-k1ll3d.lock").write_text("")
-    run.claim(out, suite)  # the rerun claims it
+    outdir.claim(out, suite)  # the rerun claims it
     assert sorted(p.name for p in out.iterdir()) == ["cells", "suite.json"]
 
 
