@@ -36,6 +36,13 @@ def main(argv=None) -> int:
     parser.add_argument("--ks", default="4,8,16,32,64,128,180,256")
     parser.add_argument("--seeds", default="0,1,2")
     parser.add_argument("--hidden", default="256,256", help="the learner's hidden layers")
+    parser.add_argument(
+        "--clock",
+        choices=("sensor", "arrival"),
+        default="sensor",
+        help="scan-timed data: the learner reads each pixel's time of flight by the sensor's "
+        "firing clock (sensor) or the arrival times as they are (arrival)",
+    )
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)
@@ -53,12 +60,16 @@ def main(argv=None) -> int:
     for dataset in args.datasets:
         for encoding in args.encodings.split(","):
             direction, missing = encoding.split("/")
-            path = runs / f"{dataset.name}__{direction}-{missing}.json"
+            scan = "-scan-" in dataset.name
+            clock = f"-{args.clock}-clock" if scan and args.clock == "sensor" else ""
+            path = runs / f"{dataset.name}__{direction}-{missing}{clock}.json"
             if path.exists():
                 print(f"{path.name}: present, skipped")
                 continue
             start = time.perf_counter()
-            result = dataset_bound(dataset, direction, missing, ks=ks, seeds=seeds, config=config)
+            result = dataset_bound(
+                dataset, direction, missing, args.clock, ks=ks, seeds=seeds, config=config
+            )
             result.update(dataset=dataset.name, seconds=time.perf_counter() - start)
             path.write_text(json.dumps(result, indent=1) + "\n")
             print(f"{path.name}: {result['seconds']:.0f} s")
@@ -69,6 +80,15 @@ def main(argv=None) -> int:
                 )
     report(args.out)
     return 0
+
+
+def _encoding(run: dict) -> str:
+    """direction / missing, and a scan-timed run's clock (runs made before the clock was a
+    choice read the arrival times)."""
+    enc = run["encoding"]
+    scan = "-scan-" in run["dataset"]
+    clock = f", {enc.get('clock', 'arrival')} clock" if scan else ""
+    return f"{enc['direction']} / {enc['missing']}{clock}"
 
 
 def snn_points() -> list[dict]:
@@ -107,9 +127,8 @@ def report(out: Path) -> None:
         "",
     ]
     for r in results:
-        enc = r["encoding"]
         lines += [
-            f"## {r['dataset']}, {enc['direction']} / {enc['missing']}",
+            f"## {r['dataset']}, {_encoding(r)}",
             "",
             f"seeds {r['seeds']}, learner {r['learner']}, {r['seconds']:.0f} s",
             "",
@@ -151,8 +170,7 @@ def plot(results: list[dict], points: list[dict], path: Path) -> None:
         x = [row["input_spikes_median"] for row in rows]
         y = [100 * row["accuracy_mean"] for row in rows]
         e = [100 * row["accuracy_std"] for row in rows]
-        enc = r["encoding"]
-        label = f"{r['dataset']}: {enc['direction']}/{enc['missing']}"
+        label = f"{r['dataset']}: {_encoding(r)}"
         ax.errorbar(x, y, yerr=e, marker="o", ms=3, capsize=2, label=label)
     for p in points:
         if p["dataset"] in noises:

@@ -15,6 +15,18 @@ best validation accuracy kept (ties: the lower validation loss; the rows of
 :func:`simlidar.bench.train.validation_split`), stopped after ``patience`` epochs without
 improvement. Seeded: one torch.Generator per seed drives the initial weights and the batch
 order. Times are taken with scale 1 (t in [0, 1]); the scale does not change the order.
+
+The clock. Under flash timing a spike's time is its pulse's time of flight. Under scan timing
+(``simlidar generate --timing scan``) it is the pulse's arrival in the sweep, emission plus time
+of flight, and the emission (its column's place in a 9.5 ms window, shifted from sample to
+sample by the firing phase) is a hundred times larger than any time of flight: fed as they
+arrive, the range is a ripple the learner does not find (3-6 %, chance 3.1 %, at every k;
+benchmark/results/early-bound-scan/). The sensor knows when it fired each laser, so the bound
+of scan-timed data by default reads the sensor's clock (``clock="sensor"``): spikes still
+arrive in arrival order, and each pixel shows what is known of its time of flight at the k-th
+spike's time T: its time of flight once it has arrived, else T minus its emission (at least 0),
+the range it is known to exceed, in units of ``tof_max_ns``. Under flash timing every emission
+is 0 and this is the view above. ``clock="arrival"`` feeds the arrival times as they are.
 """
 
 from dataclasses import asdict, dataclass
@@ -51,10 +63,15 @@ def spike_times(
     return torch.log(ttfs.encode(d, 1.0, no_return, direction, missing)).numpy()
 
 
-def arrived(times: np.ndarray, k: int | None) -> tuple[np.ndarray, np.ndarray]:
+def arrived(
+    times: np.ndarray, k: int | None, emission: np.ndarray | None = None, scale: float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
     """What has arrived by the k-th spike of each sample.
 
     times : (N, P) spike times, inf = no spike; k : spikes, None for each sample's own count
+    emission : (N, P) when each pixel's pulse left, in the units of ``times`` (the sensor's
+        clock), or None; a pixel then shows its time minus its emission (at least 0), times
+        ``scale``
     returns : (N, 2, P) float32 view (times, arrived mask), (N,) spikes arrived
     """
     spiking = np.isfinite(times)
@@ -66,7 +83,10 @@ def arrived(times: np.ndarray, k: int | None) -> tuple[np.ndarray, np.ndarray]:
         index = np.clip(np.minimum(k, counts) - 1, 0, None)  # fewer spikes: all arrived
         nth = np.where(counts > 0, ordered[np.arange(len(times)), index], 0.0)
     mask = spiking & (times <= nth[:, None])
-    view = np.stack([np.where(mask, times, nth[:, None]), mask], axis=1).astype(np.float32)
+    shown = np.where(mask, times, nth[:, None])
+    if emission is not None:
+        shown = np.maximum(shown - emission, 0.0) * scale
+    view = np.stack([shown, mask], axis=1).astype(np.float32)
     return view, mask.sum(axis=1)
 
 
@@ -135,16 +155,23 @@ def bound(
     ks=KS,
     seeds=(0, 1, 2),
     config: BoundConfig = BoundConfig(),
+    emission: tuple[np.ndarray, np.ndarray] | None = None,
+    scale: float = 1.0,
 ) -> dict:
     """The bound on (delays (N, ...), labels (N,)) train and test splits: one row per k (and
     one for each sample's own count, ``k`` None), each with the test accuracy of every seed
     and the spikes that had arrived in the test split (ours: every spike at or before the
-    k-th's time; the authors' rule: those after t = 0)."""
+    k-th's time; the authors' rule: those after t = 0). ``emission``: the train and test
+    splits' (N, ...) emission times in delay units, read by the sensor's clock
+    (:func:`arrived`, near first only: far first reverses time, and a clock with it)."""
+    if emission is not None and direction != ttfs.NEAR_FIRST:
+        raise ValueError(f"direction={direction!r}: the sensor's clock reads near_first times")
     times = [spike_times(s[0], no_return, direction, missing) for s in (train, test)]
+    fired = [None, None] if emission is None else [e.reshape(len(e), -1) for e in emission]
     rows = []
     for k in [*ks, None]:
-        (x, _), (x_test, got) = (arrived(t, k) for t in times)
-        after_zero = ((x_test[:, 1] > 0) & (x_test[:, 0] > 0)).sum(axis=1)
+        (x, _), (x_test, got) = (arrived(t, k, e, scale) for t, e in zip(times, fired))
+        after_zero = ((x_test[:, 1] > 0) & (times[1] > 0)).sum(axis=1)
         runs = [fit(x, train[1], x_test, test[1], classes, seed, config) for seed in seeds]
         accuracy = [r["accuracy"] for r in runs]
         rows.append(
@@ -168,12 +195,39 @@ def bound(
     }
 
 
-def dataset_bound(dataset, direction=ttfs.NEAR_FIRST, missing=ttfs.AS_VALUE, **options) -> dict:
+CLOCKS = ("sensor", "arrival")
+
+
+def sensor_clock(dataset, split: str) -> tuple[np.ndarray, float] | None:
+    """A scan-timed split's emission times in delay units (N, H, W) and the scale from delay
+    units to ``tof_max_ns``; None for flash timing (every emission is 0)."""
+    from simlidar.dataset.loaders import load_split, split_info
+
+    attrs = split_info(dataset, split).attrs
+    if attrs.get("timing") != "scan":
+        return None
+    unit = float(attrs["delay_unit_ns"])
+    return load_split(dataset, split, "emission_ns")[0] / unit, unit / float(attrs["tof_max_ns"])
+
+
+def dataset_bound(
+    dataset, direction=ttfs.NEAR_FIRST, missing=ttfs.AS_VALUE, clock="sensor", **options
+) -> dict:
     """:func:`bound` on a dataset directory's train and test splits, with its profile's
-    no-return rule (:func:`simlidar.dataset.loaders.spike_threshold`)."""
+    no-return rule (:func:`simlidar.dataset.loaders.spike_threshold`); a scan-timed dataset's
+    by ``clock`` (:data:`CLOCKS`; the result's ``encoding`` then names it)."""
     from simlidar.dataset.loaders import load_split, spike_threshold, split_info
 
+    if clock not in CLOCKS:
+        raise ValueError(f"clock={clock!r}: expected one of {CLOCKS}")
     attrs = split_info(dataset, "train").attrs
     train, test = load_split(dataset, "train"), load_split(dataset, "test")
     classes = len(attrs["class_names"])
-    return bound(train, test, classes, spike_threshold(attrs), direction, missing, **options)
+    scan = attrs.get("timing") == "scan"
+    if scan and clock == "sensor":
+        (e_train, scale), (e_test, _) = (sensor_clock(dataset, s) for s in ("train", "test"))
+        options.update(emission=(e_train, e_test), scale=scale)
+    result = bound(train, test, classes, spike_threshold(attrs), direction, missing, **options)
+    if scan:
+        result["encoding"]["clock"] = clock
+    return result

@@ -81,3 +81,37 @@ def test_a_class_in_the_last_spikes_is_at_chance_until_they_arrive():
     # the other direction makes the last spikes the first ones
     far = bound(train, test, CLASSES, math.inf, "far_first", ks=(1,), seeds=(0,), config=SMALL)
     assert far["rows"][0]["accuracy_mean"] >= 0.95
+
+
+def test_the_sensor_clock_by_hand():
+    times = np.array([[0.3, 0.1, np.inf, 0.1]])
+    emission = np.array([[0.25, 0.05, 0.0, 0.1]])
+    view, got = arrived(times, 1, emission, scale=10.0)  # T = 0.1: pixels 1 and 3 arrive
+    assert view[0, 1].tolist() == [0, 1, 0, 1] and got.tolist() == [2]
+    # arrived: its time of flight; not yet: T minus its emission, at least 0 (pixel 0 has not
+    # fired by T; pixel 2 never spikes but fired at 0: its range exceeds T)
+    assert view[0, 0].tolist() == pytest.approx([0.0, 0.5, 1.0, 0.0])
+    zeros = arrived(times, 1, np.zeros_like(times))[0]
+    assert np.array_equal(zeros, arrived(times, 1)[0])  # flash: every emission is 0
+
+
+def _scan_toy(n: int, seed: int):
+    """A class written only in the time of flight of pixels 8-11 (1 of 4 farther), under an
+    emission clock that grows with the column and jitters by sample, 1,000 times larger."""
+    rng = np.random.default_rng(seed)
+    y = rng.integers(0, CLASSES, n)
+    tof = rng.uniform(0.2, 0.3, (n, 64))
+    tof[np.arange(n), 8 + y] = rng.uniform(0.6, 0.7, n)
+    emission = (np.arange(64) // 8) * 0.1 + rng.uniform(0, 0.05, (n, 1))
+    return (emission + tof * 1e-3).astype(np.float32), y, emission
+
+
+def test_the_sensor_clock_finds_a_class_written_in_the_time_of_flight():
+    (*train, e_train), (*test, e_test) = _scan_toy(600, 0), _scan_toy(200, 1)
+    result = bound(
+        train, test, CLASSES, math.inf, ks=(), seeds=(0,), config=SMALL,
+        emission=(e_train, e_test), scale=1e3,
+    )  # fmt: skip
+    assert result["rows"][0]["accuracy_mean"] >= 0.95
+    with pytest.raises(ValueError, match="far_first"):
+        bound(train, test, CLASSES, math.inf, "far_first", emission=(e_train, e_test))

@@ -203,3 +203,30 @@ def test_a_window_finer_than_the_firing_cycles_is_refused(tmp_path, cli):
     result = cli("generate", "--width", 200, "--out", tmp_path / "out")
     assert result.exit_code == 2 and "expected at most 180 columns over 36 deg" in result.output
     assert not (tmp_path / "out").exists()
+
+
+def test_the_bound_reads_a_scan_by_the_sensors_clock(twins):
+    """Under the sensor's clock, a scan-timed sample shows the flash twin's times of flight
+    once everything has arrived; its spikes arrive in firing order (a time of flight, at most
+    667 ns and 133 ns of noise, is shorter than the 2.304 us between two firings)."""
+    from simlidar.bench.bound import arrived, sensor_clock, spike_times
+
+    def times(timing):
+        info = read_split_info(twins[timing] / "test.h5")
+        with h5py.File(info.path) as f:
+            return spike_times(f["delays"][:], spike_threshold(info.attrs))
+
+    assert sensor_clock(twins["flash"], "test") is None
+    emission, scale = sensor_clock(twins["scan"], "test")
+    emission = emission.reshape(len(emission), -1)
+    scan, flash = times("scan"), times("flash")
+    spiking = np.isfinite(flash)
+    assert np.array_equal(np.isfinite(scan), spiking) and spiking.any()
+    view, _ = arrived(scan, None, emission, scale)
+    # float32 arrival times of a 9.5 ms unit are 0.5 ns apart: 1e-3 of the 667 ns unit
+    assert np.abs(view[:, 0][spiking] - flash[spiking]).max() < 2e-3
+    first = arrived(scan, 16)[0][:, 1] > 0
+    assert (first.sum(axis=1) == 16).all()
+    last_in = np.where(first, emission, -np.inf).max(axis=1)
+    first_out = np.where(spiking & ~first, emission, np.inf).min(axis=1)
+    assert (last_in < first_out).all()
