@@ -61,6 +61,10 @@ VARIANTS = {
     "far-exp0.5-from30": (FAR, {"early_penalty": 0.5, "early_form": "exp", "early_start": 30}),
     "far-exp1-from30": (FAR, {"early_penalty": 1.0, "early_form": "exp", "early_start": 30}),
 }
+# a gate that lets only the first k input spikes through (architecture ``input_budget``): the
+# dense network trained for accuracy alone on what has arrived by the k-th spike, the view
+# the bound's learner gets; it decides on at most k spikes by construction
+VARIANTS.update({f"far-gate{k}": ({**FAR, "input_budget": k}, {}) for k in (32, 64, 128)})
 # variants trained longer than --epochs: the schedule's term starts once the run without it
 # would have converged (a cosine schedule over 60 epochs is at half its rate at epoch 30)
 OWN_EPOCHS = {

@@ -23,6 +23,9 @@ class SpikingNet(nn.Module):
     direction, missing : which delay spikes first and what a missing return becomes
         (:func:`simlidar.models.ttfs.encode`; the recipe's ``[architecture]`` keys, recorded
         with it in every cell); the defaults are simlidar's encoding, bit for bit
+    input_budget : None (every input spike), or a gate that lets only each sample's first
+        ``input_budget`` spikes through (:func:`simlidar.models.ttfs.first_spikes`), in
+        training and in the event-driven evaluation alike
     """
 
     simlidar_spec = ModelSpec(output=FIRST_SPIKE_TIMES)  # first-spike times (z), not logits
@@ -33,6 +36,7 @@ class SpikingNet(nn.Module):
         scale: float,
         direction: str = ttfs.NEAR_FIRST,
         missing: str = ttfs.AS_VALUE,
+        input_budget: int | None = None,
     ):
         for key, value, allowed in (
             ("direction", direction, ttfs.DIRECTIONS),
@@ -45,12 +49,17 @@ class SpikingNet(nn.Module):
                 f"scale={scale!r}: expected a value in (0, {MAX_SCALE}] so that "
                 "exp(scale * delay) stays finite in float32"
             )
+        if input_budget is not None and (
+            isinstance(input_budget, bool) or not isinstance(input_budget, int) or input_budget < 1
+        ):
+            raise ConfigError(f"input_budget={input_budget!r}: expected a whole number >= 1")
         super().__init__()
         self.layers = nn.ModuleList(layers)
         self.scale = scale
         self.silent_from = 1.0
         self.direction = direction
         self.missing = missing
+        self.input_budget = input_budget
 
     event_driven = True  # the decision evaluator (simlidar.models.decisions) runs it
 
@@ -73,8 +82,9 @@ class SpikingNet(nn.Module):
 
     def input_spikes(self, delays: torch.Tensor) -> torch.Tensor:
         """Delays (B, C, H, W) -> the input spikes (z domain, inf = none) by this network's
-        encoding (:func:`simlidar.models.ttfs.encode`)."""
-        return ttfs.encode(delays, self.scale, self.silent_from, self.direction, self.missing)
+        encoding (:func:`simlidar.models.ttfs.encode`), through its input budget's gate."""
+        z = ttfs.encode(delays, self.scale, self.silent_from, self.direction, self.missing)
+        return z if self.input_budget is None else ttfs.first_spikes(z, self.input_budget)
 
     def penalty(self) -> torch.Tensor:
         """Mean weight-sum penalty over layers (keeps every neuron able to fire)."""
@@ -110,12 +120,13 @@ def dense_snn(
     spread=1.0,
     direction=ttfs.NEAR_FIRST,
     missing=ttfs.AS_VALUE,
+    input_budget=None,
 ) -> SpikingNet:
     """Dense TTFS network: inputs (all pixels) - hidden... - classes (256-400-32 on Sim LiDAR).
-    ``direction`` and ``missing``: the input encoding (:class:`SpikingNet`)."""
+    ``direction``, ``missing`` and ``input_budget``: the input encoding (:class:`SpikingNet`)."""
     sizes = [int(torch.tensor(input_shape).prod())] + list(hidden) + [classes]
     layers = [DenseTTFS(a, b, excess, spread, generator) for a, b in zip(sizes, sizes[1:])]
-    return SpikingNet(layers, scale, direction, missing)
+    return SpikingNet(layers, scale, direction, missing, input_budget)
 
 
 def spiking_cnn(  # the same keyword arguments as dense_snn on purpose: recipes name them
@@ -129,10 +140,12 @@ def spiking_cnn(  # the same keyword arguments as dense_snn on purpose: recipes 
     spread=1.0,
     direction=ttfs.NEAR_FIRST,
     missing=ttfs.AS_VALUE,
+    input_budget=None,
 ) -> SpikingNet:
     """Spiking CNN: TTFS convolutions (channels, kernel, stride; padded with "no spike"),
     then dense TTFS layers (the paper's KITTI network: 48 and 24 channels of 5x5 stride 2,
-    dense 256, dense C). ``direction`` and ``missing``: the input encoding (:class:`SpikingNet`)."""
+    dense 256, dense C). ``direction``, ``missing`` and ``input_budget``: the input encoding
+    (:class:`SpikingNet`)."""
     c, h, w = input_shape
     layers: list[nn.Module] = []
     for channels, kernel, stride in conv:
@@ -142,4 +155,4 @@ def spiking_cnn(  # the same keyword arguments as dense_snn on purpose: recipes 
         h, w = (h + 2 * pad - kernel) // stride + 1, (w + 2 * pad - kernel) // stride + 1
     sizes = [c * h * w] + list(dense) + [classes]
     layers += [DenseTTFS(a, b, excess, spread, generator) for a, b in zip(sizes, sizes[1:])]
-    return SpikingNet(layers, scale, direction, missing)
+    return SpikingNet(layers, scale, direction, missing, input_budget)

@@ -112,6 +112,17 @@ def torch_form(enabled: bool = True):
         _TORCH_FORM.reset(token)
 
 
+def first_spikes(z: torch.Tensor, budget: int) -> torch.Tensor:
+    """Input spikes ``z`` (B, ...) (z domain, inf = none) with only each sample's first
+    ``budget`` spikes kept (every spike at the budget-th's time too: they arrive together, as
+    in :func:`simlidar.bench.bound.arrived`); the later ones become no spike. A gate that
+    closes the input after ``budget`` spikes, so a network behind it decides on at most that
+    many (docs/snn.md, "Deciding as early as the data allow")."""
+    flat = z.flatten(1)
+    nth = torch.kthvalue(flat, min(budget, flat.shape[1]), dim=1).values  # inf: fewer spikes
+    return torch.where(flat <= nth[:, None], flat, torch.inf).view_as(z)
+
+
 def uses_kernels(*tensors: torch.Tensor) -> bool:
     """True where :func:`dense` and :func:`conv2d` run the compiled kernels: every tensor on
     the CPU, outside :func:`torch_form`."""

@@ -13,7 +13,10 @@ Attack list:
 * the choice reaches the cell (the recipe records it), survives a checkpoint, and the
   evaluator reads it (far-first spikes carry no sensor time);
 * the authors' setting (far first, a missing return as the farthest value) spikes missing
-  returns at exactly t = 0, which the authors' counting rule leaves out.
+  returns at exactly t = 0, which the authors' counting rule leaves out;
+* an input budget (``input_budget``): the gate keeps each sample's first spikes, ties at the
+  budget's time included, by hand; a network behind it never consumes more, in training and
+  in the event-driven evaluation; a budget that is not a whole number >= 1 is one line.
 """
 
 import math
@@ -122,13 +125,21 @@ def test_the_choice_is_recorded_and_survives_a_checkpoint(datasets, tmp_path):
     assert early["decision_time_mean"] is not None or early["no_decision"] == early["samples"]
 
 
-@pytest.mark.parametrize("key, value", [("direction", "sideways"), ("missing", "zero")])
-def test_a_bad_recipe_value_is_one_line(key, value):
+@pytest.mark.parametrize(
+    "key, value, expected",
+    [
+        ("direction", "sideways", "expected one of"),
+        ("missing", "zero", "expected one of"),
+        ("input_budget", 0, "expected a whole number >= 1"),
+        ("input_budget", 2.5, "expected a whole number >= 1"),
+    ],
+)
+def test_a_bad_recipe_value_is_one_line(key, value, expected):
     recipe = _tiny(**{key: value})
     with pytest.raises(ConfigError) as caught:
         build_model(recipe, (1, 16, 16), 32)
     message = str(caught.value)
-    assert f"{key}={value!r}" in message and "expected one of" in message
+    assert f"{key}={value!r}" in message and expected in message
     assert "\n" not in message
 
 
@@ -151,3 +162,27 @@ def test_the_authors_setting_spikes_missing_returns_at_zero_and_leaves_them_unco
     assert d.input_spikes - d.input_spikes_authors == 13  # every missing return, at t = 0
     zeros = (z.flatten() == 1.0).numpy()
     assert np.all(zeros[3:]) and not np.any(zeros[:3])
+
+
+def test_the_input_budget_keeps_the_first_spikes_by_hand():
+    inf = math.inf
+    z = torch.tensor([[[3.0, 1.0, inf, 1.0, 2.0]], [[inf, 5.0, inf, inf, inf]]])
+    kept = ttfs.first_spikes(z, 1)
+    # row 0: the first spike's time is shared by two pixels, both pass; row 1 has one spike
+    assert kept.tolist() == [[[inf, 1.0, inf, 1.0, inf]], [[inf, 5.0, inf, inf, inf]]]
+    assert ttfs.first_spikes(z, 3).tolist() == [[[inf, 1.0, inf, 1.0, 2.0]], z[1].tolist()]
+    assert torch.equal(ttfs.first_spikes(z, 99), z)  # a budget beyond the spikes: all pass
+
+
+def test_a_network_behind_the_budget_never_consumes_more(datasets):
+    from simlidar.bench.early import early_decisions
+
+    result = train(_tiny(input_budget=20), datasets[0.1], seed=0, epochs=1, progress=False)
+    assert result.recipe["architecture"]["input_budget"] == 20
+    x, _ = load_split(datasets[0.1], "test")
+    z = result.model.input_spikes(torch.from_numpy(x)[:, None])
+    arrived = torch.isfinite(z).flatten(1).sum(1)
+    assert (arrived >= 20).all() and (arrived <= 40).all()  # ties at the 20th may add a few
+    early = early_decisions(result.model, datasets[0.1], per_sample=True)
+    assert max(early["per_sample"]["input_spikes"]) <= arrived.max()
+    assert early["input_spikes_total_mean"] == pytest.approx(arrived.double().mean().item())
