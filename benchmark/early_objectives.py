@@ -64,7 +64,7 @@ VARIANTS = {
 # a gate that lets only the first k input spikes through (architecture ``input_budget``): the
 # dense network trained for accuracy alone on what has arrived by the k-th spike, the view
 # the bound's learner gets; it decides on at most k spikes by construction
-VARIANTS.update({f"far-gate{k}": ({**FAR, "input_budget": k}, {}) for k in (32, 64, 128)})
+VARIANTS.update({f"far-gate{k}": ({**FAR, "input_budget": k}, {}) for k in (16, 32, 64, 128)})
 # variants trained longer than --epochs: the schedule's term starts once the run without it
 # would have converged (a cosine schedule over 60 epochs is at half its rate at epoch 30)
 OWN_EPOCHS = {

@@ -11,8 +11,10 @@ from simlidar.models import ttfs
 class DenseTTFS(nn.Module):
     """Dense time-to-first-spike layer: see :func:`simlidar.models.ttfs.dense`.
 
-    Weights start at N(mean, std) with mean = excess / n_in and std = spread / sqrt(n_in), so
-    that a neuron's total weight is about 1 + excess: every neuron can fire from the start.
+    Weights start at N(mean, std) with mean = (1 + excess) / m and std = spread / sqrt(m), m
+    = n_in * arriving, so that the total weight of the inputs that spike is about 1 + excess:
+    every neuron can fire from the start. ``arriving``: the fraction of the inputs expected to
+    spike (1: all; behind an input budget of k of P inputs, k / P).
     """
 
     def __init__(
@@ -22,9 +24,11 @@ class DenseTTFS(nn.Module):
         excess: float = 2.0,
         spread: float = 1.0,
         generator: torch.Generator | None = None,
+        arriving: float = 1.0,
     ):
         super().__init__()
-        mean, std = (1.0 + excess) / n_in, spread / math.sqrt(n_in)
+        m = n_in * arriving
+        mean, std = (1.0 + excess) / m, spread / math.sqrt(m)
         w = torch.randn(n_in, n_out, generator=generator) * std + mean
         self.weight = nn.Parameter(w)
 
@@ -33,7 +37,8 @@ class DenseTTFS(nn.Module):
 
 
 class ConvTTFS(nn.Module):
-    """2D convolutional time-to-first-spike layer: see :func:`simlidar.models.ttfs.conv2d`."""
+    """2D convolutional time-to-first-spike layer: see :func:`simlidar.models.ttfs.conv2d`.
+    Weights start as :class:`DenseTTFS`'s, over the kernel's fan-in."""
 
     def __init__(
         self,
@@ -45,9 +50,10 @@ class ConvTTFS(nn.Module):
         excess: float = 2.0,
         spread: float = 1.0,
         generator: torch.Generator | None = None,
+        arriving: float = 1.0,
     ):
         super().__init__()
-        fan_in = c_in * kernel * kernel
+        fan_in = c_in * kernel * kernel * arriving
         mean, std = (1.0 + excess) / fan_in, spread / math.sqrt(fan_in)
         w = torch.randn(c_out, c_in, kernel, kernel, generator=generator) * std + mean
         self.weight = nn.Parameter(w)

@@ -49,10 +49,7 @@ class SpikingNet(nn.Module):
                 f"scale={scale!r}: expected a value in (0, {MAX_SCALE}] so that "
                 "exp(scale * delay) stays finite in float32"
             )
-        if input_budget is not None and (
-            isinstance(input_budget, bool) or not isinstance(input_budget, int) or input_budget < 1
-        ):
-            raise ConfigError(f"input_budget={input_budget!r}: expected a whole number >= 1")
+        _check_budget(input_budget)
         super().__init__()
         self.layers = nn.ModuleList(layers)
         self.scale = scale
@@ -125,8 +122,26 @@ def dense_snn(
     """Dense TTFS network: inputs (all pixels) - hidden... - classes (256-400-32 on Sim LiDAR).
     ``direction``, ``missing`` and ``input_budget``: the input encoding (:class:`SpikingNet`)."""
     sizes = [int(torch.tensor(input_shape).prod())] + list(hidden) + [classes]
-    layers = [DenseTTFS(a, b, excess, spread, generator) for a, b in zip(sizes, sizes[1:])]
+    arriving = [_arriving(input_shape, input_budget)] + [1.0] * len(hidden)
+    layers = [
+        DenseTTFS(a, b, excess, spread, generator, f) for a, b, f in zip(sizes, sizes[1:], arriving)
+    ]
     return SpikingNet(layers, scale, direction, missing, input_budget)
+
+
+def _check_budget(input_budget) -> None:
+    if input_budget is not None and (
+        isinstance(input_budget, bool) or not isinstance(input_budget, int) or input_budget < 1
+    ):
+        raise ConfigError(f"input_budget={input_budget!r}: expected a whole number >= 1")
+
+
+def _arriving(input_shape, input_budget) -> float:
+    """The fraction of the inputs that spike behind ``input_budget``: the first layer starts
+    with weights that let a neuron fire on that many (:class:`DenseTTFS`)."""
+    _check_budget(input_budget)
+    inputs = int(torch.tensor(input_shape).prod())
+    return 1.0 if input_budget is None else min(1.0, input_budget / inputs)
 
 
 def spiking_cnn(  # the same keyword arguments as dense_snn on purpose: recipes name them
@@ -148,11 +163,18 @@ def spiking_cnn(  # the same keyword arguments as dense_snn on purpose: recipes 
     (:class:`SpikingNet`)."""
     c, h, w = input_shape
     layers: list[nn.Module] = []
+    arriving = _arriving(input_shape, input_budget)
     for channels, kernel, stride in conv:
         pad = kernel // 2
-        layers.append(ConvTTFS(c, channels, kernel, stride, pad, excess, spread, generator))
+        layers.append(
+            ConvTTFS(c, channels, kernel, stride, pad, excess, spread, generator, arriving)
+        )
+        arriving = 1.0
         c = channels
         h, w = (h + 2 * pad - kernel) // stride + 1, (w + 2 * pad - kernel) // stride + 1
     sizes = [c * h * w] + list(dense) + [classes]
-    layers += [DenseTTFS(a, b, excess, spread, generator) for a, b in zip(sizes, sizes[1:])]
+    arriving = [arriving] + [1.0] * len(dense)  # the first dense layer's, without a convolution
+    layers += [
+        DenseTTFS(a, b, excess, spread, generator, f) for a, b, f in zip(sizes, sizes[1:], arriving)
+    ]
     return SpikingNet(layers, scale, direction, missing, input_budget)

@@ -186,3 +186,20 @@ def test_a_network_behind_the_budget_never_consumes_more(datasets):
     early = early_decisions(result.model, datasets[0.1], per_sample=True)
     assert max(early["per_sample"]["input_spikes"]) <= arrived.max()
     assert early["input_spikes_total_mean"] == pytest.approx(arrived.double().mean().item())
+
+
+@pytest.mark.parametrize("builder", ["dense", "cnn"])
+def test_behind_a_small_budget_the_first_layer_can_fire(builder):
+    # 16 of 256 inputs arrive: weights started for all 256 would sum to about 3 * 16 / 256 and
+    # never fire; started for the 16 that arrive, most first-layer neurons fire
+    from simlidar.models.networks import spiking_cnn
+
+    make = dense_snn if builder == "dense" else spiking_cnn
+    delays = torch.rand((64, 1, 16, 16), generator=torch.Generator().manual_seed(1)).double()
+    for budget, firing in ((None, 0.9), (16, 0.5)):
+        model = make((1, 16, 16), 4, torch.Generator().manual_seed(0), input_budget=budget)
+        model.double()
+        z = model.input_spikes(delays)
+        assert budget is None or (torch.isfinite(z).flatten(1).sum(1) == budget).all()
+        first = model.layers[0](z)
+        assert torch.isfinite(first).double().mean() > firing, budget
