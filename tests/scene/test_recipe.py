@@ -12,7 +12,8 @@ import pytest
 
 from simlidar.errors import RecipeError
 from simlidar.scene import expr
-from simlidar.scene.recipe import Param, load_catalog
+from simlidar.scene.parse import Param
+from simlidar.scene.recipe import load_catalog
 
 PAPER_LAYOUTS = [
     "tunnel",
