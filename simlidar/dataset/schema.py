@@ -40,8 +40,9 @@ SCAN_SCHEMA: dict[str, tuple[str, object]] = {
     "emission_ns": ("float64", lambda h, w: (h, w)),
 }
 # A sweep's frames file: its name, its `format` attribute and its datasets, name -> (dtype,
-# trailing shape given the lasers H and the cycles C of a rotation); beside them `emission_ns`
-# (H, C) float64, the same for every frame. Its version: simlidar.dataset.version.SWEEP_VERSION
+# trailing shape given the lasers H and the cycles C of a rotation; SCHEMA's form, another
+# file's); beside them `emission_ns` (H, C) float64, the same for every frame. Its version:
+# simlidar.dataset.version.SWEEP_VERSION
 SWEEP_FILE = "frames.h5"
 SWEEP_FORMAT = "simlidar-sweep"
 SWEEP_SCHEMA: dict[str, tuple[str, object]] = {

@@ -62,6 +62,7 @@ def _edit(root, name, old, new):
     return path
 
 
+# one broken recipe a row: the cases are data, alike in form
 @pytest.mark.parametrize(
     "name, old, new, key",
     [
