@@ -1,5 +1,6 @@
-"""Shared fixtures: the shipped catalog, small generated datasets, a writable catalog copy, the
-command line, an HTTP server with a packed dataset, synthetic KITTI frames, HDF5 bombs."""
+"""Shared fixtures: the shipped catalog and a batch of its scenes, small generated datasets, a
+writable catalog copy, the command line, an HTTP server with a packed dataset, synthetic KITTI
+frames, HDF5 bombs."""
 
 import http.server
 import shutil
@@ -16,6 +17,7 @@ from simlidar.content import content_dir
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.generate import generate
 from simlidar.release.archive import pack
+from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import load_catalog
 
 SMALL = dict(train_size=96, test_size=64)
@@ -24,6 +26,24 @@ SMALL = dict(train_size=96, test_size=64)
 @pytest.fixture(scope="session")
 def catalog():
     return load_catalog()
+
+
+@pytest.fixture(scope="session")
+def scene_batch(catalog):
+    """``scene_batch(layout, obj, rng)``: the shipped catalog's scenes of these layout and object
+    indices (each (n,)), their parameters drawn from ``rng`` (the layouts', then the objects')."""
+
+    def build(layout, obj, rng):
+        n = len(layout)
+        return build_batch(
+            catalog,
+            layout,
+            obj,
+            rng.random((n, catalog.layout_columns)),
+            rng.random((n, catalog.object_columns)),
+        )
+
+    return build
 
 
 @pytest.fixture(scope="session")

@@ -192,11 +192,11 @@ def test_the_checker_sees_a_private_name(tmp_path):
         "from simlidar.generator import simulate as sim\n"
         "from simlidar.errors import __doc__, first_line\n"
         "def f():\n"
-        "    from simlidar.bench.report import _num\n"
+        "    from simlidar.bench.tables import _num\n"
         "    return sim._x, simlidar.dataset.reader._decode, sim.simulate, first_line._y\n"
     )
     assert private_uses(path, modules().keys()) == {
-        "simlidar.bench.report._num",
+        "simlidar.bench.tables._num",
         "simlidar.generator.simulate._x",
         "simlidar.dataset.reader._decode",
     }

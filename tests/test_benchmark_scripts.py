@@ -9,15 +9,20 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_generation_stages_times_every_stage():
+def run_script(script: str, *args: str, timeout: float | None = None) -> str:
+    """What ``benchmark/<script>`` with ``args`` prints (it must exit 0 within ``timeout``)."""
     done = subprocess.run(
-        [sys.executable, str(ROOT / "benchmark" / "generation_stages.py"), "--samples", "192"],
+        [sys.executable, str(ROOT / "benchmark" / script), *args],
         capture_output=True,
         text=True,
         check=True,
-        timeout=300,
+        timeout=timeout,
     )
-    lines = done.stdout.splitlines()
+    return done.stdout
+
+
+def test_generation_stages_times_every_stage():
+    lines = run_script("generation_stages.py", "--samples", "192", timeout=300).splitlines()
     if sys.platform.startswith("linux"):
         assert lines[0] == "shared Embree buffers: on"
     assert "192 samples in" in lines[1]
@@ -38,24 +43,11 @@ def test_generation_stages_times_every_stage():
 
 @pytest.mark.parametrize("script", ["generation_speed.py", "generation_stages.py"])
 def test_scripts_explain_themselves(script):
-    done = subprocess.run(
-        [sys.executable, str(ROOT / "benchmark" / script), "--help"],
-        capture_output=True,
-        text=True,
-        check=True,
-    )
-    assert "--samples" in done.stdout
+    assert "--samples" in run_script(script, "--help")
 
 
 def test_ttfs_speed_prints_both_ratios():
-    done = subprocess.run(
-        [sys.executable, str(ROOT / "benchmark" / "ttfs_speed.py"), "--steps", "1"],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=600,
-    )
-    lines = done.stdout.splitlines()[1:]
+    lines = run_script("ttfs_speed.py", "--steps", "1", timeout=600).splitlines()[1:]
     assert [line.split()[0] for line in lines] == ["scnn_kitti", "snn_simlidar"]
     for line in lines:
         ratio = float(line.split("ratio ")[1].split()[0])
@@ -63,14 +55,7 @@ def test_ttfs_speed_prints_both_ratios():
 
 
 def test_ttfs_torch_speed_times_both_forms_in_one_run():
-    done = subprocess.run(
-        [sys.executable, str(ROOT / "benchmark" / "ttfs_torch_speed.py"), "--steps", "1"],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=600,
-    )
-    (line,) = done.stdout.splitlines()[1:]
+    (line,) = run_script("ttfs_torch_speed.py", "--steps", "1", timeout=600).splitlines()[1:]
     assert line.startswith("snn_simlidar (batch 60 x 1 x 16 x 16): kernels ")
     kernels, torch_form = (float(line.split(f"{k} ")[1].split()[0]) for k in ("kernels", "form"))
     ratio = float(line.split("ratio ")[1].split()[0])
@@ -79,39 +64,14 @@ def test_ttfs_torch_speed_times_both_forms_in_one_run():
 
 
 def test_generation_workers_compares_the_counts_on_the_same_bytes():
-    done = subprocess.run(
-        [
-            sys.executable,
-            str(ROOT / "benchmark" / "generation_workers.py"),
-            *("--samples", "400", "--rounds", "1"),
-        ],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=300,
-    )
-    assert "ratio" in done.stdout and "the same bytes for every count: yes" in done.stdout
+    out = run_script("generation_workers.py", "--samples", "400", "--rounds", "1", timeout=300)
+    assert "ratio" in out and "the same bytes for every count: yes" in out
 
 
 def test_sweep_speed_prints_frames_per_second_and_the_ratio(tmp_path):
     figures = tmp_path / "sweep.json"
-    done = subprocess.run(
-        [
-            sys.executable,
-            str(ROOT / "benchmark" / "sweep_speed.py"),
-            "--frames",
-            "16",
-            "--samples",
-            "1024",
-            "--json",
-            str(figures),
-        ],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=300,
-    )
-    lines = done.stdout.splitlines()
+    args = ("--frames", "16", "--samples", "1024", "--json", str(figures))
+    lines = run_script("sweep_speed.py", *args, timeout=300).splitlines()
     assert lines[0].startswith("sweep (vlp16, 28928 pulses a frame): ")
     assert "frames/s on one core (target 100" in lines[0]
     assert lines[2].startswith("ratio of pulses/s, sweep over window: ")

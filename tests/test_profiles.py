@@ -155,6 +155,7 @@ def test_the_physical_profile_writes_the_records_of_1_0_0(tmp_path, options, cli
     assert path.name.startswith("simlidar-32c-noise0.2-physical") and path.name.endswith("v1.0.0")
 
 
+# the command line written out as a user types it, each test its own flags (alike in form)
 def test_the_default_is_the_paper_profile(tmp_path, cli):
     result = cli(
         "generate",
@@ -294,6 +295,7 @@ def test_the_card_command_regenerates_a_shipped_profile(tmp_path, profile, cli):
         assert (tmp_path / "b" / first.name / name).read_bytes() == (first / name).read_bytes()
 
 
+# the command line written out, as in test_cli.py's variation test: each test its own flags
 def test_the_encoding_follows_the_profile(tmp_path, cli):
     from simlidar.bench.early import early_decisions
     from simlidar.bench.train import load_checkpoint, save_checkpoint, train

@@ -16,7 +16,7 @@ import json
 import sys
 from pathlib import Path
 
-from simlidar.bench.report import group_by, mean_std, percent
+from simlidar.bench.tables import group_by, mean_std, percent
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "benchmark/results"

@@ -64,6 +64,7 @@ def convert_kitti(root, crop, res_h, res_v, max_range, test_fraction, out, seed,
     See docs/converters.md."""
     from simlidar.convert import convert_kitti as run
 
+    # the options as the converter's keywords (generate passes its own to GeneratorConfig)
     path = run(
         root,
         out,

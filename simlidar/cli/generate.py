@@ -20,10 +20,11 @@ from simlidar.cli.options import (
 from simlidar.dataset.shards import SHARD_SAMPLES
 from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.exports import EXPORTS
 from simlidar.generator.generate import BATCH
 from simlidar.generator.generate import generate as generate_datasets
 from simlidar.generator.profiles import DEFAULT_PROFILE, load_profile, profile_names
-from simlidar.generator.sweep import EXPORTS, SweepConfig
+from simlidar.generator.sweep import SweepConfig
 from simlidar.generator.sweep import sweep as run_sweep
 from simlidar.sensor.model import DEFAULT_SENSOR, load_sensor, sensor_names
 from simlidar.sensor.raycast import MAX_BATCH
@@ -222,7 +223,7 @@ def generate(
 
 
 class ExportFormats(click.ParamType):
-    """A comma-separated list of point-cloud formats (simlidar.generator.sweep.EXPORTS)."""
+    """A comma-separated list of point-cloud formats (simlidar.generator.exports.EXPORTS)."""
 
     name = "FORMATS"
 

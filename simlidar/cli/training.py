@@ -218,6 +218,7 @@ def train(
     help="Comma-separated model recipes to run instead of the suite's (e.g. snn_simlidar,cnn); "
     "a recipe file, or an outside builder package.module:function.",
 )
+# --dataset and --out look like train's, but are optional here, with their own help
 @click.option(
     "--dataset",
     type=click.Path(path_type=Path),

@@ -13,6 +13,7 @@ from simlidar.dataset.schema import CONVERTED_SCHEMAS, SPLITS
 from simlidar.dataset.version import SOURCES
 from simlidar.generator.about import CITATION
 from simlidar.release.card import (
+    class_table,
     front_matter_block,
     hf_feature,
     hf_front_matter,
@@ -127,6 +128,7 @@ def converted_card(path: str | Path) -> str:
         if (path / "preview.png").exists()
         else "",
         f"{about.description}\n",
+        # its own rows (the generator's card's look alike: other rows, in another order)
         table(
             ["", ""],
             [
@@ -143,11 +145,7 @@ def converted_card(path: str | Path) -> str:
         + "\n",
         "## Composition\n",
         f"What a value means: {about.delay_meaning}\n",
-        table(
-            ["class", "name", *splits],
-            [[k, name, *(counts[s][name] for s in splits)] for k, name in enumerate(names)],
-        )
-        + "\n",
+        class_table(names, splits, counts),
         "Each split file holds these datasets (N samples, E events):\n",
         table(
             ["dataset", "dtype", "shape", "meaning"],

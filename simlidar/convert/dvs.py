@@ -220,6 +220,7 @@ def dvs_name() -> str:
     return f"dvs-barrel-{PIXELS}x{PIXELS}-v{SOURCES[SOURCE][0]}"
 
 
+# the signature of every converter (convert_kitti's): source, out, the shared flags, options
 def convert_dvs_barrel(
     mat_file: str | Path,
     out: str | Path,

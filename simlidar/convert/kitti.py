@@ -39,7 +39,13 @@ from simlidar.convert.kitti_files import (
     training_dir,
 )
 from simlidar.convert.options import KittiConfig
-from simlidar.dataset.schema import CONVERTED_SCHEMAS, SPLITS, expected_shapes
+from simlidar.dataset.schema import (
+    CONVERTED_SCHEMAS,
+    SPLITS,
+    SWEEP_FILE,
+    SWEEP_FORMAT,
+    expected_shapes,
+)
 from simlidar.dataset.version import SOURCES
 from simlidar.dataset.writer import SplitWriter, attrs_fit
 from simlidar.errors import DatasetError
@@ -147,7 +153,7 @@ def kitti_name(config: KittiConfig, simulated: dict | None = None) -> str:
 class SweepFiles(TrainingFiles):
     """A simlidar sweep's folder read as a KITTI training folder without its ``--export kitti``
     files: each file's bytes are made from ``frames.h5`` as the export would write them
-    (:func:`simlidar.generator.sweep.kitti_file`), so the crops and every hash are those of
+    (:func:`simlidar.generator.exports.kitti_file`), so the crops and every hash are those of
     the exported folder, without its 1.6 MB of scan a frame on disk."""
 
     FOLDERS = ("label_2", "calib", "velodyne")
@@ -156,7 +162,7 @@ class SweepFiles(TrainingFiles):
         import h5py
 
         super().__init__(base)
-        with h5py.File(base / "frames.h5", "r") as f:
+        with h5py.File(base / SWEEP_FILE, "r") as f:
             self.frames = f["labels"].shape[0]
 
     def stems(self) -> list[str]:
@@ -167,9 +173,9 @@ class SweepFiles(TrainingFiles):
         return relative.parent.name in self.FOLDERS and stem.isdigit() and int(stem) < self.frames
 
     def read(self, relative: Path) -> bytes:
-        from simlidar.generator.sweep import kitti_file
+        from simlidar.generator.exports import kitti_file
 
-        return kitti_file(self.base / "frames.h5", int(relative.stem), relative.parent.name)
+        return kitti_file(self.base / SWEEP_FILE, int(relative.stem), relative.parent.name)
 
 
 def training_files(root: str | Path) -> TrainingFiles:
@@ -187,12 +193,12 @@ def simulated_from(base: Path) -> dict | None:
     None for recorded data."""
     import h5py
 
-    sweep = base / "frames.h5"
+    sweep = base / SWEEP_FILE
     if not sweep.is_file():
         return None
     try:
         with h5py.File(sweep, "r") as f:
-            if f.attrs.get("format") != "simlidar-sweep":
+            if f.attrs.get("format") != SWEEP_FORMAT:
                 return None
             model = json.loads(f.attrs["sensor"]).get("model", "Velodyne VLP-16")
     except OSError:

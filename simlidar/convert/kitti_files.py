@@ -4,6 +4,9 @@
     ROOT/[training/]calib/NNNNNN.txt     'KEY: numbers' lines; R0_rect and Tr_velo_to_cam used
     ROOT/[training/]velodyne/NNNNNN.bin  float32 x, y, z, reflectance per point (Velodyne frame)
 
+The scans' and label lines' layouts are :mod:`simlidar.dataset.kitti`'s, which a sweep's KITTI
+export writes by.
+
 Every malformed input raises a DatasetError naming the file, the line and what was expected.
 The files are read through a :class:`TrainingFiles` (a folder on disk), or through its
 subclass for a simlidar sweep without the KITTI export (:mod:`simlidar.convert.kitti`), which
@@ -16,13 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+from simlidar.dataset.kitti import LABEL_COLUMNS, SCAN_COLUMNS, SCAN_DTYPE
 from simlidar.errors import DatasetError
 
 CLASSES = ("Car", "Van", "Truck", "Pedestrian", "Person_sitting", "Cyclist", "Tram", "Misc")
 SKIPPED = ("DontCare",)
-LABEL_COLUMNS = (
-    "type truncated occluded alpha bbox_left bbox_top bbox_right bbox_bottom h w l x y z rotation_y"
-)
 _CALIB_SIZES = {"R0_rect": 9, "Tr_velo_to_cam": 12}
 # A box's sizes and bottom centre, metres: 10 km is 10 times the farthest delay-1 range the
 # converter takes (1 km). Beyond it a label means nothing, and 1e308 overflowed the corners'
@@ -108,7 +109,8 @@ def read_labels(path: Path, data: bytes) -> tuple[Label, ...]:
             continue
         if len(fields) not in (15, 16):  # 16: a detection score after the 15 label columns
             raise DatasetError(
-                f"{path} line {line}: {len(fields)} columns, expected 15 ({LABEL_COLUMNS})"
+                f"{path} line {line}: {len(fields)} columns, expected {len(LABEL_COLUMNS)} "
+                f"({' '.join(LABEL_COLUMNS)})"
             )
         kind = fields[0]
         if kind in SKIPPED:
@@ -175,11 +177,14 @@ def read_cam_to_velo(path: Path, data: bytes) -> np.ndarray:
 def read_velodyne(path: Path, data: bytes) -> tuple[np.ndarray, str]:
     """One scan from its file's bytes ``data`` (``path`` names it): ((n, 3) float64 x, y, z in
     metres, sha256 of the file)."""
-    if len(data) % 16:
+    size = len(SCAN_COLUMNS) * SCAN_DTYPE.itemsize  # 16 bytes a point
+    if len(data) % size:
         raise DatasetError(
-            f"{path}: {len(data)} bytes, expected a multiple of 16 (float32 x, y, z, reflectance)"
+            f"{path}: {len(data)} bytes, expected a multiple of {size} "
+            f"(float32 {', '.join(SCAN_COLUMNS)})"
         )
-    points = np.frombuffer(data, dtype="<f4").reshape(-1, 4)[:, :3].astype(np.float64)
+    columns = np.frombuffer(data, dtype=SCAN_DTYPE).reshape(-1, len(SCAN_COLUMNS))
+    points = columns[:, :3].astype(np.float64)
     if not np.isfinite(points).all():
         raise DatasetError(f"{path}: non-finite coordinates, expected finite metres")
     return points, hashlib.sha256(data).hexdigest()

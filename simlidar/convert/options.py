@@ -92,6 +92,7 @@ class DvsConfig:
         "One class character (0-9, A-Z) per recording, e.g. 0123...; default: the ROI struct's "
         "'label' field.",
     )
+    # the split's settings as KittiConfig's (alike in form): other defaults, other help
     test_fraction: float = setting(
         0.5,
         "Fraction of each class's recordings in test (at least one stays in train).",

@@ -1,11 +1,15 @@
-"""The split files' schemas: what every generated or converted split holds.
+"""The split files' schemas: what every generated or converted split holds; and a sweep's
+frames file (``simlidar sweep``) and the point clouds made from it.
 
-Every dataset and attribute is described in ``docs/dataset-format.md`` (the generator's) and
-``docs/converters.md`` (converted real data); keep them in step.
+Every dataset and attribute is described in ``docs/dataset-format.md`` (the generator's),
+``docs/converters.md`` (converted real data) and ``docs/sweeps.md`` (the frames file); keep
+them in step.
 """
 
 import re
 from dataclasses import dataclass
+
+import numpy as np
 
 from simlidar.dataset.version import GENERATOR, SOURCES
 from simlidar.errors import DatasetError
@@ -35,6 +39,37 @@ SCHEMA: dict[str, tuple[str, object]] = {
 SCAN_SCHEMA: dict[str, tuple[str, object]] = {
     "emission_ns": ("float64", lambda h, w: (h, w)),
 }
+# A sweep's frames file: its name, its `format` attribute and its datasets, name -> (dtype,
+# trailing shape given the lasers H and the cycles C of a rotation; SCHEMA's form, another
+# file's); beside them `emission_ns` (H, C) float64, the same for every frame. Its version:
+# simlidar.dataset.version.SWEEP_VERSION
+SWEEP_FILE = "frames.h5"
+SWEEP_FORMAT = "simlidar-sweep"
+SWEEP_SCHEMA: dict[str, tuple[str, object]] = {
+    "range_m": ("float32", lambda h, c: (h, c)),
+    "surface": ("uint8", lambda h, c: (h, c)),
+    "intensity": ("float32", lambda h, c: (h, c)),
+    "labels": ("int64", lambda h, c: ()),
+    "layout": ("uint8", lambda h, c: ()),
+    "object": ("uint8", lambda h, c: ()),
+    "object_pose": ("float32", lambda h, c: (3,)),
+    "object_box": ("float32", lambda h, c: (7,)),
+    "object_points": ("int32", lambda h, c: ()),
+    "phase": ("float64", lambda h, c: ()),
+}
+# A frame's returns as a point cloud (simlidar.generator.frames.frame_points), every field of
+# which the PLY and PCD exports write
+POINT_DTYPE = np.dtype(
+    [
+        ("x", "<f4"),
+        ("y", "<f4"),
+        ("z", "<f4"),
+        ("intensity", "<f4"),
+        ("surface", "u1"),
+        ("laser", "u1"),
+        ("t_ns", "<f8"),
+    ]
+)
 # The shuffle filter helps gzip on the noisy delays (random mantissas) and hurts it on the
 # quantised clean delays and times of flight (measured: smaller and faster without it).
 SHUFFLED = {"delays", "phase", "shift", "object_pose"}

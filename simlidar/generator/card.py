@@ -28,7 +28,13 @@ from simlidar.generator.about import (
     tags,
 )
 from simlidar.generator.config import GeneratorConfig
-from simlidar.release.card import front_matter_block, hf_feature, hf_front_matter, table
+from simlidar.release.card import (
+    class_table,
+    front_matter_block,
+    hf_feature,
+    hf_front_matter,
+    table,
+)
 from simlidar.release.croissant import CONTEXT, field, file_objects
 from simlidar.release.info import dataset_info
 from simlidar.sensor.model import Sensor, load_sensor, sensor_names
@@ -279,11 +285,7 @@ def generated_card(path: str | Path) -> str:
         f"## Motivation\n\n{MOTIVATION}\n",
         "## Composition\n",
         f"What a value means: {DELAY_MEANING}{_missing_meaning(config)}\n",
-        table(
-            ["class", "name", *splits],
-            [[k, name, *(counts[s][name] for s in splits)] for k, name in enumerate(names)],
-        )
-        + "\n",
+        class_table(names, splits, counts),
         "Each split file holds these datasets (N samples):\n",
         table(
             ["dataset", "dtype", "shape", "meaning"],

@@ -13,10 +13,12 @@ where every frame sees it: ``object_points`` counts its returns).
 Each pulse keeps its quantised range (NaN: no return), the surface it hit (a per-point label:
 segmentation), an intensity proxy (``|cos|`` of the angle of incidence: real intensities also
 depend on the surface's reflectivity, which the scenes do not model) and, shared by every
-frame, its emission time within the rotation. :func:`frame_points` turns a frame into a point
-cloud in the sensor's frame (x forward, y left, z up, origin at the rotation axis' reference
-point: KITTI's velodyne frame), and :func:`export_frame` writes it as KITTI ``.bin`` (with a
-SemanticKITTI-style ``.label`` of surfaces), PLY or PCD. The file format: docs/sweeps.md.
+frame, its emission time within the rotation. :func:`sweep` writes them into a frames file
+(its schema and version: :mod:`simlidar.dataset.schema`, :mod:`simlidar.dataset.version`),
+draws its bird's-eye picture (:mod:`simlidar.generator.bev`) and exports its frames
+(:mod:`simlidar.generator.exports`: KITTI ``.bin`` with a SemanticKITTI-style ``.label`` of
+surfaces, PLY or PCD); :func:`~simlidar.generator.frames.frame_points` turns a frame of the
+file into a point cloud in the sensor's frame. The file format: docs/sweeps.md.
 
 The scenes were written for a window ahead of the sensor: behind it the road ends 0-10 m back
 (``entry_m`` of the tunnel, the road box of every layout), so the rear half of a frame sees
@@ -31,34 +33,25 @@ import numpy as np
 
 from simlidar import __version__
 from simlidar.atomic import building
+from simlidar.dataset.schema import SWEEP_FILE, SWEEP_FORMAT, SWEEP_SCHEMA
+from simlidar.dataset.version import SWEEP_VERSION
 from simlidar.dataset.writer import SplitWriter
 from simlidar.errors import ConfigError
+from simlidar.generator.bev import draw_bev
 from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.exports import EXPORTS, export_frame
+from simlidar.generator.frames import frame_points as frame_points  # docs/sweeps.md's path
 from simlidar.generator.pulses import quantise_range
 from simlidar.generator.simulate import FIXED_COLUMNS, class_plan, factors, sample_stream
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
-from simlidar.sensor.model import Sensor, row_order
+from simlidar.sensor.model import row_order
 from simlidar.sensor.raycast import MAX_BATCH, cast
 from simlidar.sensor.rays import cycles_per_rotation, sweep_emission_ns, sweep_rays
 from simlidar.settings import Range, check, setting
 
-SWEEP_VERSION = "1.1.0"  # 1.1.0: the catalog's sensor variants (HDL-64E frames changed)
-SWEEP_FILE = "frames.h5"
 FRAME_BATCH = 16  # frames ray-cast together (does not change the files)
 MAX_FRAMES = 10**6
-EXPORTS = ("kitti", "ply", "pcd")
-POINT_DTYPE = np.dtype(
-    [
-        ("x", "<f4"),
-        ("y", "<f4"),
-        ("z", "<f4"),
-        ("intensity", "<f4"),
-        ("surface", "u1"),
-        ("laser", "u1"),
-        ("t_ns", "<f8"),
-    ]
-)
 
 
 @dataclass(frozen=True)
@@ -92,20 +85,6 @@ class Frames:
     object_box: np.ndarray
     object_points: np.ndarray  # (n,) int32, returns from the labelled object
     phase: np.ndarray  # (n,) float64, rotation phase in azimuth steps
-
-
-SHAPES = {  # name -> (dtype, trailing shape given H and C)
-    "range_m": ("float32", lambda h, c: (h, c)),
-    "surface": ("uint8", lambda h, c: (h, c)),
-    "intensity": ("float32", lambda h, c: (h, c)),
-    "labels": ("int64", lambda h, c: ()),
-    "layout": ("uint8", lambda h, c: ()),
-    "object": ("uint8", lambda h, c: ()),
-    "object_pose": ("float32", lambda h, c: (3,)),
-    "object_box": ("float32", lambda h, c: (7,)),
-    "object_points": ("int32", lambda h, c: ()),
-    "phase": ("float64", lambda h, c: ()),
-}
 
 
 def simulate_frames(config: GeneratorConfig, catalog: Catalog, start: int, stop: int) -> Frames:
@@ -203,7 +182,7 @@ def sweep(
     sensor, n = config.sensor, sweep_config.frames
     h, c = sensor.beams, cycles_per_rotation(sensor)
     attrs = {
-        "format": "simlidar-sweep",
+        "format": SWEEP_FORMAT,
         "sweep_version": SWEEP_VERSION,
         "simlidar_version": __version__,
         "config": config.to_json(),
@@ -216,7 +195,7 @@ def sweep(
         "row_laser_ids": np.array(row_order(sensor), dtype=np.int32),
         "cycles": c,
     }
-    shapes = {name: (dtype, tail(h, c)) for name, (dtype, tail) in SHAPES.items()}
+    shapes = {name: (dtype, tail(h, c)) for name, (dtype, tail) in SWEEP_SCHEMA.items()}
     name = sweep_name(config, sweep_config)
     with building(out, name, force) as folder:
         writer = SplitWriter(folder / SWEEP_FILE, n, shapes, attrs, frozenset(), chunk=1)
@@ -225,7 +204,7 @@ def sweep(
             bar = tqdm(total=n, desc="sweep", unit="frame", disable=not progress)
             for first in range(0, n, batch):
                 frames = simulate_frames(config, catalog, first, min(first + batch, n))
-                writer.append({name: getattr(frames, name) for name in SHAPES})
+                writer.append({name: getattr(frames, name) for name in SWEEP_SCHEMA})
                 bar.update(len(frames.labels))
             bar.close()
             writer.close()
@@ -237,204 +216,3 @@ def sweep(
             for f in range(n):
                 export_frame(folder / SWEEP_FILE, f, folder, fmt)
     return Path(out) / name
-
-
-def _check_frame(f, path: str | Path, frame: int) -> Sensor:
-    """The sensor of the open sweep file ``f``; a ConfigError unless it is a sweep file that
-    holds frame ``frame``."""
-    if f.attrs.get("format") != "simlidar-sweep":
-        raise ConfigError(f"{path}: expected a simlidar sweep file ({SWEEP_FILE})")
-    count = f["labels"].shape[0]
-    if not 0 <= frame < count:
-        raise ConfigError(f"frame {frame}: expected 0 to {count - 1} ({path})")
-    return Sensor.from_dict(json.loads(f.attrs["sensor"]))
-
-
-def read_frame(path: str | Path, frame: int) -> tuple[Sensor, dict, np.ndarray]:
-    """The sensor, the per-frame values and the emission times of frame ``frame`` of a sweep
-    file."""
-    import h5py
-
-    with h5py.File(path, "r") as f:
-        sensor = _check_frame(f, path, frame)
-        values = {name: f[name][frame] for name in SHAPES}
-        return sensor, values, f["emission_ns"][:]
-
-
-def frame_points(path: str | Path, frame: int) -> np.ndarray:
-    """The returns of one frame as a point cloud (:data:`POINT_DTYPE`), in firing order, in
-    the sensor's frame (x forward, y left, z up from the rotation axis' reference point):
-    position, intensity proxy, surface label, laser id and emission time (ns from the
-    rotation's first firing)."""
-    sensor, values, emission = read_frame(path, frame)
-    origins, directions = sweep_rays(sensor, np.array([values["phase"]]))
-    r = values["range_m"].astype(np.float64)
-    order = np.argsort(emission, axis=None, kind="stable")  # firing order
-    keep = order[~np.isnan(r.reshape(-1)[order])]
-    xyz = (
-        origins[0].reshape(-1, 3)[keep]
-        + r.reshape(-1)[keep, None] * directions[0].reshape(-1, 3)[keep]
-    )
-    xyz[:, 2] -= sensor.mount_height_m
-    points = np.empty(len(keep), POINT_DTYPE)
-    points["x"], points["y"], points["z"] = xyz.T
-    points["intensity"] = values["intensity"].reshape(-1)[keep]
-    points["surface"] = values["surface"].reshape(-1)[keep]
-    lasers = np.asarray(row_order(sensor), dtype=np.uint8)
-    points["laser"] = np.broadcast_to(lasers[:, None], r.shape).reshape(-1)[keep]
-    points["t_ns"] = emission.reshape(-1)[keep]
-    return points
-
-
-# Velodyne -> camera axes (x right, y down, z forward), no offset, no rectification: what
-# `simlidar convert kitti` needs to read a sweep's boxes (simlidar simulates no camera)
-KITTI_CALIB = "R0_rect: 1 0 0 0 1 0 0 0 1\nTr_velo_to_cam: 0 -1 0 0 0 0 -1 0 1 0 0 0\n"
-KITTI_TYPES = {"car": "Car", "pedestrian": "Pedestrian", "truck": "Truck"}  # others: Misc
-
-
-def kitti_label(path: str | Path, frame: int) -> str:
-    """The KITTI object label file (label_2) of one frame: its object, if it has one, as a
-    15-column line in camera coordinates (:data:`KITTI_CALIB`): type, truncated 0, occluded 0,
-    alpha, a 2D box of zeros (no camera), h w l, bottom centre x y z, rotation_y."""
-    import h5py
-
-    with h5py.File(path, "r") as f:  # only what the label needs (not the frame's points)
-        sensor = _check_frame(f, path, frame)
-        obj = int(f["object"][frame])
-        if not obj:
-            return ""
-        name = json.loads(f.attrs["object_names"])[obj]  # 0: none
-        box = f["object_box"][frame]
-    length, width, height, x, y, z, yaw = (float(v) for v in box)
-    # velodyne (x forward, y left, z up from the sensor) -> camera (x right, y down, z ahead)
-    cx, cy, cz = -y, -(z - sensor.mount_height_m), x
-    ry = -np.deg2rad(yaw) - np.pi / 2  # a heading along +x (ahead) is rotation_y = -pi/2
-    ry = (ry + np.pi) % (2 * np.pi) - np.pi
-    alpha = (ry - np.arctan2(cx, cz) + np.pi) % (2 * np.pi) - np.pi
-    numbers = [0, 0, alpha, 0, 0, 0, 0, height, width, length, cx, cy, cz, ry]
-    return " ".join([KITTI_TYPES.get(name, "Misc")] + [f"{v:.4f}" for v in numbers]) + "\n"
-
-
-def kitti_file(path: str | Path, frame: int, folder: str, points=None) -> bytes:
-    """The bytes of one file of frame ``frame`` in the KITTI export (:func:`export_frame`):
-    ``folder`` ``velodyne`` (float32 x, y, z, intensity), ``labels`` (uint32 surface a point),
-    ``label_2`` (:func:`kitti_label`) or ``calib`` (:data:`KITTI_CALIB`). ``points``: the
-    frame's :func:`frame_points`, if already made."""
-    if folder == "label_2":
-        return kitti_label(path, frame).encode()
-    if folder == "calib":
-        return KITTI_CALIB.encode()
-    points = frame_points(path, frame) if points is None else points
-    if folder == "velodyne":
-        xyzi = np.stack([points[k] for k in ("x", "y", "z", "intensity")], axis=1)
-        return xyzi.astype("<f4").tobytes()
-    if folder == "labels":
-        return points["surface"].astype("<u4").tobytes()
-    raise ConfigError(f"KITTI folder {folder!r}: expected velodyne, labels, label_2 or calib")
-
-
-_PLY_TYPES = {"<f4": "float", "u1": "uchar", "<f8": "double"}
-_PCD_TYPES = {"<f4": ("4", "F"), "u1": ("1", "U"), "<f8": ("8", "F")}
-
-
-def export_frame(path: str | Path, frame: int, out: str | Path, fmt: str) -> list[Path]:
-    """Write frame ``frame`` of a sweep file under ``out`` as ``fmt``: ``kitti``
-    (``velodyne/NNNNNN.bin``: float32 x, y, z, intensity, KITTI's layout;
-    ``labels/NNNNNN.label``: uint32 surface index a point, SemanticKITTI's; and the object
-    benchmark's ``label_2/NNNNNN.txt`` and ``calib/NNNNNN.txt``, :func:`kitti_label`, so that
-    ``simlidar convert kitti`` reads the folder), ``ply``
-    (``ply/NNNNNN.ply``, binary little endian, every field of :data:`POINT_DTYPE`) or ``pcd``
-    (``pcd/NNNNNN.pcd``, PCD 0.7 binary, the same fields). Returns the files written."""
-    points = frame_points(path, frame)
-    out, stem = Path(out), f"{frame:06d}"
-    if fmt == "kitti":
-        folders = {"velodyne": ".bin", "labels": ".label", "label_2": ".txt", "calib": ".txt"}
-        files = [out / folder / f"{stem}{suffix}" for folder, suffix in folders.items()]
-        blobs = [kitti_file(path, frame, folder, points) for folder in folders]
-    elif fmt == "ply":
-        header = ["ply", "format binary_little_endian 1.0", f"element vertex {len(points)}"]
-        header += [
-            f"property {_PLY_TYPES[POINT_DTYPE[k].str.lstrip('|')]} {k}" for k in POINT_DTYPE.names
-        ]
-        files = [out / "ply" / f"{stem}.ply"]
-        blobs = ["\n".join([*header, "end_header"]).encode() + b"\n" + points.tobytes()]
-    elif fmt == "pcd":
-        kinds = [_PCD_TYPES[POINT_DTYPE[k].str.lstrip("|")] for k in POINT_DTYPE.names]
-        header = [
-            "# .PCD v0.7 - Point Cloud Data file format",
-            "VERSION 0.7",
-            "FIELDS " + " ".join(POINT_DTYPE.names),
-            "SIZE " + " ".join(size for size, _ in kinds),
-            "TYPE " + " ".join(kind for _, kind in kinds),
-            "COUNT " + " ".join("1" for _ in kinds),
-            f"WIDTH {len(points)}",
-            "HEIGHT 1",
-            "VIEWPOINT 0 0 0 1 0 0 0",
-            f"POINTS {len(points)}",
-            "DATA binary",
-        ]
-        files = [out / "pcd" / f"{stem}.pcd"]
-        blobs = ["\n".join(header).encode() + b"\n" + points.tobytes()]
-    else:
-        raise ConfigError(f"export {fmt!r}: expected one of {', '.join(EXPORTS)}")
-    for file, blob in zip(files, blobs):
-        file.parent.mkdir(parents=True, exist_ok=True)
-        file.write_bytes(blob)
-    return files
-
-
-def draw_bev(
-    path: str | Path, out: str | Path, frames: list[int] | None = None, reach_m: float = 40.0
-) -> Path:
-    """Bird's-eye views of frames ``frames`` of a sweep file, points coloured by surface,
-    written as a PNG. Default: up to four frames of different layouts, with objects, as
-    varied as the file has (:func:`_varied_frames`)."""
-    import h5py
-    from matplotlib import colormaps
-    from matplotlib.figure import Figure
-
-    with h5py.File(path, "r") as f:
-        names = json.loads(f.attrs["surface_names"])
-        classes = json.loads(f.attrs["class_names"])
-        labels = f["labels"][:]
-        layout, obj = f["layout"][:], f["object"][:]
-    frames = _varied_frames(layout, obj) if frames is None else frames
-    fig = Figure(figsize=(3.0 * len(frames), 4.0))
-    palette = colormaps["tab20"]
-    for k, frame in enumerate(frames):
-        points = frame_points(path, frame)
-        ax = fig.add_subplot(1, len(frames), k + 1)
-        for s in sorted(set(points["surface"].tolist())):
-            mine = points[points["surface"] == s]
-            # x forward is up the picture, y left is left
-            size = 0.4 if len(mine) > 1000 else 3.0  # small things (objects, lamps) larger
-            ax.scatter(
-                -mine["y"], mine["x"], s=size, color=palette(s % 20), label=names[s], linewidths=0
-            )
-        ax.set_xlim(-reach_m, reach_m)
-        ax.set_ylim(-reach_m / 2, reach_m * 2)
-        ax.set_aspect("equal")
-        ax.set_title(f"frame {frame}: {classes[labels[frame]]}", fontsize=8)
-        ax.tick_params(labelsize=6)
-        ax.legend(fontsize=5, markerscale=10, loc="lower left")
-    fig.supxlabel("right of the sensor (m)", fontsize=8)
-    fig.supylabel("ahead of the sensor (m)", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out, dpi=120)
-    return Path(out)
-
-
-def _varied_frames(layout: np.ndarray, obj: np.ndarray, most: int = 4) -> list[int]:
-    """Up to ``most`` frames of different layouts: first those that also bring a new object,
-    then any with a new layout and an object, then any frame, in frame order."""
-    chosen: list[int] = []
-    rules = [
-        lambda f: obj[f] and obj[f] not in obj[chosen],
-        lambda f: bool(obj[f]),
-        lambda f: True,
-    ]
-    for rule in rules:
-        for f in range(len(layout)):
-            if len(chosen) < most and layout[f] not in layout[chosen] and rule(f):
-                chosen.append(f)
-    return sorted(chosen)

@@ -128,6 +128,7 @@ class BasicBlock(nn.Module):
         return torch.relu(self.body(x) + self.skip(x))
 
 
+# torchvision's two residual blocks, kept apart as there (alike in form, other layers)
 class Bottleneck(nn.Module):
     """1x1 reduce, 3x3 (stride here, as torchvision's v1.5), 1x1 expand by 4."""
 

@@ -84,6 +84,13 @@ def table(header: list[str], rows: list[list]) -> str:
     return "\n".join(lines)
 
 
+def class_table(names: list[str], splits, counts: dict) -> str:
+    """A card's table of classes: index, name and its samples in each of ``splits``
+    (``counts``: split -> class name -> count, as ``simlidar info`` gives them)."""
+    rows = [[k, name, *(counts[s][name] for s in splits)] for k, name in enumerate(names)]
+    return table(["class", "name", *splits], rows) + "\n"
+
+
 def front_matter_block(meta: dict) -> str:
     """The card's first lines: ``meta`` as YAML between ``---`` lines."""
     return f"---\n{yaml.safe_dump(meta, sort_keys=False, allow_unicode=True, width=1000)}---\n"

@@ -12,8 +12,9 @@ import numpy as np
 
 from simlidar.errors import RecipeError
 from simlidar.scene import expr
+from simlidar.scene.parse import Primitive, Recipe
 from simlidar.scene.primitives import template
-from simlidar.scene.recipe import Catalog, Primitive, Recipe
+from simlidar.scene.recipe import Catalog
 
 # Every vertex of a scene must lie within this distance of the sensor along each axis; the ray
 # caster relies on it to pack many scenes into one Embree scene without them seeing each other.

@@ -479,7 +479,8 @@ def test_a_suite_with_a_missing_dataset_claims_nothing(tmp_path):
 
 
 def test_a_cell_stopped_by_the_time_cap_is_marked_in_the_report():
-    from simlidar.bench.report import CAPPED, accuracy_by_noise, paper_numbers
+    from simlidar.bench.report import paper_numbers
+    from simlidar.bench.tables import CAPPED, accuracy_by_noise
 
     def cell(seed, capped):
         return {
@@ -502,7 +503,8 @@ def test_the_paper_row_stands_beside_paper_sized_splits_only():
     """The quick suite's first report set the paper's SNN (3000 / 600 samples) as a row under
     models trained on 960 / 320: now a row only where the splits have the paper's sizes, a
     note marked not comparable otherwise; the chance level is named either way."""
-    from simlidar.bench.report import accuracy_by_noise, paper_numbers
+    from simlidar.bench.report import paper_numbers
+    from simlidar.bench.tables import accuracy_by_noise
 
     def cell(noise, train_size, test_size):
         return {
@@ -532,14 +534,8 @@ def test_the_paper_row_stands_beside_paper_sized_splits_only():
 
 
 def test_seeds_that_disagree_are_marked_and_training_is_tabled():
-    from simlidar.bench.report import (
-        CAPPED,
-        OPEN,
-        SPREAD,
-        accuracy_by_noise,
-        paper_numbers,
-        training_table,
-    )
+    from simlidar.bench.report import paper_numbers
+    from simlidar.bench.tables import CAPPED, OPEN, SPREAD, accuracy_by_noise, training_table
 
     def cell(seed, accuracy, stopped="plateau", best=4, seconds=90.0):
         return {

@@ -117,6 +117,7 @@ def test_a_workers_failure_leaves_nothing_behind(tmp_path, catalog, monkeypatch)
     assert list(tmp_path.iterdir()) == []
 
 
+# a worker killed, not raising as in the test above: another path, another error (kept apart)
 def test_a_killed_worker_ends_the_run_with_an_error_not_a_wait(tmp_path, catalog, monkeypatch):
     import os
 

@@ -23,3 +23,24 @@ def conv_case():
         return z, w / fan_in**0.5 + 3.0 / fan_in
 
     return make
+
+
+@pytest.fixture
+def dense_case():
+    """``dense_case(rows, n_in, n_out, seed, dtype=float64)``: (input spikes (rows, n_in) in the
+    z domain with 25 % silent and, from 4 rows on, an all-silent row, a tie of half a row and a
+    row of many ties; weights (n_in, n_out) whose sums let most outputs fire), seeded: the dense
+    case that the kernels, the reference and the torch form are held to."""
+
+    def make(rows: int, n_in: int, n_out: int, seed: int, dtype=torch.float64):
+        generator = torch.Generator().manual_seed(seed)
+        z = torch.exp(3 * torch.rand(rows, n_in, generator=generator, dtype=dtype))
+        z[torch.rand(rows, n_in, generator=generator) < 0.25] = torch.inf  # silent inputs
+        if rows > 3:
+            z[1] = torch.inf  # an all-silent row
+            z[2, : n_in // 2] = z[2, 0]  # a tie of half the row
+            z[3] = torch.round(z[3] * 2) / 2  # many ties
+        w = torch.randn(n_in, n_out, generator=generator, dtype=dtype) / n_in**0.5 + 3.0 / n_in
+        return z, w
+
+    return make

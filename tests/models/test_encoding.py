@@ -103,6 +103,7 @@ def test_training_with_the_default_equals_an_explicit_near_first(datasets):
         assert not torch.equal(a, c)  # the choice is used: other inputs, other weights
 
 
+# one train() call a setting, written out: each test's own (alike in form)
 def test_the_choice_is_recorded_and_survives_a_checkpoint(datasets, tmp_path):
     from simlidar.bench.early import early_decisions
 

@@ -16,18 +16,6 @@ import torch
 from simlidar.models import ttfs, ttfs_kernels
 
 
-def _batch(rows: int, n_in: int, n_out: int, seed: int, dtype=torch.float64):
-    generator = torch.Generator().manual_seed(seed)
-    z = torch.exp(3 * torch.rand(rows, n_in, generator=generator, dtype=dtype))
-    z[torch.rand(rows, n_in, generator=generator) < 0.25] = torch.inf  # silent inputs
-    if rows > 3:
-        z[1] = torch.inf  # an all-silent row
-        z[2, : n_in // 2] = z[2, 0]  # a tie of half the row
-        z[3] = torch.round(z[3] * 2) / 2  # many ties
-    w = torch.randn(n_in, n_out, generator=generator, dtype=dtype) / n_in**0.5 + 3.0 / n_in
-    return z, w
-
-
 def _run(layer, z, w, seed: int):
     z, w = z.clone().requires_grad_(), w.clone().requires_grad_()
     out = layer(z, w)
@@ -42,8 +30,8 @@ def _run(layer, z, w, seed: int):
 
 @pytest.mark.parametrize(("rows", "n_in", "n_out"), [(40, 30, 12), (7, 256, 50), (0, 10, 4)])
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_the_kernels_give_the_reference_spikes_and_gradients(rows, n_in, n_out, seed):
-    z, w = _batch(rows, n_in, n_out, seed)
+def test_the_kernels_give_the_reference_spikes_and_gradients(rows, n_in, n_out, seed, dense_case):
+    z, w = dense_case(rows, n_in, n_out, seed)
     ref = _run(ttfs.dense_torch, z, w, seed)
     fast = _run(ttfs.dense, z, w, seed)
     assert torch.equal(torch.isfinite(ref[0]), torch.isfinite(fast[0]))  # the same silent set
@@ -56,12 +44,12 @@ def test_the_kernels_give_the_reference_spikes_and_gradients(rows, n_in, n_out, 
 
 
 @pytest.mark.parametrize("seed", [0, 3])
-def test_float32_inputs_get_float64_decisions(seed):
+def test_float32_inputs_get_float64_decisions(seed, dense_case):
     """The kernels sum in float64: on float32 inputs their spikes are the float64 ones rounded
     to float32, where float32 sums lose digits near the threshold (seed 3: one neuron of
     24,000 fired in float64 and was silent in the float32 batched reference that the torch
     form replaced; test_ttfs_torch.py finds such batches for the torch form's own sums)."""
-    z, w = _batch(60, 256, 400, seed, torch.float32)
+    z, w = dense_case(60, 256, 400, seed, torch.float32)
     fast = _run(ttfs.dense, z, w, seed)
     exact = _run(ttfs.dense_torch, z.double(), w.double(), seed)
     assert torch.equal(torch.isfinite(fast[0]), torch.isfinite(exact[0]))
@@ -92,7 +80,7 @@ def test_the_convolution_matches_its_reference(fast, batch, stride, padding, ker
         assert 0 < fired.float().mean() < 1
 
 
-def test_the_thread_count_changes_nothing_but_rounding():
+def test_the_thread_count_changes_nothing_but_rounding(dense_case):
     if numba.config.NUMBA_NUM_THREADS < 2:  # NUMBA_NUM_THREADS=1 caps set_num_threads at 1:
         # compare in a process allowed two threads (numba runs more threads than cores)
         env = {**os.environ, "NUMBA_NUM_THREADS": "2"}
@@ -100,7 +88,7 @@ def test_the_thread_count_changes_nothing_but_rounding():
         done = subprocess.run([sys.executable, "-m", "pytest", "-q", test], env=env)
         assert done.returncode == 0
         return
-    z, w = _batch(50, 40, 16, 5)
+    z, w = dense_case(50, 40, 16, 5)
     previous = numba.get_num_threads()
     try:
         numba.set_num_threads(1)

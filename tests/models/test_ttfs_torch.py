@@ -24,18 +24,6 @@ from simlidar.models import ttfs, ttfs_kernels
 from simlidar.models.networks import dense_snn
 
 
-def _batch(rows: int, n_in: int, n_out: int, seed: int, dtype=torch.float64):
-    generator = torch.Generator().manual_seed(seed)
-    z = torch.exp(3 * torch.rand(rows, n_in, generator=generator, dtype=dtype))
-    z[torch.rand(rows, n_in, generator=generator) < 0.25] = torch.inf  # silent inputs
-    if rows > 3:
-        z[1] = torch.inf  # an all-silent row
-        z[2, : n_in // 2] = z[2, 0]  # a tie of half the row
-        z[3] = torch.round(z[3] * 2) / 2  # many ties
-    w = torch.randn(n_in, n_out, generator=generator, dtype=dtype) / n_in**0.5 + 3.0 / n_in
-    return z, w
-
-
 def _run(layer, z, w, seed: int, torch_form: bool):
     """Outputs and the gradients of a random weighting of the firing outputs."""
     z, w = z.clone().requires_grad_(), w.clone().requires_grad_()
@@ -64,8 +52,8 @@ TOLERANCE = {torch.float64: 1e-10, torch.float32: 1e-5}
 
 @pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
 @pytest.mark.parametrize(("rows", "n_in", "n_out"), [(40, 30, 12), (60, 256, 400), (0, 10, 4)])
-def test_the_dense_torch_form_equals_the_kernels(dtype, rows, n_in, n_out):
-    z, w = _batch(rows, n_in, n_out, seed=rows, dtype=dtype)
+def test_the_dense_torch_form_equals_the_kernels(dtype, rows, n_in, n_out, dense_case):
+    z, w = dense_case(rows, n_in, n_out, seed=rows, dtype=dtype)
     kernels = _run(ttfs.dense, z, w, 1, torch_form=False)
     torch_form = _run(ttfs.dense, z, w, 1, torch_form=True)
     fired = _same(kernels, torch_form, TOLERANCE[dtype])
@@ -73,13 +61,13 @@ def test_the_dense_torch_form_equals_the_kernels(dtype, rows, n_in, n_out):
         assert 0 < fired.float().mean() < 1  # both firing and silent neurons were compared
 
 
-def test_float32_decisions_are_made_in_float64():
+def test_float32_decisions_are_made_in_float64(dense_case):
     """Float32 60 x 256 -> 400 batches on which prefix sums run in float32 (``_first_spikes`` on
     float32 tensors) fire or silence a neuron otherwise than in float64 (one of 24,000, in some
     of the seeds): the torch form decides as float64 does, as the kernels do."""
     hard = 0
     for seed in range(8):
-        z, w = _batch(60, 256, 400, seed, torch.float32)
+        z, w = dense_case(60, 256, 400, seed, torch.float32)
         in_float32 = torch.isfinite(ttfs._first_spikes(z, w)[0])
         in_float64 = torch.isfinite(ttfs._first_spikes(z.double(), w.double())[0])
         if torch.equal(in_float32, in_float64):
@@ -93,8 +81,8 @@ def test_float32_decisions_are_made_in_float64():
     assert hard >= 1
 
 
-def test_mixed_dtypes_promote_as_the_kernels_do():
-    z, w = _batch(20, 16, 8, 5, torch.float32)
+def test_mixed_dtypes_promote_as_the_kernels_do(dense_case):
+    z, w = dense_case(20, 16, 8, 5, torch.float32)
     w = w.double()
     kernels = _run(ttfs.dense, z, w, 2, torch_form=False)
     torch_form = _run(ttfs.dense, z, w, 2, torch_form=True)
@@ -126,8 +114,8 @@ def test_the_convolution_torch_form_equals_the_kernels(
         assert 0 < fired.float().mean() < 1
 
 
-def test_many_chunks_give_what_one_chunk_gives(monkeypatch):
-    z, w = _batch(40, 30, 12, 6)
+def test_many_chunks_give_what_one_chunk_gives(monkeypatch, dense_case):
+    z, w = dense_case(40, 30, 12, 6)
     z[20:32] = torch.inf  # with 4 rows a chunk, whole chunks of silent rows
     one = _run(ttfs.dense, z, w, 3, torch_form=True)
     monkeypatch.setitem(ttfs.CHUNK_ELEMENTS, "cpu", 4 * 30 * 12)
@@ -141,8 +129,8 @@ def _refuse(*args, **kwargs):
     raise AssertionError("the torch form must not call the compiled kernels or numpy")
 
 
-def test_inside_torch_form_no_kernel_runs_and_nothing_goes_through_numpy(monkeypatch):
-    z, w = _batch(10, 12, 5, 7)
+def test_inside_torch_form_no_kernel_runs_and_nothing_goes_through_numpy(monkeypatch, dense_case):
+    z, w = dense_case(10, 12, 5, 7)
     zc = torch.exp(torch.rand(2, 2, 6, 6, dtype=torch.float64))
     wc = torch.rand(3, 2, 3, 3, dtype=torch.float64) * 0.5
     for name in ("forward", "backward", "conv_forward", "conv_backward"):
@@ -156,7 +144,7 @@ def test_inside_torch_form_no_kernel_runs_and_nothing_goes_through_numpy(monkeyp
         ttfs.dense(z, w)
 
 
-def test_outside_torch_form_the_cpu_runs_the_kernels(monkeypatch):
+def test_outside_torch_form_the_cpu_runs_the_kernels(monkeypatch, dense_case):
     calls = []
     real = ttfs_kernels.forward
 
@@ -165,7 +153,7 @@ def test_outside_torch_form_the_cpu_runs_the_kernels(monkeypatch):
         return real(*args)
 
     monkeypatch.setattr(ttfs_kernels, "forward", counted)
-    z, w = _batch(10, 12, 5, 8)
+    z, w = dense_case(10, 12, 5, 8)
     ttfs.dense(z, w)
     with ttfs.torch_form():
         ttfs.dense(z, w)

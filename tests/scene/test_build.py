@@ -1,6 +1,6 @@
 import numpy as np
 
-from simlidar.scene.build import CELL_HALF_EXTENT_M, build_batch
+from simlidar.scene.build import CELL_HALF_EXTENT_M
 from simlidar.scene.primitives import arch, box, cylinder
 
 
@@ -19,17 +19,11 @@ def test_closed_templates_wind_outward():
         assert (outward > 0).all()
 
 
-def test_a_batch_of_every_class(catalog):
+def test_a_batch_of_every_class(catalog, scene_batch):
     n = 64
     rng = np.random.default_rng(0)
     layout, obj = np.arange(n) % 8, np.arange(n) // 8 % 4
-    batch = build_batch(
-        catalog,
-        layout,
-        obj,
-        rng.random((n, catalog.layout_columns)),
-        rng.random((n, catalog.object_columns)),
-    )
+    batch = scene_batch(layout, obj, rng)
     assert batch.triangles.shape[1:] == (3, 3)
     assert set(np.unique(batch.sample)) == set(range(n))
     assert np.abs(batch.triangles).max() <= CELL_HALF_EXTENT_M
@@ -43,16 +37,10 @@ def test_a_batch_of_every_class(catalog):
     assert (pose[:, 0] >= 3.0).all() and (pose[:, 0] <= 25.0).all()  # distance ahead
 
 
-def test_objects_stand_where_their_pose_says(catalog):
+def test_objects_stand_where_their_pose_says(scene_batch):
     rng = np.random.default_rng(1)
     n = 12
-    batch = build_batch(
-        catalog,
-        np.zeros(n, int),
-        np.full(n, 1),
-        rng.random((n, catalog.layout_columns)),
-        rng.random((n, catalog.object_columns)),
-    )
+    batch = scene_batch(np.zeros(n, int), np.full(n, 1), rng)
     for k in range(n):
         car = batch.triangles[(batch.sample == k) & batch.is_object].reshape(-1, 3)
         x, y, _ = batch.object_pose[k]

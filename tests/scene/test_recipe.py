@@ -12,7 +12,8 @@ import pytest
 
 from simlidar.errors import RecipeError
 from simlidar.scene import expr
-from simlidar.scene.recipe import Param, load_catalog
+from simlidar.scene.parse import Param
+from simlidar.scene.recipe import load_catalog
 
 PAPER_LAYOUTS = [
     "tunnel",
@@ -61,6 +62,7 @@ def _edit(root, name, old, new):
     return path
 
 
+# one broken recipe a row: the cases are data, alike in form
 @pytest.mark.parametrize(
     "name, old, new, key",
     [

@@ -8,7 +8,8 @@ import pytest
 from simlidar.errors import RecipeError
 from simlidar.scene import expr
 from simlidar.scene.expr import MAX_EXPRESSION_CHARS, MAX_EXPRESSION_DEPTH
-from simlidar.scene.recipe import MAX_RECIPE_BYTES, MAX_REPEAT, MAX_TRIANGLES, load_catalog
+from simlidar.scene.parse import MAX_RECIPE_BYTES, MAX_REPEAT, MAX_TRIANGLES
+from simlidar.scene.recipe import load_catalog
 
 TUNNEL = "layouts/tunnel.toml"
 WALL = "tunnel.toml: primitive[1]"  # the tunnel's walls: a repeated box

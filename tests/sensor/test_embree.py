@@ -5,21 +5,14 @@ import sys
 import numpy as np
 import pytest
 
-from simlidar.scene.build import build_batch
 from simlidar.sensor import default_sensor, embree, window_rays
 from simlidar.sensor.raycast import cast
 
 
-def _batch(catalog, n, seed):
+def _batch(scene_batch, n, seed):
     rng = np.random.default_rng(seed)
     layout, obj = rng.integers(0, 8, n), rng.integers(0, 4, n)
-    scene = build_batch(
-        catalog,
-        layout,
-        obj,
-        rng.random((n, catalog.layout_columns)),
-        rng.random((n, catalog.object_columns)),
-    )
+    scene = scene_batch(layout, obj, rng)
     origins, directions = window_rays(default_sensor(), 16, 36.0, rng.random(n))
     return scene, origins, directions
 
@@ -30,8 +23,8 @@ def test_the_shared_path_is_on_where_embreex_ships_its_library():
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_hits_equal_embreex_triangle_mesh(catalog, seed):
-    scene, origins, directions = _batch(catalog, 256, seed)
+def test_hits_equal_embreex_triangle_mesh(scene_batch, seed):
+    scene, origins, directions = _batch(scene_batch, 256, seed)
     slots = np.arange(256) * 7 + seed
     a = cast(scene, origins, directions, slots, 100.0, shared=True)
     b = cast(scene, origins, directions, slots, 100.0, shared=False)
@@ -85,8 +78,8 @@ def test_only_an_embreex_scene_is_accepted():
         embree.attach_triangles(object(), np.ones((1, 3, 3)))
 
 
-def test_without_the_shared_path_the_cast_falls_back_and_says_so_once(catalog, monkeypatch):
-    scene, origins, directions = _batch(catalog, 32, 2)
+def test_without_the_shared_path_the_cast_falls_back_and_says_so_once(scene_batch, monkeypatch):
+    scene, origins, directions = _batch(scene_batch, 32, 2)
     slots = np.arange(32)
     expected = cast(scene, origins, directions, slots, 100.0)
     monkeypatch.setattr(embree, "_embree", lambda: None)

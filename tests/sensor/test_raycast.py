@@ -9,7 +9,7 @@ import pytest
 from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.pulses import delays_from_range, quantise_range
-from simlidar.scene.build import SceneBatch, build_batch
+from simlidar.scene.build import SceneBatch
 from simlidar.scene.primitives import box
 from simlidar.sensor import default_sensor, row_order, window_rays
 from simlidar.sensor.raycast import cast
@@ -82,22 +82,15 @@ def test_nothing_beyond_the_range_limits():
         assert np.isnan(r).all()
 
 
-def _real_batch(catalog, n=48, seed=3):
+def _real_batch(scene_batch, n=48, seed=3):
     rng = np.random.default_rng(seed)
-    layout, obj = np.arange(n) % 8, np.arange(n) % 4
-    scene = build_batch(
-        catalog,
-        layout,
-        obj,
-        rng.random((n, catalog.layout_columns)),
-        rng.random((n, catalog.object_columns)),
-    )
+    scene = scene_batch(np.arange(n) % 8, np.arange(n) % 4, rng)
     origins, directions = window_rays(default_sensor(), 16, 48.0, rng.random(n))
     return scene, origins, directions
 
 
-def test_culling_changes_nothing(catalog):
-    scene, origins, directions = _real_batch(catalog)
+def test_culling_changes_nothing(scene_batch):
+    scene, origins, directions = _real_batch(scene_batch)
     slots = np.arange(len(origins))
     a = cast(scene, origins, directions, slots, 100.0, cull=True)
     b = cast(scene, origins, directions, slots, 100.0, cull=False)
@@ -105,11 +98,11 @@ def test_culling_changes_nothing(catalog):
     np.testing.assert_array_equal(a.surface, b.surface)
 
 
-def test_agrees_with_trimesh_pure_numpy_ray_code(catalog):
+def test_agrees_with_trimesh_pure_numpy_ray_code(scene_batch):
     import trimesh
     from trimesh.ray.ray_triangle import RayMeshIntersector
 
-    scene, origins, directions = _real_batch(catalog, n=16, seed=5)
+    scene, origins, directions = _real_batch(scene_batch, n=16, seed=5)
     hits = cast(scene, origins, directions, np.arange(16), 100.0)
     agree = total = 0
     for k in range(16):

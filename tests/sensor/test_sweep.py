@@ -8,16 +8,12 @@ import h5py
 import numpy as np
 import pytest
 
+from simlidar.dataset.schema import POINT_DTYPE
 from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
-from simlidar.generator.sweep import (
-    POINT_DTYPE,
-    SweepConfig,
-    export_frame,
-    frame_points,
-    read_frame,
-    sweep,
-)
+from simlidar.generator.exports import export_frame
+from simlidar.generator.frames import frame_points, read_frame
+from simlidar.generator.sweep import SweepConfig, sweep
 from simlidar.sensor import default_sensor, load_sensor, row_order
 from simlidar.sensor.rays import (
     cycles_per_rotation,
