@@ -81,6 +81,8 @@ VARIANTS.update(
         "crops-farthest": (FARTHEST, KEEP),
         "crops-farthest-exp0.1": (FARTHEST, {**KEEP, "early_penalty": 0.1, "early_form": "exp"}),
         "crops-farthest-exp0.3": (FARTHEST, {**KEEP, "early_penalty": 0.3, "early_form": "exp"}),
+        "crops-near-gate256": ({**NEAR, "input_budget": 256}, KEEP),
+        "crops-near-gate1024": ({**NEAR, "input_budget": 1024}, KEEP),
     }
 )
 PUBLISHED = [  # near: benchmark/early_tradeoff.py's curve
@@ -145,6 +147,16 @@ def summarise(cells: dict[str, list[dict]], curves: dict) -> list[dict]:
                 np.mean([c["early"]["input_spikes_authors_mean"] for c in found])
             ),
             "no_decision": int(sum(c["early"]["no_decision"] for c in found)),
+            # behind a gate: the input spikes that had arrived by the decision
+            **(
+                {
+                    "arrived_median": float(
+                        np.median(np.concatenate([c["input_spikes_arrived"] for c in found]))
+                    )
+                }
+                if all("input_spikes_arrived" in c for c in found)
+                else {}
+            ),
             "epochs": sorted({c["epochs"] for c in found}),
         }
         if curve is not None:
@@ -238,8 +250,9 @@ def main(argv=None) -> int:
     }
     rows = summarise(found, curves)
     goals = [] if args.no_targets else [targets(rows, e) for e in curves]
+    given = argv if argv is not None else sys.argv[1:]  # --no-train writes what training would
     command = "python benchmark/early_objectives.py" + "".join(
-        f" {a}" for a in (argv if argv is not None else sys.argv[1:])
+        f" {a}" for a in given if a != "--no-train"
     )
     write(args.out, rows, goals, curves, command, f"{dataset.name}` ({args.recipe}")
     return 0
@@ -252,7 +265,9 @@ def write(out: Path, rows: list[dict], goals: list[dict], curves: dict, command:
         "Test accuracy (event-driven: the first output spike decides), mean "
         "± std over seeds; input spikes consumed before the decision: median over every "
         "test sample of every seed (p10 / p90, max), and the mean by the authors' rule "
-        "(0 < t < t_out); the bound at the median k (`benchmark/early_bound.py`; * read "
+        "(0 < t < t_out); behind an input budget, the median of the input spikes that had "
+        "arrived by the decision, let through the gate or not; the bound at the median k "
+        "(`benchmark/early_bound.py`; * read "
         "linearly between measured k).",
         "",
         "| variant | encoding | objective | accuracy | input spikes: median (p10 / p90, max) "
@@ -261,7 +276,12 @@ def write(out: Path, rows: list[dict], goals: list[dict], curves: dict, command:
     ]
     for r in rows:
         std = f" ± {r['accuracy_std']:.2f}" if r["accuracy_std"] is not None else ""
-        objective = ", ".join(f"{k} {v}" for k, v in r["training"].items()) or "none"
+        budget = r["architecture"].get("input_budget")
+        gate = [f"input_budget {budget}"] if budget else []
+        objective = ", ".join([f"{k} {v}" for k, v in r["training"].items()] + gate) or "none"
+        arrived = (
+            f"; arrived by the decision {r['arrived_median']:.0f}" if "arrived_median" in r else ""
+        )
         bound = (
             f"{r['bound']:.1f}{'' if r['bound_measured'] else '*'} | {r['gap']:+.1f}"
             if "bound" in r
@@ -270,7 +290,8 @@ def write(out: Path, rows: list[dict], goals: list[dict], curves: dict, command:
         lines.append(
             f"| {r['variant']} | {encoding_of(r['architecture'])} | {objective} | "
             f"{r['accuracy']:.2f}{std} (n={len(r['seeds'])}) | {r['median']:.0f} "
-            f"({r['p10']:.0f} / {r['p90']:.0f}, {r['max']}) | {r['authors_mean']:.1f} | {bound} "
+            f"({r['p10']:.0f} / {r['p90']:.0f}, {r['max']}){arrived} | "
+            f"{r['authors_mean']:.1f} | {bound} "
             f"| {r['no_decision']} | {'/'.join(map(str, r['epochs']))} |"
         )
     if goals:
@@ -304,7 +325,8 @@ def write(out: Path, rows: list[dict], goals: list[dict], curves: dict, command:
     for r in rows:
         d = r["architecture"]["direction"]
         err = r["accuracy_std"] or 0
-        ax.errorbar(r["median"], r["accuracy"], yerr=err, fmt="o", color=colours[d], ms=4)
+        fmt = "s" if "input_budget" in r["architecture"] else "o"  # squares: behind a gate
+        ax.errorbar(r["median"], r["accuracy"], yerr=err, fmt=fmt, color=colours[d], ms=4)
         ax.annotate(
             r["variant"],
             (r["median"], r["accuracy"]),

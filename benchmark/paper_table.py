@@ -80,6 +80,9 @@ def _cell(
         "history": result.history,
         "early": {k: v for k, v in early.items() if k != "per_sample"},
         "input_spikes": early["per_sample"]["input_spikes"],
+        **{  # behind an input budget: what had arrived by each decision
+            k: early["per_sample"][k] for k in ("input_spikes_arrived",) if k in early["per_sample"]
+        },
         "decision_time_ns": early["per_sample"]["decision_time_ns"],
     }
     tmp = Path(path).with_suffix(".partial")

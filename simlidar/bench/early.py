@@ -22,18 +22,25 @@ def decisions(model: torch.nn.Module, dataset: str | Path, split: str = "test"):
         (:func:`~simlidar.dataset.loaders.delay_unit_ns`; None if the dataset is not a LiDAR
         one, or if the network's clock is not the sensor's: a ``far_first`` encoding spikes
         far returns first, which no sensor can do before the window's end), each sample's last
-        input spike as a delay (N,) (0 for a sample without any)
+        input spike as a delay (N,) (0 for a sample without any), and for a network behind an
+        input budget (``input_budget``) the input spikes that had arrived by each decision,
+        the gate's or not (N,) (None without a budget: they are the ones consumed)
     """
     x, y = load_split(dataset, split)
     attrs = split_info(dataset, split).attrs  # one read of the attributes
     silent_from = spike_threshold(attrs)
-    z = model.input_spikes(torch.from_numpy(x.astype(np.float64))[:, None])
+    delays = torch.from_numpy(x.astype(np.float64))[:, None]
+    z = model.input_spikes(delays)
     runs = []
     for start in range(0, len(z), BATCH):
         runs += decide_all(model, z[start : start + BATCH])
     last = np.where(x < silent_from, x, 0.0).reshape(len(x), -1).max(axis=1, initial=0.0)
     in_sensor_time = getattr(model, "direction", ttfs.NEAR_FIRST) == ttfs.NEAR_FIRST
-    return runs, y, delay_unit_ns(attrs) if in_sensor_time else None, last
+    arrived = None
+    if getattr(model, "input_budget", None) is not None:  # the delivery rule of decide_all
+        sent = model.arriving_spikes(delays).flatten(1).numpy()
+        arrived = np.array([int((s <= d.z).sum()) for s, d in zip(sent, runs)])
+    return runs, y, delay_unit_ns(attrs) if in_sensor_time else None, last, arrived
 
 
 def early_decisions(
@@ -49,7 +56,7 @@ def early_decisions(
     ``wait_saved_mean`` the mean fraction of that wait a decided sample did not need,
     ``1 - decision / last input``. Under a ``far_first`` encoding the network's clock is not
     the sensor's, and these sensor times are None (``decision_time_mean`` is network time)."""
-    runs, y, unit_ns, last = decisions(model, dataset, split)
+    runs, y, unit_ns, last, arrived = decisions(model, dataset, split)
     decided = [d for d in runs if d.label >= 0]
     spikes = np.array([d.spikes for d in runs])
     times_ns = [d.time_ns(model.scale, unit_ns) if d.label >= 0 and unit_ns else None for d in runs]
@@ -71,12 +78,16 @@ def early_decisions(
         "accumulates_mean": float(np.mean([d.accumulates for d in runs])),
         "energy_pj_mean": {str(a): float(spikes.mean() * a) for a in ALPHAS_PJ},
     }
+    if arrived is not None:  # behind an input budget: what had arrived, let through or not
+        summary["input_spikes_arrived_mean"] = float(arrived.mean())
     if per_sample:
         summary["per_sample"] = {
             "decision_time_ns": times_ns,
             "input_spikes": [d.input_spikes for d in runs],
             "input_spikes_authors": [d.input_spikes_authors for d in runs],
         }
+        if arrived is not None:
+            summary["per_sample"]["input_spikes_arrived"] = arrived.tolist()
     return summary
 
 

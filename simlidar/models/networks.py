@@ -80,8 +80,12 @@ class SpikingNet(nn.Module):
     def input_spikes(self, delays: torch.Tensor) -> torch.Tensor:
         """Delays (B, C, H, W) -> the input spikes (z domain, inf = none) by this network's
         encoding (:func:`simlidar.models.ttfs.encode`), through its input budget's gate."""
-        z = ttfs.encode(delays, self.scale, self.silent_from, self.direction, self.missing)
+        z = self.arriving_spikes(delays)
         return z if self.input_budget is None else ttfs.first_spikes(z, self.input_budget)
+
+    def arriving_spikes(self, delays: torch.Tensor) -> torch.Tensor:
+        """The input spikes before the input budget's gate: every spike the data send."""
+        return ttfs.encode(delays, self.scale, self.silent_from, self.direction, self.missing)
 
     def penalty(self) -> torch.Tensor:
         """Mean weight-sum penalty over layers (keeps every neuron able to fire)."""

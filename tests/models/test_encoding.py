@@ -187,6 +187,17 @@ def test_a_network_behind_the_budget_never_consumes_more(datasets):
     early = early_decisions(result.model, datasets[0.1], per_sample=True)
     assert max(early["per_sample"]["input_spikes"]) <= arrived.max()
     assert early["input_spikes_total_mean"] == pytest.approx(arrived.double().mean().item())
+    # what had arrived by each decision, let through or not: at least what was consumed, and
+    # by decide_all's rule (every spike at or before the output spike) on the ungated spikes
+    delays = torch.from_numpy(x.astype(np.float64))[:, None]  # as the evaluator reads them
+    sent = result.model.arriving_spikes(delays)
+    got = early["per_sample"]["input_spikes_arrived"]
+    assert all(a >= c for a, c in zip(got, early["per_sample"]["input_spikes"]))
+    assert early["input_spikes_arrived_mean"] == pytest.approx(np.mean(got))
+    runs = decide_all(result.model, result.model.input_spikes(delays[:5]))
+    assert got[:5] == [int((s <= d.z).sum()) for s, d in zip(sent.flatten(1)[:5], runs[:5])]
+    ungated = train(_tiny(), datasets[0.1], seed=0, epochs=1, progress=False)
+    assert "input_spikes_arrived_mean" not in early_decisions(ungated.model, datasets[0.1])
 
 
 @pytest.mark.parametrize("builder", ["dense", "cnn"])
