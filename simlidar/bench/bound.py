@@ -17,16 +17,17 @@ improvement. Seeded: one torch.Generator per seed drives the initial weights and
 order. Times are taken with scale 1 (t in [0, 1]); the scale does not change the order.
 
 The clock. Under flash timing a spike's time is its pulse's time of flight. Under scan timing
-(``simlidar generate --timing scan``) it is the pulse's arrival in the sweep, emission plus time
-of flight, and the emission (its column's place in a 9.5 ms window, shifted from sample to
-sample by the firing phase) is a hundred times larger than any time of flight: fed as they
-arrive, the range is a ripple the learner does not find (3-6 %, chance 3.1 %, at every k;
-benchmark/results/early-bound-scan/). The sensor knows when it fired each laser, so the bound
-of scan-timed data by default reads the sensor's clock (``clock="sensor"``): spikes still
-arrive in arrival order, and each pixel shows what is known of its time of flight at the k-th
-spike's time T: its time of flight once it has arrived, else T minus its emission (at least 0),
-the range it is known to exceed, in units of ``tof_max_ns``. Under flash timing every emission
-is 0 and this is the view above. ``clock="arrival"`` feeds the arrival times as they are.
+(``simlidar generate --timing scan``) it is the pulse's arrival in the sweep, emission plus
+time of flight, and the emission (its column's place in a 9.5 ms window, shifted from sample to
+sample by the firing phase by up to a 55 us firing cycle) dwarfs any time of flight (at most
+667 ns): fed as they arrive, the range is a ripple the learner does not find (3-6 %, chance 3.1
+%, at every k past the first column; benchmark/results/early-bound-scan/). The sensor knows
+when it fired each laser, so the bound of scan-timed data by default reads the sensor's clock
+(``clock="sensor"``): spikes still arrive in arrival order, and each pixel shows what is known
+of its time of flight at the k-th spike's time T: its time of flight once it has arrived, else
+T minus its emission (at least 0), the range it is known to exceed, in units of ``tof_max_ns``.
+Under flash timing every emission is 0 and this is the view above. ``clock="arrival"`` feeds
+the arrival times as they are.
 """
 
 from dataclasses import asdict, dataclass
