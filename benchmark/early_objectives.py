@@ -65,11 +65,23 @@ VARIANTS = {
 # dense network trained for accuracy alone on what has arrived by the k-th spike, the view
 # the bound's learner gets; it decides on at most k spikes by construction
 VARIANTS.update({f"far-gate{k}": ({**FAR, "input_budget": k}, {}) for k in (16, 32, 64, 128)})
+# the gate and the exponential term after convergence: at most k spikes, and a decision that
+# comes before the later spikes would have arrived
+VARIANTS.update(
+    {
+        f"far-gate{k}-exp0.3-from30": (
+            {**FAR, "input_budget": k},
+            {"early_penalty": 0.3, "early_form": "exp", "early_start": 30},
+        )
+        for k in (64, 128)
+    }
+)
 # variants trained longer than --epochs: the schedule's term starts once the run without it
 # would have converged (a cosine schedule over 60 epochs is at half its rate at epoch 30)
 OWN_EPOCHS = {
     v: 60
     for v in ("far-exp0.2-from30", "far-exp0.3-from30", "far-exp0.5-from30", "far-exp1-from30")
+    + ("far-gate64-exp0.3-from30", "far-gate128-exp0.3-from30")
 }
 # the spiking CNN on simulated HDL-64E crops (issue 33, item 5): --recipe scnn_kitti
 VARIANTS.update(

@@ -50,10 +50,9 @@ class ConvTTFS(nn.Module):
         excess: float = 2.0,
         spread: float = 1.0,
         generator: torch.Generator | None = None,
-        arriving: float = 1.0,
     ):
         super().__init__()
-        fan_in = c_in * kernel * kernel * arriving
+        fan_in = c_in * kernel * kernel
         mean, std = (1.0 + excess) / fan_in, spread / math.sqrt(fan_in)
         w = torch.randn(c_out, c_in, kernel, kernel, generator=generator) * std + mean
         self.weight = nn.Parameter(w)

@@ -167,13 +167,15 @@ def spiking_cnn(  # the same keyword arguments as dense_snn on purpose: recipes 
     (:class:`SpikingNet`)."""
     c, h, w = input_shape
     layers: list[nn.Module] = []
-    arriving = _arriving(input_shape, input_budget)
+    # behind an input budget only a first dense layer starts for the inputs that arrive: a
+    # convolution's patch arrives together or not at all (near returns first: the object and
+    # the road close by), and scaled for the whole image's fraction its neurons blew up
+    # (benchmark/results/early-objectives-crops/)
+    arriving = 1.0 if conv else _arriving(input_shape, input_budget)
+    _check_budget(input_budget)
     for channels, kernel, stride in conv:
         pad = kernel // 2
-        layers.append(
-            ConvTTFS(c, channels, kernel, stride, pad, excess, spread, generator, arriving)
-        )
-        arriving = 1.0
+        layers.append(ConvTTFS(c, channels, kernel, stride, pad, excess, spread, generator))
         c = channels
         h, w = (h + 2 * pad - kernel) // stride + 1, (w + 2 * pad - kernel) // stride + 1
     sizes = [c * h * w] + list(dense) + [classes]

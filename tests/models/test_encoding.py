@@ -200,18 +200,34 @@ def test_a_network_behind_the_budget_never_consumes_more(datasets):
     assert "input_spikes_arrived_mean" not in early_decisions(ungated.model, datasets[0.1])
 
 
-@pytest.mark.parametrize("builder", ["dense", "cnn"])
-def test_behind_a_small_budget_the_first_layer_can_fire(builder):
+def test_behind_a_small_budget_the_first_dense_layer_can_fire():
     # 16 of 256 inputs arrive: weights started for all 256 would sum to about 3 * 16 / 256 and
     # never fire; started for the 16 that arrive, most first-layer neurons fire
-    from simlidar.models.networks import spiking_cnn
-
-    make = dense_snn if builder == "dense" else spiking_cnn
     delays = torch.rand((64, 1, 16, 16), generator=torch.Generator().manual_seed(1)).double()
     for budget, firing in ((None, 0.9), (16, 0.5)):
-        model = make((1, 16, 16), 4, torch.Generator().manual_seed(0), input_budget=budget)
+        model = dense_snn((1, 16, 16), 4, torch.Generator().manual_seed(0), input_budget=budget)
         model.double()
         z = model.input_spikes(delays)
         assert budget is None or (torch.isfinite(z).flatten(1).sum(1) == budget).all()
         first = model.layers[0](z)
         assert torch.isfinite(first).double().mean() > firing, budget
+
+
+def test_behind_a_budget_a_convolution_keeps_its_weights():
+    # a patch arrives together (near returns first: the object and the road close by), so a
+    # convolution starts as without a gate, and a neuron over the arrived patch fires
+    from simlidar.models.networks import spiking_cnn
+
+    def make(budget):
+        return spiking_cnn((1, 16, 16), 4, torch.Generator().manual_seed(0), input_budget=budget)
+
+    gated, free = make(25), make(None)
+    for a, b in zip(gated.layers[:2], free.layers[:2]):
+        assert torch.equal(a.weight, b.weight)
+    delays = 0.5 + 0.5 * torch.rand((64, 1, 16, 16), generator=torch.Generator().manual_seed(1))
+    delays[:, :, :5, :5] *= 0.1  # the 25 nearest returns: one 5 x 5 patch
+    gated.double()
+    z = gated.input_spikes(delays.double())
+    assert (torch.isfinite(z[:, :, :5, :5]).flatten(1).sum(1) == 25).all()
+    first = gated.layers[0](z)  # kernel 5, stride 2, padding 2: output (1, 1) sees rows 0-4
+    assert torch.isfinite(first[:, :, 1, 1]).double().mean() > 0.5
