@@ -8,7 +8,9 @@ of a cosine schedule, fresh noise every epoch) on the default profile's noise-0.
 under each variant of :data:`VARIANTS`: an input encoding (``direction``) and an
 early-decision objective (``simlidar.models.ttfs.early_term``: Goeltz et al. 2021's
 exp(t / beta) with their input noise, here the fresh noise draw of every epoch; S4NN's relative
-targets; the linear term; a schedule that adds the term only after accuracy has converged).
+targets; the linear term; a schedule that adds the term only after accuracy has converged),
+and a gate that lets only each sample's first k input spikes through (``input_budget``), with
+and without the term.
 Each (variant, seed) is a JSON cell under ``--out``/cells (a rerun resumes; cells of
 ``benchmark/early_tradeoff.py`` are the same kind of record).
 
