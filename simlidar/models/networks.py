@@ -170,9 +170,8 @@ def spiking_cnn(  # the same keyword arguments as dense_snn on purpose: recipes 
     # behind an input budget only a first dense layer starts for the inputs that arrive: a
     # convolution's patch arrives together or not at all (near returns first: the object and
     # the road close by), and scaled for the whole image's fraction its neurons blew up
-    # (benchmark/results/early-objectives-crops/)
+    # (benchmark/results/early-objectives-crops/scaled-init/); SpikingNet checks the budget
     arriving = 1.0 if conv else _arriving(input_shape, input_budget)
-    _check_budget(input_budget)
     for channels, kernel, stride in conv:
         pad = kernel // 2
         layers.append(ConvTTFS(c, channels, kernel, stride, pad, excess, spread, generator))
