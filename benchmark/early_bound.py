@@ -17,25 +17,39 @@ median input spikes consumed and accuracy) are written from every run under ``--
 
 import argparse
 import json
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from simlidar.bench.hardware import MAX_THREADS, check_threads
+from simlidar.models import ttfs
+from simlidar.script_args import choices, integers, run
+
 ROOT = Path(__file__).resolve().parents[1]
-OUT = ROOT / "benchmark/results/early-bound"
 SUITE_CELLS = [ROOT / f"benchmark/results/{suite}/cells" for suite in ("paper", "physical")]
+
+
+# the learner's widest hidden layer: 16 times the published 256 (a 4096 x 4096 layer is 64 MiB)
+MAX_HIDDEN = 4096
+ENCODINGS = tuple(f"{d}/{m}" for d in ttfs.DIRECTIONS for m in ttfs.MISSING)
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("datasets", nargs="*", type=Path, help="dataset directories")
-    parser.add_argument("--encodings", default="near_first/as_value,far_first/as_value")
-    parser.add_argument("--ks", default="4,8,16,32,64,128,180,256")
-    parser.add_argument("--seeds", default="0,1,2")
-    parser.add_argument("--hidden", default="256,256", help="the learner's hidden layers")
+    parser.add_argument(
+        "--encodings", type=choices(ENCODINGS), default="near_first/as_value,far_first/as_value"
+    )
+    parser.add_argument("--ks", type=integers(1), default="4,8,16,32,64,128,180,256")
+    parser.add_argument("--seeds", type=integers(0, 2**32 - 1), default="0,1,2")
+    parser.add_argument(
+        "--hidden",
+        type=integers(1, MAX_HIDDEN),
+        default="256,256",
+        help="the learner's hidden layers",
+    )
     parser.add_argument(
         "--clock",
         choices=("sensor", "arrival"),
@@ -43,22 +57,32 @@ def main(argv=None) -> int:
         help="scan-timed data: the learner reads each pixel's time of flight by the sensor's "
         "firing clock (sensor) or the arrival times as they are (arrival)",
     )
-    parser.add_argument("--threads", type=int, default=1)
-    parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument("--threads", type=integers(1, MAX_THREADS, one=True), default=1)
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("early-bound"),
+        help="results folder (default: ./early-bound; the published runs name "
+        "benchmark/results/early-bound*)",
+    )
     args = parser.parse_args(argv)
+    if not args.datasets and not any((args.out / "runs").glob("*.json")):
+        parser.error(f"no datasets given and no runs under {args.out / 'runs'} to report")
 
     import torch
 
     from simlidar.bench.bound import BoundConfig, dataset_bound
+    from simlidar.dataset.loaders import split_info
 
+    check_threads(args.threads)
+    for dataset in args.datasets:  # each one a dataset, before anything is written
+        split_info(dataset, "train"), split_info(dataset, "test")
     torch.set_num_threads(args.threads)
-    config = replace(BoundConfig(), hidden=tuple(int(h) for h in args.hidden.split(",")))
-    ks = tuple(int(k) for k in args.ks.split(","))
-    seeds = tuple(int(s) for s in args.seeds.split(","))
+    config = replace(BoundConfig(), hidden=args.hidden)
     runs = args.out / "runs"
     runs.mkdir(parents=True, exist_ok=True)
     for dataset in args.datasets:
-        for encoding in args.encodings.split(","):
+        for encoding in args.encodings:
             direction, missing = encoding.split("/")
             scan = "-scan-" in dataset.name
             clock = f"-{args.clock}-clock" if scan and args.clock == "sensor" else ""
@@ -68,7 +92,7 @@ def main(argv=None) -> int:
                 continue
             start = time.perf_counter()
             result = dataset_bound(
-                dataset, direction, missing, args.clock, ks=ks, seeds=seeds, config=config
+                dataset, direction, missing, args.clock, ks=args.ks, seeds=args.seeds, config=config
             )
             result.update(dataset=dataset.name, seconds=time.perf_counter() - start)
             path.write_text(json.dumps(result, indent=1) + "\n")
@@ -189,4 +213,4 @@ def plot(results: list[dict], points: list[dict], path: Path) -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

@@ -62,11 +62,12 @@ def shipped_or_path(name_or_path: str | Path, folder: str, kind: str, other: str
     return path
 
 
-def read_toml(path: Path, max_bytes: int, error=ConfigError, where: str | None = None) -> dict:
-    """Parse a TOML file: a regular file (or a link to one) of at most ``max_bytes`` bytes of
-    UTF-8; never reads more than ``max_bytes`` + 1 bytes. Any problem is an ``error`` (a
-    :class:`~simlidar.errors.SimlidarError` class) starting with ``where`` (default: the
-    path): not found, not a regular file, too large, not UTF-8, not TOML, nested too deeply."""
+def read_text(path: Path, max_bytes: int, error=ConfigError, where: str | None = None) -> str:
+    """The text of a file from elsewhere: a regular file (or a link to one) of at most
+    ``max_bytes`` bytes of UTF-8; never reads more than ``max_bytes`` + 1 bytes, and never
+    opens a named pipe or a device (which could hang or never end). Any problem is an
+    ``error`` (a :class:`~simlidar.errors.SimlidarError` class) starting with ``where``
+    (default: the path): not found, not a regular file, too large, not UTF-8."""
     where = where or str(path)
     try:
         mode = path.stat().st_mode
@@ -84,11 +85,18 @@ def read_toml(path: Path, max_bytes: int, error=ConfigError, where: str | None =
         size = max(len(data), path.stat().st_size)
         raise error(f"{where}: expected a file of at most {max_bytes} bytes, got {size} bytes")
     try:
-        text = data.decode("utf-8")
+        return data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise error(
             f"{where}: expected UTF-8 text, got byte 0x{data[exc.start]:02x} at offset {exc.start}"
         ) from None
+
+
+def read_toml(path: Path, max_bytes: int, error=ConfigError, where: str | None = None) -> dict:
+    """Parse a TOML file read by :func:`read_text` (the same checks and errors); not TOML, or
+    nested too deeply, is an ``error`` too."""
+    where = where or str(path)
+    text = read_text(path, max_bytes, error, where)
     try:
         return tomllib.loads(text)
     except RecursionError:

@@ -104,3 +104,26 @@ def check_disk(folder: str | Path, nbytes: int, what: str) -> None:
             "free there; expected enough free disk space (free some, or write elsewhere "
             "with --out)"
         )
+
+
+def thread_stack_bytes() -> int:
+    """The address space a new thread reserves for its stack: glibc's default, the soft
+    ``ulimit -s`` (8 MiB where that is unlimited), as OpenMP's threads (torch's) take it."""
+    soft, _ = resource.getrlimit(resource.RLIMIT_STACK)
+    return 8 * 2**20 if soft == resource.RLIM_INFINITY else soft
+
+
+def check_threads_room(count: int, what: str) -> None:
+    """Refuse ``count`` threads when they cannot be made under ``ulimit -v``: a ResourceError
+    naming both sizes. OpenMP aborts the process on a thread it cannot create ("libgomp:
+    Thread creation failed"), which no caller can catch. A thread is counted as twice its
+    stack: torch's threads took about 16 MiB of address space each with 8 MiB stacks (measured
+    on this project's machines: 150 then 200 threads left 122 and 9 MiB of a 4 GiB limit, 250
+    aborted)."""
+    room = _address_space_room()
+    need = 2 * count * thread_stack_bytes()
+    if room is not None and need > room:
+        raise ResourceError(
+            f"{what}: {count} threads reserve {size_text(need)} of address space for their "
+            f"stacks, {size_text(room)} is left under ulimit -v; expected fewer threads"
+        )

@@ -129,3 +129,33 @@ def test_early_objectives_reads_the_bound_and_the_targets_by_hand():
     assert goals["points_meeting_97_at_limit"] == ["far-exp0.1"]
     assert goals["points_within_5_of_bound"] == ["far-exp0.1"]
     assert goals["points_farther_than_5"] == ["far-exp1"]
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--ks", "abc"], "argument --ks: 'abc': expected comma-separated integers >= 1"),
+        (["--ks", "0"], "argument --ks: '0': expected comma-separated integers >= 1"),
+        (["--ks", "4,-5"], "argument --ks: '4,-5': expected comma-separated integers >= 1"),
+        (["--hidden", "0"], "argument --hidden: '0': expected comma-separated integers in"),
+        (["--hidden", "100000000"], "argument --hidden: '100000000': expected"),
+        (["--encodings", "nonsense"], "argument --encodings: 'nonsense': expected"),
+        (["--threads", "0"], "argument --threads: '0': expected an integer in [1, 1024]"),
+        (["missing-dataset"], "missing-dataset: expected a dataset directory with train.h5"),
+        ([], "no datasets given and no runs under"),
+    ],
+)
+def test_early_bound_refuses_a_bad_argument_in_one_line_writing_nothing(args, words, tmp_path):
+    """Each used to be a traceback (or, for --ks 0 and -5, a run); nothing is written, and the
+    default --out is the working folder's early-bound/, never the repository's results."""
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "benchmark" / "early_bound.py"), *args],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
+    assert done.returncode in (1, 2) and "Traceback" not in done.stderr, done.stderr
+    (line,) = [x for x in done.stderr.splitlines() if "error: " in x]
+    assert words in line, line
+    assert not any(tmp_path.iterdir())

@@ -11,6 +11,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 from simlidar.errors import ConfigError
+from simlidar.resources import check_threads_room
 
 DEVICES = ("auto", "cpu", "cuda")
 # one thread a cell: 0.19 times the wall time of two for a CNN cell on this project's shared
@@ -42,9 +43,11 @@ def resolve_device(name: str):
 
 
 def check_threads(threads: int) -> int:
-    """``threads`` if it is an integer in [1, MAX_THREADS]; ConfigError otherwise."""
+    """``threads`` if it is an integer in [1, MAX_THREADS] that this process can make
+    (:func:`~simlidar.resources.check_threads_room`); ConfigError or ResourceError otherwise."""
     if isinstance(threads, bool) or not isinstance(threads, int) or not 1 <= threads <= MAX_THREADS:
         raise ConfigError(f"threads={threads!r}: expected an integer in [1, {MAX_THREADS}]")
+    check_threads_room(threads, f"--threads {threads}")
     return threads
 
 

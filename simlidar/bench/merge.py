@@ -18,14 +18,13 @@ into one row.
 
 import functools
 import json
-import math
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from simlidar import __version__
 from simlidar.atomic import building
-from simlidar.bench.outdir import machine, write_json
+from simlidar.bench.outdir import load_json, machine, write_json
 from simlidar.bench.report import write_report
 from simlidar.errors import ResultsError
 
@@ -67,20 +66,8 @@ def check_cell(cell, where: str | Path) -> None:
 
 
 def read_cell(path: Path) -> dict:
-    """One cell file, checked against the schema; NaN (which Python's json module reads, and a
-    schema's ranges cannot catch) is refused too."""
-
-    def constant(name: str) -> float:
-        if name == "NaN":
-            raise ValueError("NaN is not a number a cell may hold")
-        return math.inf if name == "Infinity" else -math.inf
-
-    try:
-        cell = json.loads(path.read_text(), parse_constant=constant)
-    except (OSError, ValueError) as exc:  # ValueError: not UTF-8, not JSON, NaN
-        raise ResultsError(
-            f"{path}: cannot be read ({exc}); expected a cell as simlidar bench writes it"
-        ) from None
+    """One cell file (:func:`~simlidar.bench.outdir.load_json`), checked against the schema."""
+    cell = load_json(path)
     check_cell(cell, path)
     return cell
 
@@ -109,9 +96,10 @@ def read_run(folder: Path) -> Run:
             "written by simlidar bench"
         )
     suite = None
-    try:
-        suite = json.loads((folder / "suite.json").read_text()).get("name")
-    except (OSError, ValueError, AttributeError):
+    try:  # never opens a pipe or a device in its place (load_json)
+        owner = load_json(folder / "suite.json", "suite.json as simlidar bench writes it")
+        suite = owner.get("name") if isinstance(owner, dict) else None
+    except ResultsError:
         pass  # cells without suite.json (written by the Python API, copied by hand) are fine
     run = Run(folder, suite if isinstance(suite, str) and suite else None)
     for path in paths:
@@ -183,11 +171,12 @@ def merge_cells(runs: list[Run]) -> list[dict]:
             differ = sorted(
                 k for k in {*cell, *earlier} - {"origin"} if cell.get(k) != earlier.get(k)
             )
-            if differ:
+            if differ:  # named by the cause (another recipe) before its results (accuracy)
+                why = _conflict([earlier, cell]) or f"key {differ[0]!r}"
                 raise ResultsError(
                     f"cell ({key[0]}, {key[1]}, seed {key[2]}) is in {first} and in {path}, "
-                    f"which differ (key {differ[0]!r}); expected one cell per dataset, model "
-                    "and seed, or identical copies"
+                    f"which differ ({why}); expected one cell per dataset, model and seed, or "
+                    "identical copies"
                 )
     return [cell for _, cell in kept.values()]
 
@@ -245,8 +234,8 @@ def check_out(out: Path) -> None:
     earlier = False
     if entries and entries <= REPORT_FILES and "results.json" in entries:
         try:
-            earlier = "merged_from" in json.loads((out / "results.json").read_text())
-        except (OSError, ValueError, TypeError):
+            earlier = "merged_from" in load_json(out / "results.json", "a report's results")
+        except (ResultsError, TypeError):
             earlier = False
     if entries and not earlier:
         raise ResultsError(

@@ -2,6 +2,7 @@
 and results.json collected from them (the layout: :mod:`simlidar.bench.run`)."""
 
 import json
+import math
 import os
 import platform
 import re
@@ -14,8 +15,8 @@ from simlidar import __version__
 from simlidar.atomic import clean_stale, temporary_of, write_file
 from simlidar.bench.cells import recorded_rules
 from simlidar.bench.suite import Suite
-from simlidar.content import content_dir
-from simlidar.errors import DatasetError
+from simlidar.content import content_dir, read_text
+from simlidar.errors import DatasetError, ResultsError
 
 _NUMBERS = re.compile(r"\[[-0-9.eE+,\s]*\]")  # a list of numbers spread over lines
 
@@ -123,10 +124,38 @@ def suite_shown(suite: Suite) -> str:
     return str(suite.path)
 
 
+# A cell holds a few numbers per test sample (about 23 KB for 600 samples), suite.json a few
+# lines: 64 MiB holds the cells of a test split of over a million samples
+MAX_JSON_BYTES = 64 * 2**20
+
+
+def load_json(path: Path, what: str = "a cell as simlidar bench writes it"):
+    """A JSON file of a benchmark folder (a cell, ``suite.json``), read as a file from elsewhere:
+    a regular file of at most :data:`MAX_JSON_BYTES` (never a named pipe or a device), UTF-8,
+    JSON nested no deeper than Python's parser goes, and no NaN (which Python's json module
+    reads, and a schema's ranges cannot catch). Anything else is a one-line ResultsError naming
+    the file and ``what`` was expected."""
+
+    def constant(name: str) -> float:
+        if name == "NaN":
+            raise ValueError("NaN is not a number a cell may hold")
+        return math.inf if name == "Infinity" else -math.inf
+
+    text = read_text(path, MAX_JSON_BYTES, ResultsError)
+    try:
+        return json.loads(text, parse_constant=constant)
+    except RecursionError:
+        raise ResultsError(f"{path}: JSON nested too deeply; expected {what}") from None
+    except ValueError as exc:  # not JSON, NaN
+        raise ResultsError(f"{path}: cannot be read ({exc}); expected {what}") from None
+
+
 def read_cell(path: Path) -> dict:
-    """A cell's record, the rules of a cell written before null stood for no time cap (a bare
-    ``Infinity``) in today's form (:func:`recorded_rules`)."""
-    record = json.loads(path.read_text())
+    """A cell's record (:func:`load_json`), the rules of a cell written before null stood for
+    no time cap (a bare ``Infinity``) in today's form (:func:`recorded_rules`)."""
+    record = load_json(path)
+    if not isinstance(record, dict):
+        raise ResultsError(f"{path}: a JSON {type(record).__name__}; expected a cell (an object)")
     if isinstance(record.get("budget"), dict):
         record["budget"] = recorded_rules(record["budget"])
     inputs = record.get("inputs")

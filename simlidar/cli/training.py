@@ -40,12 +40,13 @@ def _selection(command):
 
 def _hardware(command):
     """``--device`` and ``--threads``: where a model trains, on how many threads (recorded)."""
-    from simlidar.bench.hardware import DEFAULT_THREADS, DEVICES, MAX_THREADS
+    from simlidar.bench.hardware import DEFAULT_THREADS, DEVICES, MAX_THREADS, check_threads
 
     command = click.option(
         "--threads",
         type=IntegerRange(1, MAX_THREADS),
         default=DEFAULT_THREADS,
+        callback=lambda _ctx, _param, count: check_threads(count),  # before anything is written
         show_default=True,
         help="Torch (and spiking-kernel) threads of a run; a cell's figures depend on it, so it "
         "is fixed and recorded (1: measured fastest here, docs/benchmark.md).",

@@ -26,11 +26,13 @@ Attack list, one test (or parameter) each:
 
 import json
 import math
+import os
 from pathlib import Path
 
 import pytest
 
 from simlidar.bench.merge import SCHEMA, check_cell, read_cell
+from simlidar.bench.outdir import MAX_JSON_BYTES
 from simlidar.bench.run import run_suite
 from simlidar.bench.suite import load_suite
 from simlidar.bench.train import STOPS
@@ -379,3 +381,49 @@ def test_the_committed_outside_models_merge_with_the_paper_run(tmp_path, cli):
     assert "| *paper: SNN 256-400-32* | 99.83 | 96.16 | 82.66 | 68.16 |" in text
     assert "| snntorch_lif | 98.50 (1) §" in text and "| norse_lif | 99.17 (1) §" in text
     assert "| snn_simlidar_tuned | 99.28 ± 0.25 (3) |" in text
+
+
+def test_two_versions_of_one_model_are_refused_naming_the_recipe_that_changed(tmp_path, cli):
+    name = "simlidar-32c-noise0.1-paper-v2.0.0__cnn__seed0"
+    other = paper_cell()
+    other["inputs"] = dict(other["inputs"], recipe_sha256="f" * 64)
+    other["accuracy"] = 0.5  # what the other recipe scored: a consequence, not the cause
+    a = folder_of(tmp_path / "a", {name: paper_cell()})
+    b = folder_of(tmp_path / "b", {name: other})
+    line = refused(cli("report", a, b, "--out", tmp_path / "out"), "which differ (recipe)")
+    assert "accuracy" not in line and not (tmp_path / "out").exists()
+
+
+HOSTILE_CELLS = [  # (what stands in cells/x.json, the words of the refusal)
+    (lambda p: p.write_text("[" * 100_000 + "]" * 100_000), "JSON nested too deeply"),
+    (lambda p: os.mkfifo(p), "expected a regular file, got a named pipe"),
+    (lambda p: p.symlink_to("/dev/zero"), "expected a regular file, got a character device"),
+    (lambda p: p.write_bytes(b" " * (MAX_JSON_BYTES + 1)), "expected a file of at most"),
+    (
+        lambda p: p.write_text(json.dumps(dict(paper_cell(), model="x" * 100_000))),
+        "key 'model': 'xxxxx",
+    ),
+    (lambda p: p.write_text(json.dumps(dict(paper_cell(), accuracy=math.nan))), "NaN"),
+]
+
+
+@pytest.mark.parametrize("making, words", HOSTILE_CELLS)
+def test_a_hostile_cell_file_is_refused_in_one_line_without_reading_it_whole(
+    making, words, tmp_path, cli
+):
+    """A cell nested past the parser's depth, a named pipe (which would hang the report), a
+    link to an endless device, an oversized file and a 100,000-character model name (which
+    the pictures' legend would try to draw) are each one line, nothing written."""
+    folder = folder_of(tmp_path / "run", {})
+    making(folder / "cells" / "x.json")
+    line = refused(cli("report", folder, "--out", tmp_path / "out"), words)
+    assert line.startswith(f"Error: {folder / 'cells' / 'x.json'}: ") and len(line) < 400
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_suite_json_that_is_a_pipe_is_never_opened(tmp_path, cli):
+    name = "simlidar-32c-noise0.1-paper-v2.0.0__cnn__seed0"
+    folder = folder_of(tmp_path / "run", {name: paper_cell()}, suite=None)
+    os.mkfifo(folder / "suite.json")  # opening it would wait for a writer for ever
+    result = cli("report", folder, "--out", tmp_path / "out")
+    assert result.exit_code == 0, result.output
