@@ -27,6 +27,11 @@ class ResultsError(SimlidarError):
     cell schema, or cells of several runs that disagree (``simlidar report``)."""
 
 
+class TrainingError(SimlidarError):
+    """A model's training or scoring produced what no result may hold: a loss, an output or a
+    weight that is NaN or infinite. Nothing of the run is kept."""
+
+
 class ResourceError(SimlidarError):
     """The machine cannot hold what was asked: more memory or disk space than there is."""
 

@@ -10,8 +10,10 @@ Output directory layout::
     <out>/report.md, *.png    tables beside the paper's numbers, and pictures
 """
 
+import math
 import socket
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -27,8 +29,9 @@ from simlidar.bench.cells import (
 from simlidar.bench.hardware import DEFAULT_THREADS, check_threads, resolve_device, threads
 from simlidar.bench.measure import measure
 from simlidar.bench.outdir import claim, collect, machine, write_json
-from simlidar.bench.suite import Suite
+from simlidar.bench.suite import BUDGET_KEYS, Suite
 from simlidar.bench.train import (
+    probe_model,
     save_checkpoint,
     train,
     validation_count,
@@ -36,7 +39,7 @@ from simlidar.bench.train import (
 from simlidar.dataset.reader import dataset_splits
 from simlidar.dataset.version import GENERATOR
 from simlidar.errors import ConfigError, DatasetError
-from simlidar.models.registry import load_recipe
+from simlidar.models.registry import check_distinct, load_recipe, model_name
 from simlidar.release.verify import check_trainable
 from simlidar.resources import check_memory
 
@@ -155,6 +158,55 @@ def check_validation(suite: Suite, models: list[str], dataset: Path | None) -> N
                 raise ConfigError(f"{where}: {exc}") from None
 
 
+def sample_shapes(suite: Suite, dataset: Path | None) -> set[tuple[int, int, int]]:
+    """(H, W, classes) of the run's datasets: a given dataset's own, or what the suite's
+    [generate] table will make."""
+    if dataset is None and suite.generate is not None:
+        from simlidar.generator.simulate import class_plan
+        from simlidar.scene.recipe import load_catalog
+
+        config = suite.generate
+        classes = class_plan(load_catalog(), config.classes).classes
+        return {(config.sensor.beams, config.width, classes)}
+    shapes = set()
+    for path in [dataset] if dataset is not None else suite.datasets:
+        info = dataset_splits(path)["train"]
+        shapes.add((info.height, info.width, len(info.attrs["class_names"])))
+    return shapes
+
+
+def check_models(suite: Suite, models: list[str], dataset: Path | None) -> None:
+    """Build every model for the run's sample shapes and check its output on two samples
+    (:func:`~simlidar.bench.train.probe_model`), before anything is written: a model refused
+    once its cell has started would leave ``suite.json`` and ``cells/`` behind."""
+    for model in models:
+        recipe = load_recipe(model)
+        cap = training_rules(model, suite.budget_for(model))["max_seconds"]  # None: no cap
+        for height, width, classes in sorted(sample_shapes(suite, dataset)):
+            probe_model(recipe, (height, width), classes, math.inf if cap is None else cap)
+
+
+def budget_notes(suite: Suite, models: list[str]) -> list[str]:
+    """One line for each model whose recipe's [training] the suite's budget overrides (the
+    rule: the suite's ``[budget.<model>]``, else its ``[budget]``, over the recipe;
+    ``bench --epochs`` and the like over both), saying what it trains by and what its recipe
+    said: a recipe's epochs are never replaced silently."""
+    lines = []
+    for model in models:
+        recipe = load_recipe(model)["training"]
+        budget = suite.budget_for(model)
+        changed = [
+            f"{key} {budget[key]:g} (its recipe: {recipe[key]:g})"
+            for key in BUDGET_KEYS
+            if key in budget and key in recipe and budget[key] != recipe[key]
+        ]
+        if changed:
+            lines.append(
+                f"{model_name(model)}: {', '.join(changed)}, by suite {suite.name}'s budget"
+            )
+    return lines
+
+
 def check_fits(suite: Suite, out: Path, dataset: Path | None) -> None:
     """A suite's generated datasets fit on the disk of ``out`` (those not generated yet) and a
     cell's splits fit in memory (a cell loads its dataset's delays and labels); a
@@ -187,6 +239,7 @@ def run_suite(
     workers: int = 2,
     device: str = "cpu",
     thread_count: int = DEFAULT_THREADS,
+    note: Callable[[str], None] | None = None,
 ) -> dict:
     """Run every unfinished cell of the suite into ``out``; write results.json and the report.
 
@@ -196,6 +249,8 @@ def run_suite(
     device : where cells train (``auto``, ``cpu``, ``cuda``; :mod:`simlidar.bench.hardware`)
     thread_count : torch (and numba) threads of a cell, in place or on a worker: the same
         count gives the same cells
+    note : told, once every check has passed, each recipe value the suite's budget replaces
+        (:func:`budget_notes`)
     returns : the results (what results.json holds)
     """
     check_threads(thread_count)
@@ -207,12 +262,16 @@ def run_suite(
     models = list(models or suite.models)
     for model in models:
         load_recipe(model)  # unknown recipes fail before anything is written
+    check_distinct(models)
     for path in [dataset] if dataset is not None else suite.datasets:
         check_trainable(path)  # every given dataset is sound, before anything is written
     check_validation(suite, models, dataset)
     check_fits(suite, out, dataset)
+    check_models(suite, models, dataset)
     claim(out, suite)
     datasets = resolve_datasets(suite, out, dataset, progress)
+    for line in budget_notes(suite, models) if note is not None else ():
+        note(line)
     cells = [(d, m, s) for d in datasets for m in models for s in suite.seeds]
     todo = [c for c in cells if not finished(out, *c, suite.budget_for(c[1]))]
     bar = tqdm(
@@ -260,10 +319,11 @@ def run_and_write(
     with threads(thread_count):
         record = run_cell(dataset, model, seed, suite, out / "checkpoints" / f"{name}.pt", device)
         record["threads"] = thread_count
+        where = machine()  # inside: its torch_threads is the count the cell ran on
     record["seconds"] = round(time.perf_counter() - start, 2)
     record.update(
         inputs=cell_inputs(dataset, model, suite.budget_for(model)),
-        machine=machine(),
+        machine=where,
         simlidar_version=__version__,
     )
     write_json(out / "cells" / f"{name}.json", record, indent=None)

@@ -13,9 +13,13 @@ validation split, not a better model).
 
 import copy
 import io
+import math
 import os
+import signal
 import tempfile
+import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -25,9 +29,10 @@ import torch.nn.functional as F
 
 from simlidar.atomic import write_file
 from simlidar.dataset.loaders import load_split, spike_threshold, split_info
-from simlidar.errors import ConfigError, DatasetError, raised
+from simlidar.errors import ConfigError, DatasetError, TrainingError, raised
 from simlidar.generator.pulses import noisy_delays
 from simlidar.models.protocol import (
+    FIRST_SPIKE_TIMES,
     STEPPED_SPIKES,
     ModelSpec,
     class_scores,
@@ -175,9 +180,17 @@ def _fresh_noise(dataset, attrs: dict, seed: int, rows: np.ndarray):
 
 
 def _batches(
-    model, x: torch.Tensor, spec: ModelSpec, silent_from: float, batch: int, exact: bool = False
+    model,
+    x: torch.Tensor,
+    spec: ModelSpec,
+    silent_from: float,
+    batch: int,
+    exact: bool = False,
+    when: str = "scoring",
 ):
-    """Each batch of ``x`` (N, 1, H, W) encoded for the model on its device, and its output.
+    """Each batch of ``x`` (N, 1, H, W) encoded for the model on its device, and its output
+    (:func:`check_finite`: a TrainingError naming ``when`` for NaN, or an infinity that is no
+    "no spike").
 
     exact : a model that the event-driven evaluator runs (``event_driven``) is run on float64
         input spikes: the exact spike times of its float32 weights, which that evaluator reads
@@ -191,7 +204,27 @@ def _batches(
         x = x.double()
     with torch.no_grad():
         for i in range(0, len(x), batch):
-            yield i, model(encode(x[i : i + batch].to(device), spec, silent_from))
+            out = model(encode(x[i : i + batch].to(device), spec, silent_from))
+            check_finite(out, spec, when)
+            yield i, out
+
+
+def check_finite(out, spec: ModelSpec, when: str) -> None:
+    """Refuse a model's output (a tensor, or a tuple of them) holding NaN, or an infinity where
+    the output kind has none: only first-spike times say "no spike" with +inf. A TrainingError
+    naming ``when`` (the epoch): a NaN output would score as class 0 and be published."""
+    for tensor in out if isinstance(out, tuple | list) else (out,):
+        if not isinstance(tensor, torch.Tensor) or not tensor.is_floating_point():
+            continue  # the kind and shape are check_output's
+        allowed = tensor == torch.inf if spec.output == FIRST_SPIKE_TIMES else False
+        bad = ~(torch.isfinite(tensor) | allowed)
+        if bad.any():
+            value = tensor[bad][0].item()
+            raise TrainingError(
+                f"{when}: the model's output holds {value} ({int(bad.sum())} of "
+                f"{tensor.numel()} values); expected finite {spec.output} (a model that "
+                "diverged, or a recipe's setting that overflows): nothing is kept"
+            )
 
 
 def predictions(
@@ -209,7 +242,7 @@ def predictions(
     """
     spec = spec or spec_of(model)
     silent_from = getattr(model, "silent_from", 1.0) if silent_from is None else silent_from
-    runs = _batches(model, x, spec, silent_from, batch, exact=True)
+    runs = _batches(model, x, spec, silent_from, batch, exact=True, when="scoring the test split")
     outs = [readout(out, spec)[0].cpu() for _, out in runs]
     return torch.cat(outs) if outs else torch.zeros(0, dtype=torch.long)
 
@@ -222,12 +255,14 @@ def evaluate(
     batch: int = 500,
     spec: ModelSpec | None = None,
     silent_from: float = 1.0,
+    when: str = "validation",
 ) -> tuple[float, float | None]:
     """(accuracy, mean cross-entropy with the recipe's logits) on ``x``, in eval mode; the loss
-    is None where it is not finite (a spiking network whose correct output never fired)."""
+    is None where it is not finite (a spiking network whose correct output never fired).
+    ``when``: what a TrainingError for a NaN output names (:func:`check_finite`)."""
     spec = spec or spec_of(model)
     correct, loss = 0, 0.0
-    for i, out in _batches(model, x, spec, silent_from, batch):
+    for i, out in _batches(model, x, spec, silent_from, batch, when=when):
         target = y[i : i + batch].to(_first_tensor(out).device)
         correct += int((readout(out, spec)[0] == target).sum())
         scores = class_scores(out, spec, training.logits, training.logit_scale)
@@ -238,6 +273,78 @@ def evaluate(
 
 def _first_tensor(out) -> torch.Tensor:
     return out[0] if isinstance(out, tuple | list) else out
+
+
+def prepared_model(
+    recipe: dict,
+    x: torch.Tensor,
+    classes: int,
+    generator: torch.Generator,
+    device: torch.device,
+    silent_from: float,
+):
+    """(model, spec): the recipe's model built for inputs like ``x`` (N, 1, H, W) and
+    ``classes``, on ``device``, its declaration read and its output on two samples of ``x``
+    checked (:func:`check_output`); a ConfigError naming the builder for a model with nothing
+    to train and no ``simlidar_fit``. What ``train`` does before its first epoch, and what a
+    suite checks of every model before it writes anything (:func:`probe_model`)."""
+    where = f"recipe {recipe.get('name', '?')}"
+    model = build_model(recipe, tuple(x.shape[1:]), classes, generator)
+    spec = spec_of(model, recipe.get("spec"), where)
+    if hasattr(model, "silent_from") or spec.spiking:
+        model.silent_from = silent_from
+    model.to(device)
+    builder = f"{where}: builder {recipe['model']!r}"
+    check_output(model, spec, x, classes, builder, silent_from)
+    if not hasattr(model, "simlidar_fit") and not any(p.requires_grad for p in model.parameters()):
+        raise ConfigError(
+            f"{builder}: the model has no trainable parameters; expected an nn.Module with "
+            "parameters to train, or a simlidar_fit method (a model trained elsewhere)"
+        )
+    return model, spec
+
+
+def probe_model(recipe: dict, shape: tuple[int, int], classes: int, max_seconds: float) -> None:
+    """Build the recipe's model for samples of ``shape`` (H, W) and ``classes`` and check its
+    output on two random delay images (:func:`prepared_model`), within ``max_seconds``: a suite
+    refuses a model this way before it writes anything."""
+    generator = torch.Generator().manual_seed(0)
+    x = torch.rand((2, 1, *shape), generator=generator)
+    where = f"recipe {recipe.get('name', '?')}: building the model and its first forward"
+    with time_limit(max_seconds, where):
+        prepared_model(recipe, x, classes, generator, torch.device("cpu"), 1.0)
+
+
+# the least time a model is given to build and run its first batch of 2 under a time cap:
+# a cap of 0 s means "one epoch" (the cap is checked after each), never "no time to build"
+PROBE_FLOOR_S = 30.0
+
+
+@contextmanager
+def time_limit(cap: float, what: str):
+    """Raise a ConfigError naming ``what`` once the time cap ``cap`` (at least
+    :data:`PROBE_FLOOR_S`) has passed inside: a builder or a first forward that sleeps or
+    loops, which the per-epoch time cap never sees. Needs the main thread's signals (SIGALRM);
+    elsewhere, and without a finite cap, it does nothing. A forward stuck inside one long C
+    call is stopped when that call returns."""
+    if not math.isfinite(cap) or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    seconds = max(cap, PROBE_FLOOR_S)
+
+    def expire(_signum, _frame):
+        raise ConfigError(
+            f"{what}: still running after the time cap of {seconds:g} s; expected a model "
+            "that builds and runs a batch of 2 within --max-seconds"
+        )
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
 
 
 def check_output(
@@ -252,7 +359,9 @@ def check_output(
     try:
         with torch.no_grad():
             out = model(encode(x[:2].to(device), spec, silent_from))
-    except Exception as exc:
+    except ConfigError:  # the time cap (time_limit)
+        raise
+    except (Exception, SystemExit) as exc:
         raise ConfigError(
             f"{where}: the model's forward on a batch of 2 {spec.encoding} inputs raised "
             f"{raised(exc)}"
@@ -284,6 +393,25 @@ def check_output(
             f"{where}: the model's output for a batch of {n} is {got}; expected {expected} "
             f"(it declares output {spec.output!r})"
         )
+    tensors = [t for t in (out if isinstance(out, tuple | list) else (out,)) if t is not None]
+    integer = next((t.dtype for t in tensors if not t.is_floating_point()), None)
+    if integer is not None:  # cross-entropy and the readouts need floating-point scores
+        raise ConfigError(
+            f"{where}: the model's output is {integer}; expected a floating-point "
+            f"{spec.output} tensor (a float32 or float64 dtype)"
+        )
+    check_finite(out, spec, f"{where}: before training")
+
+
+def check_weights(model: torch.nn.Module, when: str) -> None:
+    """Refuse a model whose parameters hold NaN or an infinity (a TrainingError naming
+    ``when``): weights a step made non-finite score every sample as one class."""
+    for name, p in model.named_parameters():
+        if not torch.isfinite(p).all():
+            raise TrainingError(
+                f"{when}: parameter {name!r} holds {p[~torch.isfinite(p)][0].item()}; "
+                "expected finite weights (the training diverged): nothing is kept"
+            )
 
 
 def better_score(
@@ -337,15 +465,10 @@ def train(
     patience = training.patience
     annealed = selection_rule(training) == ANNEALED
     generator = torch.Generator().manual_seed(seed)
-    model = build_model(recipe, tuple(x_train.shape[1:]), classes, generator)
-    spec = spec_of(model, recipe.get("spec"), where)
     silent_from = spike_threshold(attrs)  # the encoding follows the data's profile
-    if hasattr(model, "silent_from") or spec.spiking:
-        model.silent_from = silent_from
     device = torch.device(device)
-    model.to(device)
-    builder = f"{where}: builder {recipe['model']!r}"
-    check_output(model, spec, x_train, classes, builder, silent_from)
+    with time_limit(training.max_seconds, f"{where}: building the model and its first forward"):
+        model, spec = prepared_model(recipe, x_train, classes, generator, device, silent_from)
     if hasattr(model, "simlidar_fit"):
         parts = (x_train, y_train, x_val, y_val, silent_from)
         return _own_fit(model, recipe, spec, dataset, training, generator, device, parts)
@@ -373,6 +496,12 @@ def train(
             rows = order[i : i + batch]
             x = encode(x_train[rows].to(device), spec, silent_from)
             loss, total = batch_loss(model, x, y_train[rows].to(device), now, spec)
+            if not torch.isfinite(total):
+                raise TrainingError(
+                    f"{where}: epoch {epoch}: the training loss is {total.item()}; expected a "
+                    "finite loss (a model whose output is NaN or infinite, or a recipe's "
+                    "setting that overflows): nothing is kept"
+                )
             optimizer.zero_grad()
             total.backward()
             if training.clip_grad_norm:
@@ -383,8 +512,12 @@ def train(
         if schedule is not None:
             schedule.step()
         record = {"epoch": epoch, "loss": float(np.mean(losses)), "lr": lr}
+        check_weights(model, f"{where}: epoch {epoch}")
         if len(held):
-            score = evaluate(model, x_val, y_val, training, spec=spec, silent_from=silent_from)
+            when = f"{where}: epoch {epoch}'s validation"
+            score = evaluate(
+                model, x_val, y_val, training, spec=spec, silent_from=silent_from, when=when
+            )
             record.update(val_accuracy=score[0], val_loss=score[1])
             bar.set_postfix(loss=f"{record['loss']:.3f}", val=f"{score[0]:.3f}")
             if annealed:
@@ -452,6 +585,7 @@ def _own_fit(model, recipe, spec, dataset, training, generator, device, parts):
         generator,
     )
     record = {"epoch": 0, "loss": None, "lr": None}
+    check_weights(model, f"recipe {recipe.get('name', '?')}: after simlidar_fit")
     if len(y_val):
         score = evaluate(model, x_val, y_val, training, spec=spec, silent_from=silent_from)
         record.update(val_accuracy=score[0], val_loss=score[1])

@@ -1,6 +1,8 @@
 """``simlidar train`` and ``bench``: models trained and scored on datasets."""
 
+import contextlib
 import json
+import sys
 from pathlib import Path
 
 import click
@@ -102,7 +104,8 @@ def _chosen(result) -> str:
     "model",
     required=True,
     help="Model recipe: a name in baselines/ (snn_simlidar, ...), a .toml file, or an outside "
-    "builder package.module:function.",
+    "builder package.module:function or path/to/file.py:function (docs/benchmark.md, 'Your own "
+    "model').",
 )
 @click.option(
     "--dataset",
@@ -137,15 +140,16 @@ def train(
     from simlidar.release.verify import check_trainable
 
     device = _device(device)
-    recipe = load_recipe(model)
-    given = {"validation": validation, "patience": patience}
-    recipe["training"].update({k: v for k, v in given.items() if v is not None})
-    check_trainable(dataset)  # a sound dataset, or a one-line error
-    check_writable(out)  # before training, not after
-    with using_threads(threads):
-        result = run(
-            recipe, dataset, seed=seed, epochs=epochs, max_seconds=max_seconds, device=device
-        )
+    with _stdout_kept_for(as_json):
+        recipe = load_recipe(model)
+        given = {"validation": validation, "patience": patience}
+        recipe["training"].update({k: v for k, v in given.items() if v is not None})
+        check_trainable(dataset)  # a sound dataset, or a one-line error
+        check_writable(out)  # before training, not after
+        with using_threads(threads):
+            result = run(
+                recipe, dataset, seed=seed, epochs=epochs, max_seconds=max_seconds, device=device
+            )
     result.model.cpu()
     if result.rule == ANNEALED and result.stopped == "time":
         click.echo(
@@ -169,20 +173,21 @@ def train(
         "device": result.device,
         "threads": threads,
     }
-    if getattr(result.model, "event_driven", False):  # how early the spiking network decides
-        from simlidar.bench.early import early_decisions
+    with _stdout_kept_for(as_json):  # the decisions run the model again
+        if getattr(result.model, "event_driven", False):  # how early the spiking network decides
+            from simlidar.bench.early import early_decisions
 
-        record["early"] = early_decisions(result.model, dataset)
-    elif result.spec.output == "stepped_spikes":
-        import torch
+            record["early"] = early_decisions(result.model, dataset)
+        elif result.spec.output == "stepped_spikes":
+            import torch
 
-        from simlidar.bench.stepped import stepped_decisions
-        from simlidar.dataset.loaders import load_split
+            from simlidar.bench.stepped import stepped_decisions
+            from simlidar.dataset.loaders import load_split
 
-        x, y = load_split(dataset, "test")
-        record["stepped"] = stepped_decisions(
-            result.model, torch.from_numpy(x)[:, None], y, result.spec, result.silent_from
-        )
+            x, y = load_split(dataset, "test")
+            record["stepped"] = stepped_decisions(
+                result.model, torch.from_numpy(x)[:, None], y, result.spec, result.silent_from
+            )
     if not as_json:  # the result first: a checkpoint that cannot be written loses nothing else
         click.echo(
             f"{recipe['name']}: test accuracy {result.test_accuracy:.4f}, {_chosen(result)}, "
@@ -206,6 +211,12 @@ def train(
     click.echo(json.dumps(record) if as_json else f"wrote {path}")
 
 
+def _stdout_kept_for(as_json: bool):
+    """With ``--json``, what a model's code prints goes to stderr while it runs: stdout holds
+    the one JSON object (a builder printing megabytes broke it)."""
+    return contextlib.redirect_stdout(sys.stderr) if as_json else contextlib.nullcontext()
+
+
 @click.command()
 @click.option(
     "--suite",
@@ -216,8 +227,12 @@ def train(
 @click.option(
     "--models",
     default=None,
-    help="Comma-separated model recipes to run instead of the suite's (e.g. snn_simlidar,cnn); "
-    "a recipe file, or an outside builder package.module:function.",
+    help="Comma-separated model recipes to run instead of the suite's (e.g. snn_simlidar,cnn): "
+    "a name in baselines/, a .toml recipe file (its [spec] table: what the model outputs and "
+    "wants), or an outside builder package.module:function or path/to/file.py:function "
+    "(docs/benchmark.md, 'Your own model'). The suite's [budget] sets every model's epochs "
+    "and time cap over its recipe's (quick: 10 epochs for a model it does not name); "
+    "--epochs and --max-seconds over both; the run prints each value it replaced.",
 )
 # --dataset and --out look like train's, but are optional here, with their own help
 @click.option(
@@ -313,17 +328,19 @@ def bench(
             raise click.UsageError(
                 f"--workers {workers} sizes a LocalCluster; expected --scheduler local with it"
             )
-        results = run_suite(
-            chosen,
-            out,
-            models=names,
-            dataset=dataset,
-            progress=not as_json,
-            scheduler=scheduler,
-            workers=workers or Workers().convert("auto", None, None),
-            device=str(_device(device)),
-            thread_count=threads,
-        )
+        with _stdout_kept_for(as_json):
+            results = run_suite(
+                chosen,
+                out,
+                models=names,
+                dataset=dataset,
+                progress=not as_json,
+                scheduler=scheduler,
+                workers=workers or Workers().convert("auto", None, None),
+                device=str(_device(device)),
+                thread_count=threads,
+                note=lambda line: click.echo(f"note: {line}", err=True),
+            )
     if as_json:
         click.echo(json.dumps(results))
         return

@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 
 from simlidar.dataset.reader import SplitInfo, read_split
-from simlidar.errors import ConfigError, DatasetError
+from simlidar.errors import ConfigError, DatasetError, shown
 from simlidar.settings import Range
 
 # Tonic's event layout (its N-MNIST's): x column, y row, t time in ticks, p polarity
@@ -49,8 +49,25 @@ def load_split(path: str | Path, split: str = "train", field: str = "delays"):
     returns : x (N, H, W) float32 (``field``: "delays" with noise, or "clean_delays" of a
         generated dataset; H = 16 there), y (N,) int64 class labels
     """
-    arrays = split_info(path, split).read((field, "labels"))
+    arrays = _field_checked(split_info(path, split), field).read((field, "labels"))
     return arrays[field], arrays["labels"]
+
+
+FIELDS = ("delays", "clean_delays")  # what a loader reads as a sample
+
+
+def _field_checked(info: SplitInfo, field) -> SplitInfo:
+    """``info``, once ``field`` is one of :data:`FIELDS` held by its files (a converted split
+    has no ``clean_delays``); a ConfigError or DatasetError naming it otherwise."""
+    if not isinstance(field, str) or field not in FIELDS:
+        raise ConfigError(f"field={shown(field)}: expected one of {list(FIELDS)}")
+    with h5py.File(info.files[0], "r") as f:
+        if field not in f:
+            raise DatasetError(
+                f"{info.files[0]}: no dataset {field!r}; expected a split that holds it "
+                "('clean_delays': a generated one)"
+            )
+    return info
 
 
 class _SplitRows:
@@ -62,7 +79,7 @@ class _SplitRows:
     """
 
     def __init__(self, path: str | Path, split: str, field: str):
-        info = split_info(path, split)
+        info = _field_checked(split_info(path, split), field)
         self.info = info
         self.files = info.files
         self.starts = np.cumsum((0, *info.sizes))  # the first sample of each file
@@ -172,9 +189,15 @@ def sensor_size(width: int, height: int) -> tuple[int, int, int]:
     return (width, height, 1)
 
 
+# the most ticks a window may span: an event's t is an int64, and a tick of 1e-300 ns made
+# every t INT64_MIN; 2**53 keeps every t exact as a float too
+MAX_WINDOW_TICKS = 2**53
+
+
 def _check_tick(unit_ns: float, tick_ns: float) -> None:
-    """Refuse a tick that is not a positive number or is longer than a delay of 1.0: every
-    event of the window would then fall in its first tick or two."""
+    """Refuse a tick that is not a positive number, is longer than a delay of 1.0 (every event
+    of the window would then fall in its first tick or two), or so short that the window spans
+    more than :data:`MAX_WINDOW_TICKS`."""
     unit = Range(0, None, "nanoseconds", low_open=True, finite=True)
     if not unit.accepts(unit_ns):
         raise ConfigError(f"unit_ns={unit_ns!r}: expected {unit.expected()}")
@@ -183,6 +206,11 @@ def _check_tick(unit_ns: float, tick_ns: float) -> None:
         raise ConfigError(
             f"tick_ns={tick_ns!r}: expected {tick.expected()} (a delay of 1.0 is "
             f"{unit_ns:g} ns; tick_ns=1 gives nanoseconds, 1000 microseconds)"
+        )
+    if unit_ns / tick_ns > MAX_WINDOW_TICKS:
+        raise ConfigError(
+            f"tick_ns={tick_ns!r}: the {unit_ns:g} ns window would span {unit_ns / tick_ns:.3g} "
+            f"ticks; expected at most 2**53 (tick_ns >= {unit_ns / MAX_WINDOW_TICKS:.3g})"
         )
 
 
@@ -244,8 +272,10 @@ class EventDataset(_SplitRows):
     (:func:`spike_threshold`). Needs no torch; a ``DataLoader`` takes it (with
     ``num_workers > 0``: files are opened lazily in each worker).
 
-    tick_ns : nanoseconds of one unit of an event's ``t`` (default 1000: microseconds, Tonic's
-        unit; 1 for the 667 ns window of flash timing), at most the split's unit
+    tick_ns : nanoseconds of one unit of an event's ``t`` (default: 1000, microseconds,
+        Tonic's unit, where the split's window is at least that long; else 1, nanoseconds, as
+        for the 667 ns window of flash timing), at most the split's unit and at least
+        1 / :data:`MAX_WINDOW_TICKS` of it
     transform : optional callable applied to the events (a Tonic transform, e.g. ``ToFrame``)
     target_transform : optional callable applied to the label (an int)
     field : "delays" (with noise, the default) or "clean_delays"
@@ -264,11 +294,13 @@ class EventDataset(_SplitRows):
         split: str = "train",
         transform=None,
         target_transform=None,
-        tick_ns: float = TICK_NS,
+        tick_ns: float | None = None,
         field: str = "delays",
     ):
         super().__init__(path, split, field)
         self.unit_ns = _event_unit_ns(self.info)
+        if tick_ns is None:  # a microsecond where the window holds one, else a nanosecond
+            tick_ns = TICK_NS if self.unit_ns >= TICK_NS else 1.0
         self.window_ticks = window_ticks(self.unit_ns, tick_ns)
         self.tick_ns = tick_ns
         self.no_return = spike_threshold(self.info.attrs)

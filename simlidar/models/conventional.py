@@ -16,6 +16,7 @@ import torch
 from torch import nn
 
 from simlidar.errors import ConfigError
+from simlidar.models.layers import check_layer
 from simlidar.models.protocol import ModelSpec
 
 # torchvision's cfgs: channels of 3 x 3 convolutions, "M" = 2 x 2 max pool
@@ -71,12 +72,14 @@ class CNN(Conventional):
         layers: list[nn.Module] = []
         for channels, kernel, stride in conv:
             pad = kernel // 2
+            check_layer(c * kernel * kernel, channels, "convolution")
             layers += [nn.Conv2d(c, channels, kernel, stride, pad), nn.ReLU()]
             c = channels
             h, w = (h + 2 * pad - kernel) // stride + 1, (w + 2 * pad - kernel) // stride + 1
         layers.append(nn.Flatten())
         sizes = [c * h * w, *dense]
         for a, b in zip(sizes, sizes[1:]):
+            check_layer(a, b, "dense layer")
             layers += [nn.Linear(a, b), nn.ReLU()]
         layers.append(nn.Linear(sizes[-1], classes))
         self.net = nn.Sequential(*layers)

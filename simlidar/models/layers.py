@@ -5,7 +5,29 @@ import math
 import torch
 from torch import nn
 
+from simlidar.errors import ConfigError
 from simlidar.models import ttfs
+from simlidar.resources import check_memory
+
+# a weight is held four times while a model trains: itself, its gradient and Adam's two moments
+TRAINING_COPIES = 4
+
+
+def check_layer(n_in: int, n_out: int, what: str) -> None:
+    """Refuse a layer of ``n_in`` inputs (a convolution's fan-in) and ``n_out`` outputs before
+    its weights are allocated: a ConfigError for a size below 1 (``hidden = [0]`` divided by
+    zero), a ResourceError when its float32 weights, held :data:`TRAINING_COPIES` times while
+    training, do not fit in this process's memory (``hidden = [100000000]``)."""
+    for size in (n_in, n_out):
+        if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+            raise ConfigError(
+                f"{what}: a layer of {n_in!r} inputs and {n_out!r} outputs; expected whole "
+                "numbers >= 1 (every layer size in the architecture)"
+            )
+    check_memory(
+        TRAINING_COPIES * 4 * n_in * n_out,
+        f"{what}: a {n_in} x {n_out} layer's weights, gradients and optimiser state",
+    )
 
 
 class DenseTTFS(nn.Module):
@@ -27,6 +49,7 @@ class DenseTTFS(nn.Module):
         arriving: float = 1.0,
     ):
         super().__init__()
+        check_layer(n_in, n_out, "dense TTFS layer")
         m = n_in * arriving
         mean, std = (1.0 + excess) / m, spread / math.sqrt(m)
         w = torch.randn(n_in, n_out, generator=generator) * std + mean
@@ -52,6 +75,7 @@ class ConvTTFS(nn.Module):
         generator: torch.Generator | None = None,
     ):
         super().__init__()
+        check_layer(c_in * kernel * kernel, c_out, "TTFS convolution")
         fan_in = c_in * kernel * kernel
         mean, std = (1.0 + excess) / fan_in, spread / math.sqrt(fan_in)
         w = torch.randn(c_out, c_in, kernel, kernel, generator=generator) * std + mean

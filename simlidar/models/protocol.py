@@ -47,6 +47,7 @@ Hooks a model may define (each optional):
 from dataclasses import dataclass, fields, replace
 
 from simlidar.errors import ConfigError
+from simlidar.resources import check_memory
 from simlidar.settings import Choice, Range, check, setting
 
 LOGITS, FIRST_SPIKE_TIMES, STEPPED_SPIKES = "logits", "first_spike_times", "stepped_spikes"
@@ -133,6 +134,10 @@ def encode(delays, spec: ModelSpec, silent_from: float):
     step, fires = _steps(delays, spec.steps, silent_from)
     if spec.encoding == EVENTS:
         return _events(step, fires, delays.shape[-1], delays.dtype)
+    check_memory(
+        spec.steps * delays.numel() * delays.element_size(),
+        f"[spec] steps = {spec.steps}: the latency encoding of a batch {tuple(delays.shape)}",
+    )
     spikes = torch.zeros((spec.steps, *delays.shape), dtype=delays.dtype, device=delays.device)
     spikes.scatter_(0, step[None], fires[None].to(delays.dtype))
     return spikes

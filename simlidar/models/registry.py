@@ -74,7 +74,7 @@ def builder(name: str, base: Path | None = None) -> Callable:
         module = _import_file(where, base) if where.endswith(".py") else _import(where)
     except ConfigError:
         raise
-    except Exception as exc:  # the user's module failed while importing: say how
+    except (Exception, SystemExit) as exc:  # the user's module failed while importing
         raise ConfigError(f"builder {name!r}: importing {where!r} raised {raised(exc)}") from None
     found = getattr(module, function, None)
     if not callable(found):
@@ -143,9 +143,14 @@ def load_recipe(name_or_path: str | Path) -> dict:
     other = " or an outside builder 'package.module:function'"
     path = shipped_or_path(name_or_path, "baselines", "model recipe", other)
     recipe = read_toml(path, MAX_MODEL_RECIPE_BYTES)
-    for key in ("model", "architecture", "training"):
+    for key in ("model", "training"):
         if key not in recipe:
             raise ConfigError(f"{path}: key '{key}' is missing")
+    recipe.setdefault("architecture", {})  # a builder may take no keywords
+    if not isinstance(recipe["architecture"], dict):
+        raise ConfigError(
+            f"{path}: key 'architecture': expected a table, got {recipe['architecture']!r}"
+        )
     model = recipe["model"]
     if not isinstance(model, str) or (model not in BUILDERS and not is_outside(model)):
         raise ConfigError(
@@ -181,11 +186,36 @@ def builder_source(recipe: dict) -> str | None:
 
 def model_name(model: str) -> str:
     """The name a recipe, path or builder named alone goes by in cells and reports: the
-    recipe file's stem, or a builder's module (file) and function, file-safe."""
+    recipe file's stem, or a builder's whole module path (a file's stem) and function,
+    file-safe: ``mynets.snt_conv:build`` is ``mynets.snt_conv.build``, never ``mynets.build``
+    (two builders of one package would share a cell)."""
     if is_outside(str(model)) and not str(model).endswith(".toml"):
         where, function = str(model).rsplit(":", 1)
-        return re.sub(r"[^A-Za-z0-9_.-]", "_", f"{Path(where).stem}.{function}")
+        module = Path(where).stem if where.endswith(".py") else where
+        return re.sub(r"[^A-Za-z0-9_.-]", "_", f"{module}.{function}")
     return Path(model).stem
+
+
+def check_distinct(models: list[str]) -> None:
+    """Refuse models of one run that would share a cell id (:func:`model_name`): two builders
+    or recipe files of one name from different places (``a/mine.toml`` and ``b/mine.toml``), whose
+    cells would overwrite each other's; ConfigError naming both. One model named twice is
+    one model."""
+    seen: dict[str, str] = {}
+    for model in models:
+        name = model_name(model)
+        source = str(model) if is_outside(str(model)) and not str(model).endswith(".toml") else None
+        if source is None:
+            try:
+                source = str(shipped_or_path(model, "baselines", "model recipe").resolve())
+            except ConfigError:
+                source = str(model)
+        if seen.setdefault(name, source) != source:
+            raise ConfigError(
+                f"models {seen[name]!r} and {source!r} would both be cells of model {name!r}; "
+                "expected models of different names (rename one recipe file, or name its "
+                "builder in a recipe of its own)"
+            )
 
 
 def build_model(recipe: dict, input_shape: tuple[int, ...], classes: int, generator=None):
@@ -197,15 +227,15 @@ def build_model(recipe: dict, input_shape: tuple[int, ...], classes: int, genera
     where = f"recipe {recipe.get('name', '?')}"
     make = builder(name, Path(recipe["base"]) if "base" in recipe else None)
     try:
-        model = make(input_shape, classes, generator, **recipe["architecture"])
+        model = make(input_shape, classes, generator, **recipe.get("architecture", {}))
     except TypeError as exc:
         if name in BUILDERS:
             raise ConfigError(f"{where}: [architecture] {exc}") from None
         raise ConfigError(f"{where}: builder {name!r} raised TypeError: {exc}") from None
     except ConfigError:
         raise
-    except Exception as exc:
-        if name in BUILDERS:
+    except (Exception, SystemExit) as exc:  # SystemExit(0) is a builder failing, not success
+        if name in BUILDERS and not isinstance(exc, SystemExit):
             raise
         raise ConfigError(f"{where}: builder {name!r} raised {raised(exc)}") from None
     if not isinstance(model, torch.nn.Module):

@@ -21,6 +21,15 @@ SCHEDULES = ("constant", "cosine")  # cosine: from lr down to 0 over the run's e
 EARLY_FORMS = ("linear", "exp", "relative")
 MAX_EPOCHS = 10**6  # the most epochs (and patience) a run may ask for
 NON_NEGATIVE = Range(0, None, "a finite number", finite=True)
+# A penalty's weight and a margin are bounded where a larger value only makes the loss overflow
+# (early_penalty = 1e308 trained to NaN weights): the shipped recipes weigh penalties at most
+# 100 (weight_sum_penalty, Mostafa 2018's K) and the published runs early terms at most 10;
+# margins are in time constants, where output spikes come within a few
+PENALTY = Range(0, 10_000, "a finite number")
+MARGIN = Range(0, 100, "a finite number", note="(time constants)")
+# exp(t / early_beta) overflows float32 beyond t / early_beta = 88: output spike times of a few
+# time constants need early_beta well above 0.01 (Goeltz et al. 2021 use 1)
+EARLY_BETA = Range(0.05, 100, "a finite number", note="(time constants)")
 
 
 @dataclass(frozen=True)
@@ -31,7 +40,7 @@ class TrainingConfig:
     epochs: int = setting(help="Epoch cap.", rule=Range(1, MAX_EPOCHS, "an integer"))
     optimizer: str = setting("sgd", "Optimiser.", Choice(("sgd", "adam")))
     momentum: float = setting(0.0, "SGD momentum.", NON_NEGATIVE)
-    l2: float = setting(0.0, "Weight of the sum of squared parameters in the loss.", NON_NEGATIVE)
+    l2: float = setting(0.0, "Weight of the sum of squared parameters in the loss.", PENALTY)
     clip_grad_norm: float = setting(
         0.0, "Clip the gradient's norm at this value (0: no clipping).", NON_NEGATIVE
     )
@@ -41,7 +50,7 @@ class TrainingConfig:
         Range(0, None, "seconds"),
     )
     weight_sum_penalty: float = setting(
-        0.0, "Spiking networks: weight of Mostafa's weight-sum penalty.", NON_NEGATIVE
+        0.0, "Spiking networks: weight of Mostafa's weight-sum penalty.", PENALTY
     )
     logits: str = setting(
         "z", "Spiking networks: logits -z (the paper's) or -t = -ln z.", Choice(LOGITS)
@@ -52,9 +61,9 @@ class TrainingConfig:
         Range(0, None, "a finite number", low_open=True, finite=True),
     )
     fire_penalty: float = setting(
-        0.0, "Spiking networks: weight of the target-neuron firing penalty.", NON_NEGATIVE
+        0.0, "Spiking networks: weight of the target-neuron firing penalty.", PENALTY
     )
-    fire_margin: float = setting(0.1, "Spiking networks: margin of that penalty.", NON_NEGATIVE)
+    fire_margin: float = setting(0.1, "Spiking networks: margin of that penalty.", MARGIN)
     lr_schedule: str = setting(
         "constant",
         "constant, or cosine: from lr down to 0 over the run's epochs (the run then keeps its "
@@ -62,7 +71,7 @@ class TrainingConfig:
         Choice(SCHEDULES),
     )
     early_penalty: float = setting(
-        0.0, "Spiking networks: weight of the early-decision term.", NON_NEGATIVE
+        0.0, "Spiking networks: weight of the early-decision term.", PENALTY
     )
     early_form: str = setting(
         "linear",
@@ -72,12 +81,10 @@ class TrainingConfig:
         Choice(EARLY_FORMS),
     )
     early_beta: float = setting(
-        1.0,
-        "Spiking networks: the exp form's time scale, in time constants.",
-        Range(0, None, "a finite number", low_open=True, finite=True),
+        1.0, "Spiking networks: the exp form's time scale, in time constants.", EARLY_BETA
     )
     early_margin: float = setting(
-        0.5, "Spiking networks: the relative form's margin, in time constants.", NON_NEGATIVE
+        0.5, "Spiking networks: the relative form's margin, in time constants.", MARGIN
     )
     early_start: int = setting(
         0,

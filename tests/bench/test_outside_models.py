@@ -80,6 +80,65 @@ class Fitted(Plain):  # trains itself, as a model trained elsewhere would load i
 
 def fitted(input_shape, classes, generator=None):
     return Fitted(input_shape[1] * input_shape[2], classes)
+
+
+class Nan(Plain):
+    def forward(self, x):
+        return super().forward(x) * float("nan")
+
+
+def nan(input_shape, classes, generator=None):
+    return Nan(input_shape[1] * input_shape[2], classes)
+
+
+class TurnsNan(Plain):  # finite for the probe and the first training steps, NaN from then on
+    calls = 0
+
+    def forward(self, x):
+        self.calls += 1
+        out = super().forward(x)
+        return out * float("nan") if self.calls > 3 else out
+
+
+def turns_nan(input_shape, classes, generator=None):
+    return TurnsNan(input_shape[1] * input_shape[2], classes)
+
+
+class Integer(Plain):
+    def forward(self, x):
+        return super().forward(x).round().long()
+
+
+def integer(input_shape, classes, generator=None):
+    return Integer(input_shape[1] * input_shape[2], classes)
+
+
+class Empty(nn.Module):  # nothing to train
+    def __init__(self, classes):
+        super().__init__()
+        self.classes = classes
+
+    def forward(self, x):
+        return torch.zeros(len(x), self.classes)
+
+
+def empty(input_shape, classes, generator=None):
+    return Empty(classes)
+
+
+def exits(input_shape, classes, generator=None):
+    raise SystemExit(0)
+
+
+def sleeps(input_shape, classes, generator=None):
+    import time
+
+    time.sleep(120)
+
+
+def chatty(input_shape, classes, generator=None):
+    print("x" * 1_000_000)
+    return build(input_shape, classes)
 """
 
 
@@ -123,6 +182,7 @@ def test_a_plain_torch_module_by_name_and_by_file(plain_module, tmp_path, datase
     for cell in cells.values():
         assert cell["kind"] == "conventional" and cell["spec"]["output"] == "logits"
         assert cell["threads"] == 1 and cell["device"] == "cpu"
+        assert cell["machine"]["torch_threads"] == 1  # it recorded the process's 2
         assert cell["macs"] == 256 * 32  # one linear layer, counted like the baselines'
 
 
@@ -146,16 +206,109 @@ def test_a_model_with_its_own_fit_is_scored_only(plain_module, tmp_path, dataset
         ("outside_plain:not_a_module", "returned str; expected a torch.nn.Module"),
         ("outside_plain:wrong_shape", r"output for a batch of 2 is \(2, 33\); expected logits"),
         ("outside_plain:breaks", "forward on a batch of 2 delays inputs raised RuntimeError"),
+        ("outside_plain:nan", "before training: the model's output holds nan"),
+        ("outside_plain:integer", "output is torch.int64; expected a floating-point logits"),
+        ("outside_plain:empty", "the model has no trainable parameters"),
+        ("outside_plain:exits", "builder 'outside_plain:exits' raised SystemExit: 0"),
     ],
 )
 def test_bad_builders_are_one_line(plain_module, tmp_path, datasets, model, words, cli):
+    """Refused before anything is written: not even suite.json (a refused model used to leave
+    it and cells/, and the folder was then refused for the next suite)."""
     out = tmp_path / "b"
     result = cli("bench", "--suite", _suite(tmp_path, datasets), "--models", model, "--out", out)
     assert result.exit_code in (1, 2), result.output
     assert "Traceback" not in result.output
-    lines = [line for line in result.output.splitlines() if "rror" in line]
+    lines = [line for line in result.stderr.splitlines() if not line.startswith("note: ")]
     assert len(lines) == 1 and __import__("re").search(words, lines[0]), result.output
-    assert not (out / "cells").exists() or not list((out / "cells").iterdir())
+    assert not out.exists()
+
+
+def test_a_model_that_turns_nan_stops_its_cell_naming_the_epoch(
+    plain_module, tmp_path, datasets, cli
+):
+    """It used to train to NaN weights, score every sample as class 0 and be published."""
+    out = tmp_path / "b"
+    suite = _suite(tmp_path, datasets, epochs=3)
+    result = cli("bench", "--suite", suite, "--models", "outside_plain:turns_nan", "--out", out)
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    line = result.stderr.splitlines()[-1]  # after the note and the progress bar
+    assert line.startswith("Error: recipe outside_plain.turns_nan: epoch 0's validation: the ")
+    assert "output holds nan" in line
+    assert not list((out / "cells").glob("*.json")) and not list(out.glob("checkpoints/*.pt"))
+    runs = tmp_path / "runs"
+    trained = cli("train", "--model", "outside_plain:turns_nan", "--dataset", datasets[0.1],
+                  "--out", runs, "--epochs", 2)  # fmt: skip
+    assert trained.exit_code == 1 and "epoch 0" in trained.stderr and "nan" in trained.stderr
+    assert not list(runs.glob("*.pt"))
+
+
+def test_two_builders_of_one_package_keep_their_own_cells(tmp_path, datasets, cli, monkeypatch):
+    """``mynets.a:build`` and ``mynets.b:build`` were both named ``mynets.build``: the second
+    cell overwrote the first, and the run said "1 cells"."""
+    package = tmp_path / "code" / "mynets"
+    package.mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    for name in ("a", "b"):
+        (package / f"{name}.py").write_text(PLAIN)
+    monkeypatch.syspath_prepend(str(tmp_path / "code"))
+    out = tmp_path / "b"
+    result = _bench_json(cli, _suite(tmp_path, datasets), "mynets.a:build,mynets.b:build", out)
+    assert result.exit_code == 0, result.output
+    names = sorted(c["model"] for c in json.loads(result.stdout)["cells"])
+    assert names == ["mynets.a.build", "mynets.b.build"]
+
+
+def test_two_recipes_of_one_name_from_different_folders_are_refused(
+    plain_module, tmp_path, datasets, cli
+):
+    recipes = []
+    for folder in ("x", "y"):
+        (tmp_path / folder).mkdir()
+        recipe = tmp_path / folder / "mine.toml"  # no [architecture]: the builder takes none
+        recipe.write_text(f'model = "{plain_module}:build"\n' + TRAINING.format(epochs=1))
+        recipes.append(str(recipe))
+    out = tmp_path / "b"
+    result = _bench_json(cli, _suite(tmp_path, datasets), ",".join(recipes), out)
+    assert result.exit_code == 2, result.output
+    assert "would both be cells of model 'mine'" in result.stderr and not out.exists()
+    one = _bench_json(cli, _suite(tmp_path, datasets), f"{recipes[0]},{recipes[0]}", out)
+    assert one.exit_code == 0, one.output  # one recipe named twice is one model
+    (cell,) = json.loads(one.stdout)["cells"]
+    assert cell["model"] == "mine"
+
+
+def test_a_builder_that_prints_leaves_train_json_on_stdout(plain_module, tmp_path, datasets, cli):
+    result = cli("train", "--model", "outside_plain:chatty", "--dataset", datasets[0.1],
+                 "--out", tmp_path / "runs", "--epochs", 1, "--json")  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["model"] == "outside_plain.chatty"
+    assert "x" * 1_000_000 in result.stderr
+
+
+def test_a_builder_that_hangs_is_stopped_by_the_time_cap(
+    plain_module, tmp_path, datasets, cli, monkeypatch
+):
+    import simlidar.bench.train
+
+    monkeypatch.setattr(simlidar.bench.train, "PROBE_FLOOR_S", 0.3)
+    result = cli("train", "--model", "outside_plain:sleeps", "--dataset", datasets[0.1],
+                 "--out", tmp_path / "runs", "--max-seconds", 0.1)  # fmt: skip
+    assert result.exit_code == 2 and "Traceback" not in result.output, result.output
+    (line,) = result.stderr.splitlines()
+    assert "building the model and its first forward: still running after the time cap" in line
+
+
+def test_bench_says_which_recipe_values_the_suites_budget_replaced(
+    plain_module, tmp_path, datasets, cli
+):
+    out = tmp_path / "b"
+    result = _bench_json(cli, _suite(tmp_path, datasets), "outside_plain:build", out)
+    assert result.exit_code == 0, result.output
+    note = "note: outside_plain.build: epochs 1 (its recipe: 30), by suite outside's budget"
+    assert note in result.stderr.splitlines()
+    (cell,) = json.loads(result.stdout)["cells"]
+    assert cell["epochs_run"] == 1
 
 
 def test_a_module_that_fails_to_import_is_named(tmp_path, datasets, cli):

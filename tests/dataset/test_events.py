@@ -110,11 +110,27 @@ def test_the_event_dataset_has_tonics_attributes_and_the_files_events(datasets):
         ds[64]
 
 
-def test_the_default_tick_is_a_microsecond_and_is_refused_on_a_flash_window(datasets):
-    with pytest.raises(ConfigError) as err:
-        EventDataset(datasets[0.1], "test")
-    assert str(err.value).startswith("tick_ns=1000.0: expected nanoseconds in (0, 667.128]")
-    assert "tick_ns=1 gives nanoseconds" in str(err.value)
+def test_the_default_tick_is_a_nanosecond_on_a_flash_window(datasets):
+    """A microsecond is longer than the 667 ns flash window, and the documented first call
+    (no tick) refused the flash data it was shown with; the default now fits the window."""
+    events = EventDataset(datasets[0.1], "test")
+    assert events.tick_ns == 1.0 and events.window_ticks == round(events.unit_ns) + 1
+    with pytest.raises(ConfigError, match=r"^tick_ns=1000.0: expected nanoseconds in \(0, 667"):
+        EventDataset(datasets[0.1], "test", tick_ns=1000.0)  # asked for, it is refused
+
+
+def test_a_tick_too_short_for_an_int64_time_is_refused(datasets):
+    """tick_ns = 1e-300 turned every event's t into INT64_MIN."""
+    with pytest.raises(ConfigError, match=r"^tick_ns=1e-300: the 667.128 ns window would span"):
+        EventDataset(datasets[0.1], "test", tick_ns=1e-300)
+
+
+@pytest.mark.parametrize("field", ["labels", "surface", 3])
+def test_a_field_that_is_not_a_sample_is_refused(datasets, field):
+    with pytest.raises(
+        ConfigError, match=r"^field=.*: expected one of \['delays', 'clean_delays'\]"
+    ):
+        EventDataset(datasets[0.1], "test", field=field)
 
 
 def test_a_split_without_a_time_unit_is_refused(datasets, tmp_path):

@@ -144,3 +144,17 @@ def test_a_declaration_and_a_recipes_spec_over_it():
     model.simlidar_spec = "stepped"
     with pytest.raises(ConfigError, match="simlidar_spec: expected a simlidar.models.protocol"):
         spec_of(model)
+
+
+def test_a_latency_encoding_that_does_not_fit_is_refused_before_it_is_allocated(monkeypatch):
+    """``[spec] steps = 100000`` (the largest allowed) made a (T, B, 1, H, W) tensor of
+    gigabytes without a check; now a batch that cannot be held is one line."""
+    import simlidar.resources
+    from simlidar.errors import ResourceError
+
+    monkeypatch.setattr(simlidar.resources, "available_memory", lambda: 64 * 2**20)
+    spec = ModelSpec(output="stepped_spikes", encoding="latency", steps=100_000)
+    delays = torch.rand(60, 1, 16, 16)
+    with pytest.raises(ResourceError, match=r"\[spec\] steps = 100000: the latency encoding of a"):
+        encode(delays, spec, 1.0)
+    assert encode(delays[:1], ModelSpec(encoding="latency", steps=25), 1.0).shape[0] == 25

@@ -2,7 +2,7 @@ import pytest
 import torch
 
 from simlidar.content import content_dir
-from simlidar.errors import ConfigError
+from simlidar.errors import ConfigError, ResourceError
 from simlidar.models.registry import BUILDERS, build_model, load_recipe
 
 SHIPPED = sorted(p.stem for p in content_dir("baselines").glob("*.toml"))
@@ -66,3 +66,40 @@ def test_bad_recipes_are_named(tmp_path):
         bad.write_text('model = "snn"\n[architecture]\n' + training.replace(broken, ""))
         with pytest.raises(ConfigError, match=key):
             load_recipe(bad)
+
+
+@pytest.mark.parametrize(
+    "model, architecture, error, words",
+    [
+        ("snn", "hidden = [0]", ConfigError, "a layer of 256 inputs and 0 outputs; expected whole"),
+        ("snn", "hidden = [2.5]", ConfigError, "expected whole numbers >= 1"),
+        ("mlp", "dense = [0]", ConfigError, "dense layer: a layer of 256 inputs and 0 outputs"),
+        ("cnn", "conv = [[0, 5, 2]]", ConfigError, "convolution: a layer of 25 inputs and 0"),
+        ("snn", "hidden = [100000000]", ResourceError, "a 256 x 100000000 layer's weights"),
+        ("mlp", "dense = [100000000]", ResourceError, "a 256 x 100000000 layer's weights"),
+    ],
+)
+def test_layer_sizes_are_checked_before_their_weights_are_allocated(
+    tmp_path, model, architecture, error, words
+):
+    """``hidden = [0]`` divided by zero (a traceback) and ``hidden = [100000000]`` asked for
+    400 GB without a check: one line each, before any weight is allocated."""
+    path = tmp_path / "wide.toml"
+    path.write_text(
+        f'model = "{model}"\n[architecture]\n{architecture}\n'
+        "[training]\nlr = 0.001\nbatch_size = 8\nepochs = 1\n"
+    )
+    with pytest.raises(error, match=words) as err:
+        build_model(load_recipe(path), (1, 16, 16), 32)
+    assert "\n" not in str(err.value)
+
+
+def test_a_recipe_may_leave_out_its_architecture(tmp_path):
+    path = tmp_path / "bare.toml"
+    path.write_text('model = "mlp"\n[training]\nlr = 0.001\nbatch_size = 8\nepochs = 1\n')
+    recipe = load_recipe(path)
+    assert recipe["architecture"] == {}
+    assert build_model(recipe, (1, 16, 16), 32)(torch.rand(2, 1, 16, 16)).shape == (2, 32)
+    path.write_text(path.read_text().replace("[training]", "architecture = 3\n[training]"))
+    with pytest.raises(ConfigError, match="key 'architecture': expected a table, got 3"):
+        load_recipe(path)
