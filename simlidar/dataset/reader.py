@@ -2,6 +2,8 @@
 
 import json
 import math
+import os
+import stat
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -9,6 +11,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from simlidar.content import file_kind
 from simlidar.dataset.schema import (
     ATTRIBUTES,
     CONVERTED_SCHEMAS,
@@ -339,6 +342,24 @@ def check_version(
 _SHARD_ATTRS = ("shard", "shards")  # a shard file's own attributes (docs/dataset-format.md)
 
 
+def entry_problem(entry: Path) -> str | None:
+    """Why an entry of a dataset directory is not a file of its own, or None: a regular file
+    itself (``lstat``), never a link (it would be read, hashed and packed as the file it points
+    to, a private one say), a folder, a pipe, a socket or a device. What verify says of every
+    entry and every reader of each split file."""
+    try:
+        mode = entry.lstat().st_mode
+    except OSError as exc:
+        return f"{entry}: cannot be read ({exc.strerror}); expected a regular file"
+    if stat.S_ISREG(mode):
+        return None
+    target = f" to {os.readlink(entry)}" if stat.S_ISLNK(mode) else ""
+    return (
+        f"{entry}: is {file_kind(mode)}{target}, expected a regular file (a dataset "
+        "directory holds only its own files, listed in SHA256SUMS)"
+    )
+
+
 def read_split(path: str | Path, split: str) -> SplitInfo:
     """The split ``split`` of the dataset directory ``path``, one file or sharded (every shard
     checked: the schema, its index and count, the same attributes and sample shape as the
@@ -347,6 +368,10 @@ def read_split(path: str | Path, split: str) -> SplitInfo:
     files = find_split_files(path, split)
     if not files:
         raise DatasetError(f"{path}: expected a dataset directory with {split}.h5")
+    for file in files:  # never a link to another file (verify refuses it too)
+        problem = entry_problem(file)
+        if problem is not None:
+            raise DatasetError(problem)
     infos = [read_split_info(f) for f in files]
     first = infos[0]
     if len(files) == 1 and first.attrs.get("shards") is None:
