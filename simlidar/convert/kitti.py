@@ -39,6 +39,7 @@ from simlidar.convert.kitti_files import (
     training_dir,
 )
 from simlidar.convert.options import KittiConfig
+from simlidar.dataset.reader import check_storage
 from simlidar.dataset.schema import (
     CONVERTED_SCHEMAS,
     SPLITS,
@@ -162,7 +163,14 @@ class SweepFiles(TrainingFiles):
         import h5py
 
         super().__init__(base)
-        with h5py.File(base / SWEEP_FILE, "r") as f:
+        path = base / SWEEP_FILE
+        with h5py.File(path, "r") as f:
+            # a sweep from elsewhere: every dataset stored in the file as the sweep writes it
+            # (no external file, virtual dataset, unknown filter or huge chunk) before any read
+            problems = check_storage(path, f)
+            if problems:
+                more = f" (and {len(problems) - 1} more)" * (len(problems) > 1)
+                raise DatasetError(problems[0] + more)
             self.frames = f["labels"].shape[0]
 
     def stems(self) -> list[str]:

@@ -2,6 +2,8 @@
 
 import json
 import math
+import os
+import stat
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -9,6 +11,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from simlidar.content import file_kind
 from simlidar.dataset.schema import (
     ATTRIBUTES,
     CONVERTED_SCHEMAS,
@@ -149,7 +152,7 @@ def datasets_of(path: Path, f: h5py.File) -> tuple[dict[str, h5py.Dataset], list
 def check_datasets(path: Path, f: h5py.File) -> list[str]:
     """The problems of the two datasets every reader uses, ``delays`` (N, H, W) and
     ``labels`` (N,) of integers, of the file's other members (:func:`datasets_of`) and of
-    every dataset's storage (:func:`unbacked`)."""
+    every dataset's storage (:func:`storage_problem`)."""
     datasets, problems = datasets_of(path, f)
     delays, labels = datasets.get("delays"), datasets.get("labels")
     if delays is None or labels is None:
@@ -161,13 +164,77 @@ def check_datasets(path: Path, f: h5py.File) -> list[str]:
             f"{path}: 'labels' is {labels.dtype} of shape {labels.shape}, expected integer "
             f"class indices of shape ({delays.shape[0]},)"
         )
-    problems += [f"{path}: {p}" for p in map(unbacked, datasets.values()) if p is not None]
+    problems += [f"{path}: {p}" for p in map(storage_problem, datasets.values()) if p]
     return problems
+
+
+def check_storage(path: Path, f: h5py.File) -> list[str]:
+    """The problems of an open HDF5 file's members (:func:`datasets_of`) and of every
+    dataset's storage (:func:`storage_problem`): what a reader of a file from elsewhere (a
+    split, a sweep's frames file) checks before reading any data."""
+    datasets, problems = datasets_of(path, f)
+    return problems + [f"{path}: {p}" for p in map(storage_problem, datasets.values()) if p]
 
 
 # deflate (gzip) compresses at most about 1032 : 1 (long runs of one byte); the files this
 # package writes stay far below it (labels about 40 : 1, surface labels about 10 : 1)
 MAX_COMPRESSION = 1032
+
+
+# The largest chunk a reader inflates, uncompressed: reading any row of a chunk decompresses
+# all of it, so one gzip chunk of 1,048,576 samples (1 GiB) in a 3.5 MB file made verify take
+# 1.26 GB. The largest chunk this package writes: 256 samples x 64 beams x 1024 columns x 8
+# bytes = 128 MiB (the scan-timed `emission_ns` of an HDL-64E at the widest width generate
+# takes); its defaults stay far below (a VLP-16 split, 16 x 16: 256 KiB of delays; scan-timed
+# HDL-64E, 64 x 16: 2 MiB; a KITTI crop of 50 x 118: 5.8 MiB; DVS 32 x 32: 1 MiB, its events in
+# chunks of 65,536 rows: 512 KiB; a sweep frame of the HDL-64E, 64 x 2083: 0.5 MiB).
+MAX_CHUNK_BYTES = 128 * 2**20
+# The only filters the writers use (gzip and shuffle); any other (a plugin, scale-offset, ...)
+# is refused before HDF5 looks for it
+FILTERS = {h5py.h5z.FILTER_DEFLATE: "gzip", h5py.h5z.FILTER_SHUFFLE: "shuffle"}
+_LAYOUTS = {h5py.h5d.COMPACT: "compact", h5py.h5d.VIRTUAL: "virtual"}
+
+
+def storage_problem(dataset: h5py.Dataset) -> str | None:
+    """Why a dataset is not stored as the writers of this package store theirs, or None: in
+    the file's own bytes, contiguous or in chunks (not in external files, a virtual dataset
+    mapped from other files, or compact), with no filter but gzip and shuffle, chunks of at
+    most :data:`MAX_CHUNK_BYTES` uncompressed, and every declared byte backed
+    (:func:`unbacked`). Checked from the dataset's creation properties alone, before any of
+    its data is read."""
+    name = dataset.name.lstrip("/")
+    expected = "expected a dataset whose bytes are in the file, contiguous or chunked"
+    try:
+        plist = dataset.id.get_create_plist()
+        layout = plist.get_layout()
+        externals = plist.get_external_count()
+        if dataset.is_virtual or layout == h5py.h5d.VIRTUAL:
+            return f"'{name}' is an HDF5 virtual dataset (mapped from other files); {expected}"
+        if externals:
+            file = plist.get_external(0)[0].decode(errors="replace")
+            return f"'{name}' is stored in the external file {file!r}; {expected}"
+        if layout not in (h5py.h5d.CONTIGUOUS, h5py.h5d.CHUNKED):
+            kind = _LAYOUTS.get(layout, f"layout {layout}")
+            return f"'{name}' has {kind} storage; {expected}"
+        if layout == h5py.h5d.CHUNKED:
+            for index in range(plist.get_nfilters()):
+                code, _, _, label = plist.get_filter(index)
+                if code not in FILTERS:
+                    label = label.decode(errors="replace") or "unknown"
+                    return (
+                        f"'{name}' asks for HDF5 filter {code} ({label}); expected only "
+                        f"{' and '.join(FILTERS.values())}"
+                    )
+            chunk = math.prod(dataset.chunks) * dataset.dtype.itemsize
+            if chunk > MAX_CHUNK_BYTES:
+                return (
+                    f"'{name}' is stored in chunks of {dataset.chunks} {dataset.dtype} "
+                    f"({size_text(chunk)} each); expected chunks of at most "
+                    f"{size_text(MAX_CHUNK_BYTES)}"
+                )
+    except (OSError, RuntimeError, ValueError, TypeError) as exc:
+        return f"'{name}': storage unreadable ({first_line(exc)})"
+    return unbacked(dataset)
 
 
 def unbacked(dataset: h5py.Dataset) -> str | None:
@@ -275,6 +342,24 @@ def check_version(
 _SHARD_ATTRS = ("shard", "shards")  # a shard file's own attributes (docs/dataset-format.md)
 
 
+def entry_problem(entry: Path) -> str | None:
+    """Why an entry of a dataset directory is not a file of its own, or None: a regular file
+    itself (``lstat``), never a link (it would be read, hashed and packed as the file it points
+    to, a private one say), a folder, a pipe, a socket or a device. What verify says of every
+    entry and every reader of each split file."""
+    try:
+        mode = entry.lstat().st_mode
+    except OSError as exc:
+        return f"{entry}: cannot be read ({exc.strerror}); expected a regular file"
+    if stat.S_ISREG(mode):
+        return None
+    target = f" to {os.readlink(entry)}" if stat.S_ISLNK(mode) else ""
+    return (
+        f"{entry}: is {file_kind(mode)}{target}, expected a regular file (a dataset "
+        "directory holds only its own files, listed in SHA256SUMS)"
+    )
+
+
 def read_split(path: str | Path, split: str) -> SplitInfo:
     """The split ``split`` of the dataset directory ``path``, one file or sharded (every shard
     checked: the schema, its index and count, the same attributes and sample shape as the
@@ -283,6 +368,10 @@ def read_split(path: str | Path, split: str) -> SplitInfo:
     files = find_split_files(path, split)
     if not files:
         raise DatasetError(f"{path}: expected a dataset directory with {split}.h5")
+    for file in files:  # never a link to another file (verify refuses it too)
+        problem = entry_problem(file)
+        if problem is not None:
+            raise DatasetError(problem)
     infos = [read_split_info(f) for f in files]
     first = infos[0]
     if len(files) == 1 and first.attrs.get("shards") is None:

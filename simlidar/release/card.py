@@ -8,6 +8,7 @@ from pathlib import Path
 
 import yaml
 
+from simlidar.content import read_text
 from simlidar.dataset.schema import SPLITS
 from simlidar.errors import DatasetError
 from simlidar.release.checksums import write_text
@@ -102,20 +103,61 @@ def write_card(path: str | Path, text: str) -> Path:
     return write_text(Path(path) / CARD, text)
 
 
+# A card is a few KB (a 32-class generated one: about 12 KB); no more than this is ever read, so
+# that a 3 GB (sparse) README.md is one line instead of 3 GB in memory
+MAX_CARD_BYTES = 4 * 2**20
+# The front matter nests 8 levels deep (dataset_info.features[].dtype.class_label.names); deeper
+# than this is refused before PyYAML's composer recurses (20,000 levels: a RecursionError)
+MAX_FRONT_MATTER_DEPTH = 64
+
+
+class _Refused(Exception):
+    """What the card's YAML may not hold: the reason, with its line."""
+
+
+class _CardLoader(yaml.SafeLoader):
+    """PyYAML's safe loader without anchors and aliases (nine levels of aliases, a "billion
+    laughs", expand to gigabytes) and with nesting bounded by :data:`MAX_FRONT_MATTER_DEPTH`;
+    both checked on the event stream, before any node is built."""
+
+    depth = 0
+
+    def compose_node(self, parent, index):
+        event = self.peek_event()
+        line = event.start_mark.line + 1 if event.start_mark else "?"
+        if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
+            raise _Refused(
+                f"YAML anchor or alias ('&' or '*') at line {line}; expected plain YAML without "
+                "anchors or aliases"
+            )
+        self.depth += 1
+        try:
+            if self.depth > MAX_FRONT_MATTER_DEPTH:
+                raise _Refused(
+                    f"nested deeper than {MAX_FRONT_MATTER_DEPTH} levels at line {line}; "
+                    f"expected at most {MAX_FRONT_MATTER_DEPTH}"
+                )
+            return super().compose_node(parent, index)
+        finally:
+            self.depth -= 1
+
+
 def read_front_matter(path: str | Path) -> dict:
-    """The YAML front matter of a dataset's card; DatasetError when missing or malformed."""
+    """The YAML front matter of a dataset's card; DatasetError when missing or malformed. At most
+    :data:`MAX_CARD_BYTES` are read (of a regular file: never a pipe or a device), and the YAML
+    may hold no anchors or aliases and nest at most :data:`MAX_FRONT_MATTER_DEPTH` deep."""
     card = Path(path) / CARD
-    if not card.is_file():
+    if not card.exists() and not card.is_symlink():
         raise DatasetError(f"{card}: missing (expected the dataset card)")
-    try:
-        text = card.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        message = f"{card}: not UTF-8 text ({exc.reason} at byte {exc.start})"
-        raise DatasetError(f"{message}; expected the dataset card in UTF-8") from None
+    text = read_text(card, MAX_CARD_BYTES, DatasetError)
     if not text.startswith("---\n") or "\n---\n" not in text[3:]:
         raise DatasetError(f"{card}: expected YAML front matter between '---' lines at the top")
     try:
-        meta = yaml.safe_load(text[4 : text.index("\n---\n", 3)])
+        meta = yaml.load(text[4 : text.index("\n---\n", 3)], Loader=_CardLoader)
+    except _Refused as exc:
+        raise DatasetError(f"{card}: front matter {exc}") from None
+    except RecursionError:
+        raise DatasetError(f"{card}: front matter nested too deeply; expected plain YAML") from None
     except yaml.YAMLError as exc:
         message = f"{card}: malformed YAML front matter ({exc})".replace("\n", " ")
         raise DatasetError(message) from None

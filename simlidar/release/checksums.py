@@ -1,12 +1,11 @@
 """``SHA256SUMS``: the checksum of every file of a dataset directory (``sha256sum -c`` format)."""
 
 import hashlib
-import os
 import stat
 from pathlib import Path
 
 from simlidar.atomic import write_file
-from simlidar.content import file_kind
+from simlidar.dataset.reader import entry_problem
 from simlidar.errors import DatasetError
 
 SUMS = "SHA256SUMS"
@@ -58,22 +57,10 @@ def _is_regular(path: Path) -> bool:
 def stray_entries(path: Path) -> list[str]:
     """Problems of the entries of a dataset directory that are not regular files: a link (it
     would be read, hashed and packed as the file it points to), a folder (a dataset has none:
-    ``payload/run_me.sh`` would travel with it unchecked), a pipe, a socket, a device.
+    ``payload/run_me.sh`` would travel with it unchecked), a pipe, a socket, a device
+    (:func:`~simlidar.dataset.reader.entry_problem`, which the readers apply to split files).
     Operating-system litter is allowed as a regular file only."""
-    problems = []
-    for entry in sorted(path.iterdir()):
-        try:
-            mode = entry.lstat().st_mode
-        except OSError as exc:
-            problems.append(f"{entry}: cannot be read ({exc.strerror}); expected a regular file")
-            continue
-        if not stat.S_ISREG(mode):
-            target = f" to {os.readlink(entry)}" if stat.S_ISLNK(mode) else ""
-            problems.append(
-                f"{entry}: is {file_kind(mode)}{target}, expected a regular file (a dataset "
-                "directory holds only its own files, listed in SHA256SUMS)"
-            )
-    return problems
+    return [p for p in map(entry_problem, sorted(path.iterdir())) if p is not None]
 
 
 def write_sums(path: Path, names: list[str] | None = None) -> None:

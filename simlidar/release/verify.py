@@ -10,7 +10,7 @@ from simlidar.dataset.reader import (
     check_version,
     datasets_of,
     read_attrs,
-    unbacked,
+    storage_problem,
     written_version,
 )
 from simlidar.dataset.schema import (
@@ -78,7 +78,7 @@ def _check_split(
                 problems.append(f"{path}: '{name}' has shape {ds.shape}, expected {shape}")
         if problems or size is None or width is None:  # not readable as the schema says
             return problems, None
-        problems += [f"{path}: {p}" for p in map(unbacked, datasets.values()) if p is not None]
+        problems += [f"{path}: {p}" for p in map(storage_problem, datasets.values()) if p]
         if problems:  # declared sizes the file cannot back: never read them
             return problems, None
         if attrs["split"] != split:

@@ -302,6 +302,23 @@ def test_a_split_file_that_is_a_link_fails_verify(copy, tmp_path):
     assert any("test.h5: is a link to" in p for p in verify(copy))
 
 
+def test_a_split_file_that_is_a_link_is_refused_by_info_as_by_verify(copy, tmp_path, cli):
+    """Issue 40, item 8: info followed the link verify refuses (one shared check)."""
+    from simlidar.data import load_split
+
+    (copy / "test.h5").rename(tmp_path / "test.h5")
+    (copy / "test.h5").symlink_to(tmp_path / "test.h5")
+    line = (
+        f"{copy / 'test.h5'}: is a link to {tmp_path / 'test.h5'}, expected a regular file (a "
+        "dataset directory holds only its own files, listed in SHA256SUMS)"
+    )
+    assert line in verify(copy)
+    result = cli("info", copy)
+    assert result.exit_code == 1 and result.output.splitlines() == [f"Error: {line}"]
+    with pytest.raises(DatasetError, match="test.h5: is a link to"):
+        load_split(copy, "test")
+
+
 @pytest.mark.parametrize(
     "make, kind",
     [
