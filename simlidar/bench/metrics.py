@@ -34,7 +34,8 @@ CONNECTION_LAYERS = (nn.Linear, nn.Conv1d, nn.Conv2d, nn.Conv3d)
 ACTIVATIONS = (nn.ReLU, nn.Sigmoid)
 AC_PJ = 0.9  # energy of a 32-bit float add (an accumulate) at 45 nm (Horowitz, ISSCC 2014)
 # spiking neuron modules of outside libraries, known by a base class's module and name (no
-# import of the library): snnTorch's neurons, Norse's cells and layers; a module of any
+# import of the library): snnTorch's neurons, Norse's cells and layers, SpikingJelly's nodes
+# (activation_based.neuron.BaseNode); a module of any
 # library can also say so with ``spiking_neuron = True``
 SPIKING_BASES = {
     ("snntorch", "SpikingNeuron"),
@@ -42,6 +43,7 @@ SPIKING_BASES = {
     ("norse", "SNN"),
     ("norse", "SNNRecurrentCell"),
     ("norse", "SNNRecurrent"),
+    ("spikingjelly", "BaseNode"),
 }
 
 
@@ -131,9 +133,14 @@ def layer_operations(layer: nn.Module, x: torch.Tensor) -> tuple[int, int]:
     shapes alone and is taken on one sample. Outputs are whole numbers, summed in float64.
 
     layer : one of CONNECTION_LAYERS
-    x : (B, ...) the layer's input
+    x : (B, ...) the layer's input; a multi-step layer's (T, B, ...) (SpikingJelly's in
+        ``step_mode="m"``) counts its T x B inputs as samples, each step once
     """
     w = layer.weight
+    if isinstance(layer, nn.Linear):  # (..., in_features): any leading axes are samples
+        x = x.reshape(-1, x.shape[-1])
+    elif x.dim() > len(layer.kernel_size) + 2:  # a multi-step layer's (T, B, C, ...): T x B
+        x = x.reshape(-1, *x.shape[x.dim() - len(layer.kernel_size) - 1 :])
     with torch.no_grad():
         ones = torch.ones_like(w)
         if isinstance(layer, nn.Linear):

@@ -209,3 +209,43 @@ def test_the_spiking_cnn_has_the_synapses_neurobench_counts_for_its_cnn(pulses):
     neurons, synapses = network_size(scnn, (1, 16, 16))
     assert synapses == dense == 505_136
     assert neurons == 48 * 8 * 8 + 24 * 4 * 4 + 256 + 32
+
+
+def test_spikingjelly_multi_step_layers_count_every_step():
+    """SpikingJelly's layers in step_mode "m" take the whole (T, B, ...) train in one call: each
+    step's inputs are counted as NeuroBench's count of one sample each, T x B in all, the same
+    through a layer.Conv2d (an nn.Conv2d subclass), an nn.Conv2d wrapped in a
+    SeqToANNContainer (called on (T x B, ...)) and a layer.Linear; its neurons (BaseNode) are
+    spiking neuron modules."""
+    pytest.importorskip("spikingjelly")
+    from spikingjelly.activation_based import layer, neuron
+
+    torch.manual_seed(0)
+    conv = layer.Conv2d(2, 3, 3, stride=2, padding=1, step_mode="m")
+    wrapped = layer.SeqToANNContainer(torch.nn.Conv2d(2, 3, 3, stride=2, padding=1))
+    wrapped[0].load_state_dict(conv.state_dict())
+    linear = layer.Linear(12, 5, step_mode="m")
+    with torch.no_grad():
+        conv.weight[0] = 0.0  # a channel of zero weights: 18 of 54
+    x = (torch.rand(4, 6, 2, 5, 5) > 0.6).float()  # (T, B, C, H, W) spikes
+    single = torch.nn.Conv2d(2, 3, 3, stride=2, padding=1)
+    single.load_state_dict(conv.state_dict())
+    per_step = [metrics.layer_operations(single, step) for step in x]
+    summed = tuple(sum(c[i] for c in per_step) for i in (0, 1))
+    assert metrics.layer_operations(conv, x) == summed
+    # dense, by hand, per T x B: 3 output channels x 2 input channels x the kernel's products
+    # inside the 5 x 5 image: its 3 rows at the 3 output rows see 2, 3 and 2 image rows (7),
+    # and as many columns
+    assert summed[1] == 4 * 6 * 3 * 2 * 7 * 7
+    assert summed[0] < summed[1] * 2 / 3
+    seen = []
+    hook = wrapped[0].register_forward_pre_hook(lambda m, i: seen.append(i[0].shape))
+    assert wrapped(x).shape == (4, 6, 3, 3, 3) and seen == [(24, 2, 5, 5)]
+    hook.remove()
+    spikes = (torch.rand(4, 6, 12) > 0.5).float()
+    effective, dense = metrics.layer_operations(linear, spikes)
+    assert dense == 4 * 6 * 12 * 5
+    assert effective == int((spikes != 0).sum()) * 5  # no zero weights
+    assert metrics.is_spiking_neuron(neuron.LIFNode(step_mode="m"))
+    assert metrics.is_spiking_neuron(neuron.IFNode())
+    assert not metrics.is_spiking_neuron(linear)
