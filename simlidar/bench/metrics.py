@@ -44,13 +44,8 @@ ACTIVATIONS = (nn.ReLU, nn.Sigmoid)
 AC_PJ = 0.9  # energy of a 32-bit float add (an accumulate) at 45 nm (Horowitz, ISSCC 2014)
 # spiking neuron modules of outside libraries, known by a base class's module and name (no
 # import of the library): snnTorch's neurons, Norse's cells and layers, SpikingJelly's nodes
-# (activation_based.neuron.BaseNode); a module of any
-# library can also say so with ``spiking_neuron = True``
-# Norse's recurrent cells (one step: input (B, in), state) and layers (all steps: input (T, B,
-# in)): synapses ``input_weights`` (hidden, in) from the input and ``recurrent_weights`` (hidden,
-# hidden) from the previous step's spikes (the state's ``z``), which NeuroBench leaves out
-RECURRENT_CELL_BASES = {("norse", "SNNRecurrentCell")}
-RECURRENT_LAYER_BASES = {("norse", "SNNRecurrent")}
+# (activation_based.neuron.BaseNode); a module of any library can also say so with
+# ``spiking_neuron = True``
 SPIKING_BASES = {
     ("snntorch", "SpikingNeuron"),
     ("norse", "SNNCell"),
@@ -59,6 +54,11 @@ SPIKING_BASES = {
     ("norse", "SNNRecurrent"),
     ("spikingjelly", "BaseNode"),
 }
+# Norse's recurrent cells (one step: input (B, in), state) and layers (all steps: input (T, B,
+# in)): synapses ``input_weights`` (hidden, in) from the input and ``recurrent_weights`` (hidden,
+# hidden) from the previous step's spikes (the state's ``z``), which NeuroBench leaves out
+RECURRENT_CELL_BASES = {("norse", "SNNRecurrentCell")}
+RECURRENT_LAYER_BASES = {("norse", "SNNRecurrent")}
 
 
 def _has_base(module: nn.Module, bases: set) -> bool:

@@ -497,3 +497,20 @@ def test_spikingjelly_neurons_start_every_forward_call_at_rest():
     raw(x)[1].sum().backward()
     with pytest.raises(RuntimeError, match="backward through the graph a second time"):
         raw(x)[1].sum().backward()
+
+
+def test_a_stepped_model_without_known_neurons_is_warned_about(datasets):
+    """Its neurons' spikes cannot be counted: a warning says so, rather than a silent 0."""
+    from simlidar.bench.stepped import stepped_decisions
+    from simlidar.data import load_split
+    from simlidar.models.protocol import ModelSpec
+
+    class Threshold(torch.nn.Module):  # spikes made by a function, in no neuron module
+        def forward(self, x):
+            return (x.flatten(2)[..., :32] > 0).float()
+
+    spec = ModelSpec(output="stepped_spikes", encoding="latency", steps=4, readout="spike_count")
+    x, y = load_split(datasets[0.1], "test")
+    with pytest.warns(UserWarning, match="Threshold: no spiking neuron module recognised"):
+        summary = stepped_decisions(Threshold(), torch.from_numpy(x[:8])[:, None], y[:8], spec, 1.0)
+    assert summary["neuron_spikes_mean"] == 0
