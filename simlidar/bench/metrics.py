@@ -15,6 +15,14 @@ load beside the installed torch, too much for a runtime dependency, so it is the
 (docs/benchmark.md, "NeuroBench metrics"). For the spiking networks, which NeuroBench cannot run
 (they are not snnTorch models and decide event by event), the same definitions are applied to the
 event-driven run (:mod:`simlidar.models.decisions`).
+
+Where simlidar counts what NeuroBench does not: the synapses that Norse's recurrent cells and
+layers (``LIFRecurrentCell``, ``LIFRecurrent``, ...) hold themselves, ``input_weights`` and
+``recurrent_weights``. NeuroBench knows only torch's connection and recurrent layers, so it
+counts no operation and no connection of theirs (``SynapticOperations`` 0,
+``ConnectionSparsity`` None for a network of them alone); simlidar counts them in
+``connection_sparsity`` and ``synaptic_operations`` (:func:`recurrent_operations`), hence in
+``energy_pj_ops``. A network without them gets NeuroBench's figures.
 """
 
 import statistics
@@ -29,20 +37,41 @@ from simlidar.models.layers import ConvTTFS, DenseTTFS
 
 MAC_PJ = 4.6  # energy of a 32-bit float multiply-accumulate at 45 nm (Horowitz, ISSCC 2014)
 # the layers NeuroBench counts synaptic operations and connection sparsity of (its
-# STATELESS_LAYERS; our models have no recurrent ones), and its activation modules
+# STATELESS_LAYERS; torch's recurrent layers are not counted here: no model has them), and its
+# activation modules
 CONNECTION_LAYERS = (nn.Linear, nn.Conv1d, nn.Conv2d, nn.Conv3d)
 ACTIVATIONS = (nn.ReLU, nn.Sigmoid)
 AC_PJ = 0.9  # energy of a 32-bit float add (an accumulate) at 45 nm (Horowitz, ISSCC 2014)
 # spiking neuron modules of outside libraries, known by a base class's module and name (no
-# import of the library): snnTorch's neurons, Norse's cells and layers; a module of any
-# library can also say so with ``spiking_neuron = True``
+# import of the library): snnTorch's neurons, Norse's cells and layers, SpikingJelly's nodes
+# (activation_based.neuron.BaseNode); a module of any library can also say so with
+# ``spiking_neuron = True``
 SPIKING_BASES = {
     ("snntorch", "SpikingNeuron"),
     ("norse", "SNNCell"),
     ("norse", "SNN"),
     ("norse", "SNNRecurrentCell"),
     ("norse", "SNNRecurrent"),
+    ("spikingjelly", "BaseNode"),
 }
+# Norse's recurrent cells (one step: input (B, in), state) and layers (all steps: input (T, B,
+# in)): synapses ``input_weights`` (hidden, in) from the input and ``recurrent_weights`` (hidden,
+# hidden) from the previous step's spikes (the state's ``z``), which NeuroBench leaves out
+RECURRENT_CELL_BASES = {("norse", "SNNRecurrentCell")}
+RECURRENT_LAYER_BASES = {("norse", "SNNRecurrent")}
+
+
+def _has_base(module: nn.Module, bases: set) -> bool:
+    return any((c.__module__.split(".")[0], c.__name__) in bases for c in type(module).__mro__)
+
+
+def is_recurrent_synapses(module: nn.Module) -> bool:
+    """Whether ``module`` is a Norse recurrent cell or layer with its own synapses
+    (``input_weights``, ``recurrent_weights``)."""
+    return _has_base(module, RECURRENT_CELL_BASES | RECURRENT_LAYER_BASES) and all(
+        isinstance(getattr(module, name, None), torch.Tensor)
+        for name in ("input_weights", "recurrent_weights")
+    )
 
 
 def is_spiking_neuron(module: nn.Module) -> bool:
@@ -50,9 +79,7 @@ def is_spiking_neuron(module: nn.Module) -> bool:
     tuple it returns, is spikes)."""
     if getattr(module, "spiking_neuron", False):
         return True
-    return any(
-        (c.__module__.split(".")[0], c.__name__) in SPIKING_BASES for c in type(module).__mro__
-    )
+    return _has_base(module, SPIKING_BASES)
 
 
 def confusion_matrix(labels: np.ndarray, predicted: np.ndarray, classes: int) -> np.ndarray:
@@ -66,8 +93,9 @@ def confusion_matrix(labels: np.ndarray, predicted: np.ndarray, classes: int) ->
 def footprint(model: nn.Module) -> dict:
     """NeuroBench's static metrics: ``params`` (every parameter), ``footprint`` (bytes of
     parameters and buffers) and ``connection_sparsity`` (zero weights / weights of the
-    connection layers: linear and convolution layers, and the spiking layers' synapses; biases,
-    batch norm and buffers are not connections). NeuroBench rounds the sparsity to 4 decimals;
+    connection layers: linear and convolution layers, and the spiking layers' synapses, Norse's
+    recurrent cells' input and recurrent weights included; biases, batch norm and buffers are
+    not connections). NeuroBench rounds the sparsity to 4 decimals;
     it is kept whole here."""
     params = list(model.parameters())
     weights = [
@@ -75,6 +103,9 @@ def footprint(model: nn.Module) -> dict:
         for m in model.modules()
         if isinstance(m, (*CONNECTION_LAYERS, DenseTTFS, ConvTTFS))
     ]
+    for m in model.modules():
+        if is_recurrent_synapses(m):
+            weights += [m.input_weights, m.recurrent_weights]
     zeros = sum(int((w == 0).sum()) for w in weights)
     total = sum(w.numel() for w in weights)
     kept = model.state_dict(keep_vars=True)  # persistent buffers: not a batch's neuron state
@@ -131,9 +162,14 @@ def layer_operations(layer: nn.Module, x: torch.Tensor) -> tuple[int, int]:
     shapes alone and is taken on one sample. Outputs are whole numbers, summed in float64.
 
     layer : one of CONNECTION_LAYERS
-    x : (B, ...) the layer's input
+    x : (B, ...) the layer's input; a multi-step layer's (T, B, ...) (SpikingJelly's in
+        ``step_mode="m"``) counts its T x B inputs as samples, each step once
     """
     w = layer.weight
+    if isinstance(layer, nn.Linear):  # (..., in_features): any leading axes are samples
+        x = x.reshape(-1, x.shape[-1])
+    elif x.dim() > len(layer.kernel_size) + 2:  # a multi-step layer's (T, B, C, ...): T x B
+        x = x.reshape(-1, *x.shape[x.dim() - len(layer.kernel_size) - 1 :])
     with torch.no_grad():
         ones = torch.ones_like(w)
         if isinstance(layer, nn.Linear):
@@ -145,6 +181,42 @@ def layer_operations(layer: nn.Module, x: torch.Tensor) -> tuple[int, int]:
     return (int(effective.sum(dtype=torch.float64)), int(dense.sum(dtype=torch.float64)) * len(x))
 
 
+def _matrix_operations(weights: torch.Tensor, x: torch.Tensor) -> tuple[int, int]:
+    """(effective, dense) synaptic operations of a weight matrix (out, in) on inputs (..., in):
+    non-zero weights reaching non-zero inputs, and every weight for every input row."""
+    with torch.no_grad():
+        x = x.reshape(-1, weights.shape[1])
+        effective = nn.functional.linear(
+            (x != 0).to(weights.dtype), (weights != 0).to(weights.dtype)
+        )
+    return int(effective.sum(dtype=torch.float64)), len(x) * weights.numel()
+
+
+def recurrent_operations(module: nn.Module, args: tuple, kwargs: dict, out) -> list:
+    """Synaptic operations of a Norse recurrent cell or layer's call, one entry per weight
+    matrix: (effective, dense, its input). The input weights reach the call's input (a cell's
+    (B, in), a layer's (T, B, in)); the recurrent weights reach the previous step's spikes: a
+    cell's given state's ``z`` (none without a state: it starts at rest), a layer's initial
+    state's ``z`` and then its own output spikes of each step but the last. Dense: every weight
+    once a step and sample (the recurrent ones at the first step too, and autapses, zero by
+    default, too)."""
+    x = args[0]
+    state = args[1] if len(args) > 1 else kwargs.get("state")
+    hidden = module.recurrent_weights.shape[0]
+    previous = getattr(state, "z", None)
+    rows = x.shape[:-1]  # (B,) or (T, B)
+    if previous is None:
+        previous = torch.zeros((*rows[-1:], hidden), dtype=x.dtype, device=x.device)
+    previous = previous.reshape(*rows[-1:], hidden).to(x.dtype)
+    if len(rows) > 1:  # a layer: the state's spikes, then its own spikes of steps 0 .. T - 2
+        spikes = out[0] if isinstance(out, tuple | list) else out
+        previous = torch.cat([previous[None], spikes[:-1].to(x.dtype)])
+    return [
+        (*_matrix_operations(module.input_weights, x), x),
+        (*_matrix_operations(module.recurrent_weights, previous), previous),
+    ]
+
+
 def workload(model: nn.Module, x: torch.Tensor, batch_size: int = 64, encode=None) -> dict:
     """NeuroBench's workload metrics of a conventional network over a whole split.
 
@@ -154,7 +226,9 @@ def workload(model: nn.Module, x: torch.Tensor, batch_size: int = 64, encode=Non
     sample, ``effective_macs`` and ``effective_acs`` (:func:`layer_operations`, effective; a
     layer whose input batch holds only 0, 1 and -1 is taken to receive spikes, and its
     operations are accumulates, as NeuroBench decides it batch by batch: only binary input
-    data can make it so here) and ``dense``.
+    data can make it so here) and ``dense``. Norse's recurrent cells and layers count too
+    (:func:`recurrent_operations`: their input and recurrent weights), which NeuroBench does
+    not.
 
     x : (N, C, H, W) inputs
     encode : what makes the model's input of a batch of ``x`` (default: ``x`` itself); a
@@ -162,11 +236,17 @@ def workload(model: nn.Module, x: torch.Tensor, batch_size: int = 64, encode=Non
     """
     counts = {"macs": 0, "acs": 0, "dense": 0, "zero": 0, "outputs": 0}
 
-    def connection(m, inputs):
-        effective, dense = layer_operations(m, inputs[0])
-        spikes = bool(((inputs[0] == 0) | (inputs[0] == 1) | (inputs[0] == -1)).all())
+    def count(effective, dense, x):
+        spikes = bool(((x == 0) | (x == 1) | (x == -1)).all())
         counts["acs" if spikes else "macs"] += effective
         counts["dense"] += dense
+
+    def connection(m, inputs):
+        count(*layer_operations(m, inputs[0]), inputs[0])
+
+    def recurrent(m, args, kwargs, out):
+        for operations in recurrent_operations(m, args, kwargs, out):
+            count(*operations)
 
     def activation(m, inputs, out):
         out = out[0] if isinstance(out, tuple | list) else out  # snnTorch: (spikes, membrane)
@@ -179,6 +259,8 @@ def workload(model: nn.Module, x: torch.Tensor, batch_size: int = 64, encode=Non
             hooks.append(m.register_forward_pre_hook(connection))
         elif isinstance(m, ACTIVATIONS) or is_spiking_neuron(m):
             hooks.append(m.register_forward_hook(activation))
+        if is_recurrent_synapses(m):  # a Norse recurrent cell is a neuron module too
+            hooks.append(m.register_forward_hook(recurrent, with_kwargs=True))
     model.eval()
     try:
         with torch.no_grad():

@@ -12,6 +12,8 @@ are called some other number of times has its neurons' spikes counted over the w
 (``neuron_spikes_by_step`` False in the summary).
 """
 
+import warnings
+
 import numpy as np
 import torch
 
@@ -98,6 +100,13 @@ def stepped_decisions(
     model.eval()
     device = next(iter(model.parameters()), torch.empty(0)).device
     hooks = _NeuronSpikes(model, spec.steps)
+    if not hooks.hooks:
+        warnings.warn(
+            f"{type(model).__name__}: no spiking neuron module recognised (snnTorch's, Norse's, "
+            "SpikingJelly's or one with spiking_neuron = True): its neuron spikes count 0 and "
+            "its activation sparsity is not measured",
+            stacklevel=2,
+        )
     predicted, steps, settled, consumed, totals, neurons = [], [], [], [], [], []
     stepwise = True
     try:

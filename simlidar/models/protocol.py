@@ -42,6 +42,15 @@ Hooks a model may define (each optional):
         its own training loop, on encoded tensors; simlidar then scores the validation split
         (recorded) and reads the test split once. A model trained elsewhere, its weights loaded
         by its builder, is scored only with a ``simlidar_fit`` that returns at once.
+
+Neuron state. Every forward call of a benchmarked model is a new batch of samples, whose
+neurons start from rest: a model built by :func:`simlidar.models.registry.build_model` has the
+state of its stateful modules reset before each forward call (:func:`reset_state`), for
+training, scoring and the metrics alike. Those are SpikingJelly's (any subclass of
+``spikingjelly.activation_based.base.MemoryModule``, its neurons included: their ``reset()``,
+what SpikingJelly's ``functional.reset_net`` calls) and any module that defines
+``simlidar_reset()``. snnTorch and Norse keep no state between calls unless told to (snnTorch's
+``init_hidden=True``, which the model must then reset itself).
 """
 
 from dataclasses import dataclass, fields, replace
@@ -119,6 +128,34 @@ def spec_of(model, overrides: dict | None = None, where: str = "model") -> Model
         return replace(declared, **overrides)
     except ConfigError as exc:
         raise ConfigError(f"{where}: [spec] {exc}") from None
+
+
+# stateful modules of outside libraries, known by a base class's module and name (no import of
+# the library), and the method that puts them back at rest
+STATEFUL_BASES = {("spikingjelly", "MemoryModule"): "reset"}
+
+
+def _reset_method(module) -> str | None:
+    if callable(getattr(module, "simlidar_reset", None)):
+        return "simlidar_reset"
+    for c in type(module).__mro__:
+        method = STATEFUL_BASES.get((c.__module__.split(".")[0], c.__name__))
+        if method is not None:
+            return method
+    return None
+
+
+def stateful_modules(model) -> list:
+    """(module, name of its reset method) of each stateful module of ``model``, itself included."""
+    found = [(m, _reset_method(m)) for m in model.modules()]
+    return [(m, method) for m, method in found if method is not None]
+
+
+def reset_state(model, *_) -> None:
+    """Put every stateful module of ``model`` back at rest (SpikingJelly's membrane potentials,
+    say): a forward pre-hook, so that each forward call starts from a new batch's rest state."""
+    for module, method in stateful_modules(model):
+        getattr(module, method)()
 
 
 def encode(delays, spec: ModelSpec, silent_from: float):

@@ -242,4 +242,8 @@ def build_model(recipe: dict, input_shape: tuple[int, ...], classes: int, genera
         raise ConfigError(
             f"{where}: builder {name!r} returned {type(model).__name__}; expected a torch.nn.Module"
         )
+    from simlidar.models.protocol import reset_state, stateful_modules
+
+    if stateful_modules(model):  # each forward call is a new batch: its neurons start at rest
+        model.register_forward_pre_hook(reset_state)
     return model

@@ -209,3 +209,121 @@ def test_the_spiking_cnn_has_the_synapses_neurobench_counts_for_its_cnn(pulses):
     neurons, synapses = network_size(scnn, (1, 16, 16))
     assert synapses == dense == 505_136
     assert neurons == 48 * 8 * 8 + 24 * 4 * 4 + 256 + 32
+
+
+def test_spikingjelly_multi_step_layers_count_every_step():
+    """SpikingJelly's layers in step_mode "m" take the whole (T, B, ...) train in one call: each
+    step's inputs are counted as NeuroBench's count of one sample each, T x B in all, the same
+    through a layer.Conv2d (an nn.Conv2d subclass), an nn.Conv2d wrapped in a
+    SeqToANNContainer (called on (T x B, ...)) and a layer.Linear; its neurons (BaseNode) are
+    spiking neuron modules."""
+    pytest.importorskip("spikingjelly")
+    from spikingjelly.activation_based import layer, neuron
+
+    torch.manual_seed(0)
+    conv = layer.Conv2d(2, 3, 3, stride=2, padding=1, step_mode="m")
+    wrapped = layer.SeqToANNContainer(torch.nn.Conv2d(2, 3, 3, stride=2, padding=1))
+    wrapped[0].load_state_dict(conv.state_dict())
+    linear = layer.Linear(12, 5, step_mode="m")
+    with torch.no_grad():
+        conv.weight[0] = 0.0  # a channel of zero weights: 18 of 54
+    x = (torch.rand(4, 6, 2, 5, 5) > 0.6).float()  # (T, B, C, H, W) spikes
+    single = torch.nn.Conv2d(2, 3, 3, stride=2, padding=1)
+    single.load_state_dict(conv.state_dict())
+    per_step = [metrics.layer_operations(single, step) for step in x]
+    summed = tuple(sum(c[i] for c in per_step) for i in (0, 1))
+    assert metrics.layer_operations(conv, x) == summed
+    # dense, by hand, per T x B: 3 output channels x 2 input channels x the kernel's products
+    # inside the 5 x 5 image: its 3 rows at the 3 output rows see 2, 3 and 2 image rows (7),
+    # and as many columns
+    assert summed[1] == 4 * 6 * 3 * 2 * 7 * 7
+    assert summed[0] < summed[1] * 2 / 3
+    seen = []
+    hook = wrapped[0].register_forward_pre_hook(lambda m, i: seen.append(i[0].shape))
+    assert wrapped(x).shape == (4, 6, 3, 3, 3) and seen == [(24, 2, 5, 5)]
+    hook.remove()
+    spikes = (torch.rand(4, 6, 12) > 0.5).float()
+    effective, dense = metrics.layer_operations(linear, spikes)
+    assert dense == 4 * 6 * 12 * 5
+    assert effective == int((spikes != 0).sum()) * 5  # no zero weights
+    assert metrics.is_spiking_neuron(neuron.LIFNode(step_mode="m"))
+    assert metrics.is_spiking_neuron(neuron.IFNode())
+    assert not metrics.is_spiking_neuron(linear)
+
+
+def test_norse_recurrent_synapses_count_by_hand():
+    """Norse's LIFRecurrentCell and LIFRecurrent hold their synapses themselves (input_weights
+    (hidden, in), recurrent_weights (hidden, hidden)); NeuroBench counts neither, simlidar both.
+
+    2 neurons, 3 inputs; input weights [[8, 0, 8], [0, 0, 8]], recurrent [[0, 5], [5, 0]] (no
+    autapses); Norse's defaults: per step the current jumps by the weighted inputs, then
+    v += 0.1 (i - v), a spike above 1 resets v to 0, and i decays by a fifth. Sample 1 gets
+    inputs [1, 0, 1], [0, 1, 0], [0, 0, 0] over 3 steps; sample 2 nothing. Step 0: the input
+    reaches 3 non-zero weights (input 0 -> neuron 0, input 2 -> both); no spikes before it;
+    i = (16, 8), v = (1.6, 0.8): neuron 0 fires. Step 1: input 1 has only zero weights; neuron
+    0's spike reaches neuron 1 (1 recurrent synapse): i = (12.8, 6.4 + 5), v = (1.28, 1.86):
+    both fire. Step 2: no input; the two spikes reach the 2 non-zero recurrent weights; i =
+    (10.24 + 5, 9.12 + 5), both fire again. Effective 3 + 1 + 2 = 6 accumulates (binary inputs
+    and spikes), 3 a sample; dense 3 x (6 + 4) = 30 a sample (every weight each step).
+    """
+    norse = pytest.importorskip("norse.torch")
+
+    def cell(kind):
+        made = kind(3, 2)
+        with torch.no_grad():
+            made.input_weights.copy_(torch.tensor([[8.0, 0, 8], [0, 0, 8]]))
+            made.recurrent_weights.copy_(torch.tensor([[0.0, 5], [5, 0]]))
+        return made
+
+    class Stepped(torch.nn.Module):  # (B, T, 3) -> spikes (T, B, 2), the cell once a step
+        def __init__(self):
+            super().__init__()
+            self.cell = cell(norse.LIFRecurrentCell)
+
+        def forward(self, x):
+            state, spikes = None, []
+            for step in x.transpose(0, 1):
+                z, state = self.cell(step, state)
+                spikes.append(z)
+            return torch.stack(spikes)
+
+    class Layer(torch.nn.Module):  # the same as a layer over all steps
+        def __init__(self):
+            super().__init__()
+            self.layer = cell(norse.LIFRecurrent)
+
+        def forward(self, x):
+            return self.layer(x.transpose(0, 1))[0]
+
+    x = torch.zeros(2, 3, 3)
+    x[0, 0] = torch.tensor([1.0, 0, 1])
+    x[0, 1] = torch.tensor([0.0, 1, 0])
+    for model in (Stepped(), Layer()):
+        assert model(x).tolist() == [[[1, 0], [0, 0]], [[1, 1], [0, 0]], [[1, 1], [0, 0]]]
+        figures = metrics.workload(model, x)
+        assert figures["synaptic_operations"] == {
+            "effective_macs": 0.0,
+            "effective_acs": 3.0,
+            "dense": 30.0,
+        }
+        assert figures["activation_sparsity"] == pytest.approx(1 - 5 / 12)  # 5 spikes of 12
+        assert metrics.footprint(model)["connection_sparsity"] == 5 / 10  # 3 + 2 zeros
+    # NeuroBench sees no connection layer in it: no synapses, no operations
+    from neurobench.benchmarks import Benchmark
+    from neurobench.metrics.static import ConnectionSparsity
+    from neurobench.metrics.workload import SynapticOperations
+    from neurobench.models import TorchModel
+
+    loader = DataLoader(TensorDataset(x, torch.zeros(2)), batch_size=2)
+    workload = [[ConnectionSparsity], [SynapticOperations]]
+    theirs = Benchmark(TorchModel(Layer()), loader, [], [], workload).run(quiet=True)
+    assert theirs["ConnectionSparsity"] is None
+    assert theirs["SynapticOperations"] == {"Effective_MACs": 0, "Effective_ACs": 0, "Dense": 0}
+    # the cell's state given as a keyword, spikes in it: their recurrent synapses count
+    c = cell(norse.LIFRecurrentCell)
+    _, state = c(torch.zeros(1, 3))
+    state = state._replace(z=torch.tensor([[1.0, 0.0]]))
+    (_, (effective, dense, _)) = metrics.recurrent_operations(
+        c, (torch.zeros(1, 3),), {"state": state}, None
+    )
+    assert (effective, dense) == (1, 4)

@@ -15,7 +15,7 @@ import pytest
 import torch
 
 from simlidar.errors import ConfigError
-from simlidar.models.registry import build_model, load_recipe
+from simlidar.models.registry import build_model, builder, load_recipe
 
 EXAMPLES = Path(__file__).parents[2] / "examples"
 SUITE = """
@@ -336,7 +336,7 @@ def test_a_device_this_machine_lacks_is_refused(tmp_path, datasets, cli):
     assert not (tmp_path / "b").exists()
 
 
-@pytest.mark.parametrize("example", ["snntorch_lif", "norse_lif"])
+@pytest.mark.parametrize("example", ["snntorch_lif", "norse_lif", "spikingjelly_conv"])
 def test_the_examples_train_and_score_through_bench(tmp_path, datasets, example, cli):
     pytest.importorskip(example.split("_")[0])  # the extras simlidar[snntorch], [norse]
     out = tmp_path / "b"
@@ -371,11 +371,15 @@ def test_the_examples_train_and_score_through_bench(tmp_path, datasets, example,
     assert cell["model"] in report
 
 
-@pytest.mark.parametrize("example", ["snntorch_lif", "norse_lif"])
+@pytest.mark.parametrize("example", ["snntorch_lif", "norse_lif", "spikingjelly_conv"])
 def test_the_examples_figures_are_neurobenchs(datasets, example):
     """NeuroBench's own Benchmark on the same network and inputs. Its activation hooks know
-    snnTorch's neurons (SNNTorchModel) but not Norse's cells, whose (spikes, state) output it
-    cannot count: for the Norse example it checks every figure but activation sparsity."""
+    snnTorch's neurons (SNNTorchModel) and any module class it is given (SpikingJelly's
+    BaseNode, whose multi-step output (T, B, ...) it counts element by element), but not Norse's
+    cells, whose (spikes, state) output it cannot count: for the Norse example it checks every
+    figure but activation sparsity. SpikingJelly's multi-step layers take the whole (T, B, ...)
+    train in one call, which NeuroBench's synaptic-operation hook hands to a binary copy of the
+    layer as it is."""
     pytest.importorskip(example.split("_")[0])
     from neurobench.benchmarks import Benchmark
     from neurobench.metrics.static import Footprint, ParameterCount
@@ -410,19 +414,22 @@ def test_the_examples_figures_are_neurobenchs(datasets, example):
     model(enc(x[:16]))  # a batch's neuron state may now sit in the model's buffers ...
     assert metrics.footprint(model)["footprint"] == ours["footprint"]  # ... and is left out
     loader = DataLoader(TensorDataset(enc(x).transpose(0, 1), torch.zeros(len(x))), batch_size=16)
-    snntorch = example == "snntorch_lif"
-    wrapped = (
-        SNNTorchModel(TimeMajor(built()), custom_forward=True)
-        if snntorch
-        else TorchModel(TimeMajor(built()))
-    )
-    workload = [ActivationSparsity, SynapticOperations] if snntorch else [SynapticOperations]
+    snntorch, norse = example == "snntorch_lif", example == "norse_lif"
+    if snntorch:
+        wrapped = SNNTorchModel(TimeMajor(built()), custom_forward=True)
+    else:
+        wrapped = TorchModel(TimeMajor(built()))
+    if example == "spikingjelly_conv":
+        from spikingjelly.activation_based.neuron import BaseNode
+
+        wrapped.add_activation_module(BaseNode)
+    workload = [SynapticOperations] if norse else [ActivationSparsity, SynapticOperations]
     theirs = Benchmark(wrapped, loader, [], [], [[Footprint, ParameterCount], workload]).run(
         quiet=True
     )
     assert ours["params"] == theirs["ParameterCount"]
     assert ours["footprint"] == theirs["Footprint"]
-    if snntorch:
+    if not norse:
         assert ours["activation_sparsity"] == pytest.approx(theirs["ActivationSparsity"], rel=1e-12)
     assert 0 < ours["activation_sparsity"] < 1
     ops, nb_ops = ours["synaptic_operations"], theirs["SynapticOperations"]
@@ -619,3 +626,44 @@ def test_train_prints_a_model_that_trained_itself(plain_module, datasets, tmp_pa
     assert result.exit_code == 0, result.output
     assert "outside_plain.fitted: test accuracy" in result.output
     assert "trained by its own simlidar_fit" in result.output
+
+
+def test_spikingjelly_neurons_start_every_forward_call_at_rest():
+    """SpikingJelly's neurons keep their membrane potential between calls (their reset is the
+    user's, functional.reset_net): a model built by simlidar has it reset before each forward
+    call, so that a batch does not start from the last one's state, the batch size may change,
+    and training does not backpropagate into the last batch's graph."""
+    pytest.importorskip("spikingjelly")
+    recipe = load_recipe(EXAMPLES / "spikingjelly_conv.toml")
+    x = (torch.rand(25, 4, 1, 16, 16) > 0.9).float()
+    make = builder(recipe["model"], Path(recipe["base"]))
+    raw = make((1, 16, 16), 32, torch.Generator().manual_seed(0), **recipe["architecture"])
+    model = build_model(recipe, (1, 16, 16), 32, torch.Generator().manual_seed(0))
+    first = model(x)[1]
+    assert model(x[:, :3])[1].shape == (25, 3, 32)  # a smaller batch
+    assert torch.equal(model(x)[1], first)  # from rest again
+    for _ in range(2):  # a second backward would reach the first batch's freed graph
+        model(x)[1].sum().backward()
+    # the builder's module as it is: the second call starts from the first's state
+    assert torch.equal(raw(x)[1], first)
+    assert not torch.equal(raw(x)[1], first)
+    raw(x)[1].sum().backward()
+    with pytest.raises(RuntimeError, match="backward through the graph a second time"):
+        raw(x)[1].sum().backward()
+
+
+def test_a_stepped_model_without_known_neurons_is_warned_about(datasets):
+    """Its neurons' spikes cannot be counted: a warning says so, rather than a silent 0."""
+    from simlidar.bench.stepped import stepped_decisions
+    from simlidar.data import load_split
+    from simlidar.models.protocol import ModelSpec
+
+    class Threshold(torch.nn.Module):  # spikes made by a function, in no neuron module
+        def forward(self, x):
+            return (x.flatten(2)[..., :32] > 0).float()
+
+    spec = ModelSpec(output="stepped_spikes", encoding="latency", steps=4, readout="spike_count")
+    x, y = load_split(datasets[0.1], "test")
+    with pytest.warns(UserWarning, match="Threshold: no spiking neuron module recognised"):
+        summary = stepped_decisions(Threshold(), torch.from_numpy(x[:8])[:, None], y[:8], spec, 1.0)
+    assert summary["neuron_spikes_mean"] == 0
