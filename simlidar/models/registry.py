@@ -25,7 +25,7 @@ from pathlib import Path
 
 from simlidar.content import read_toml, shipped_or_path
 from simlidar.errors import ConfigError, raised
-from simlidar.models.protocol import spec_of
+from simlidar.models.protocol import reset_state, spec_of, stateful_modules
 from simlidar.models.training import TrainingConfig
 
 # model name (a recipe's `model`) -> (module of simlidar.models, builder function); each
@@ -242,8 +242,6 @@ def build_model(recipe: dict, input_shape: tuple[int, ...], classes: int, genera
         raise ConfigError(
             f"{where}: builder {name!r} returned {type(model).__name__}; expected a torch.nn.Module"
         )
-    from simlidar.models.protocol import reset_state, stateful_modules
-
     if stateful_modules(model):  # each forward call is a new batch: its neurons start at rest
         model.register_forward_pre_hook(reset_state)
     return model
