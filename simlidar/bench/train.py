@@ -311,7 +311,8 @@ def probe_model(recipe: dict, shape: tuple[int, int], classes: int, max_seconds:
     generator = torch.Generator().manual_seed(0)
     x = torch.rand((2, 1, *shape), generator=generator)
     where = f"recipe {recipe.get('name', '?')}: building the model and its first forward"
-    with time_limit(max_seconds, where):
+    # a builder that draws from torch's global generator draws the same after the probe
+    with time_limit(max_seconds, where), torch.random.fork_rng(devices=[]):
         prepared_model(recipe, x, classes, generator, torch.device("cpu"), 1.0)
 
 

@@ -9,6 +9,7 @@ import h5py
 import numpy as np
 
 from simlidar.dataset.reader import SplitInfo, read_split
+from simlidar.dataset.schema import generated_schema
 from simlidar.errors import ConfigError, DatasetError, shown
 from simlidar.settings import Range
 
@@ -49,18 +50,23 @@ def load_split(path: str | Path, split: str = "train", field: str = "delays"):
     returns : x (N, H, W) float32 (``field``: "delays" with noise, or "clean_delays" of a
         generated dataset; H = 16 there), y (N,) int64 class labels
     """
-    arrays = _field_checked(split_info(path, split), field).read((field, "labels"))
+    info = _field_checked(split_info(path, split), field, PIXEL_FIELDS)
+    arrays = info.read((field, "labels"))
     return arrays[field], arrays["labels"]
 
 
-FIELDS = ("delays", "clean_delays")  # what a loader reads as a sample
+FIELDS = ("delays", "clean_delays")  # what the datasets of samples read as a sample
+# what load_split reads: a generated split's per-pixel datasets, (N, H, W) each
+PIXEL_FIELDS = tuple(
+    name for name, (_, tail) in generated_schema("scan").items() if len(tail(1, 1)) == 2
+)
 
 
-def _field_checked(info: SplitInfo, field) -> SplitInfo:
-    """``info``, once ``field`` is one of :data:`FIELDS` held by its files (a converted split
-    has no ``clean_delays``); a ConfigError or DatasetError naming it otherwise."""
-    if not isinstance(field, str) or field not in FIELDS:
-        raise ConfigError(f"field={shown(field)}: expected one of {list(FIELDS)}")
+def _field_checked(info: SplitInfo, field, allowed: tuple[str, ...] = FIELDS) -> SplitInfo:
+    """``info``, once ``field`` is one of ``allowed`` held by its files (a converted split has
+    no ``clean_delays``); a ConfigError or DatasetError naming it otherwise."""
+    if not isinstance(field, str) or field not in allowed:
+        raise ConfigError(f"field={shown(field)}: expected one of {list(allowed)}")
     with h5py.File(info.files[0], "r") as f:
         if field not in f:
             raise DatasetError(

@@ -256,7 +256,7 @@ def test_cli_converts_and_the_dense_snn_benches_on_it(tmp_path, cli):
         "--json",
     )
     assert bench.exit_code == 0, bench.output
-    (cell,) = json.loads(bench.output)["cells"]
+    (cell,) = json.loads(bench.stdout)["cells"]
     assert cell["source"] == "dvs-barrel" and cell["input_shape"] == [1, 32, 32]
     assert cell["early"]["accuracy"] == pytest.approx(cell["accuracy"])  # event-driven runs
     assert cell["early"]["decision_time_ns_mean"] is None  # not a time-of-flight dataset

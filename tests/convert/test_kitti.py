@@ -409,7 +409,7 @@ def test_cli_converts_the_sample_and_benches_it_end_to_end(
     assert "--validation 0" in few.output
     bench = cli(*args, "--validation", "0")
     assert bench.exit_code == 0, bench.output
-    cells = json.loads(bench.output)["cells"]
+    cells = json.loads(bench.stdout)["cells"]
     assert {c["model"] for c in cells} == {"cnn", "scnn_small"}
     for c in cells:
         assert c["source"] == "kitti" and c["input_shape"] == [1, 50, 118]
