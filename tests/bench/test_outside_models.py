@@ -667,3 +667,11 @@ def test_a_stepped_model_without_known_neurons_is_warned_about(datasets):
     with pytest.warns(UserWarning, match="Threshold: no spiking neuron module recognised"):
         summary = stepped_decisions(Threshold(), torch.from_numpy(x[:8])[:, None], y[:8], spec, 1.0)
     assert summary["neuron_spikes_mean"] == 0
+
+
+def test_bench_help_names_every_way_to_give_a_model(cli):
+    """It named only package.module:function."""
+    text = " ".join(cli("bench", "--help").output.split())
+    for words in ("path/to/file.py:function", "a .toml recipe file (its [spec] table",
+                  "docs/benchmark.md", "The suite's [budget] sets every model's epochs"):  # fmt: skip
+        assert words in text, words
