@@ -672,6 +672,10 @@ def test_a_stepped_model_without_known_neurons_is_warned_about(datasets):
 def test_bench_help_names_every_way_to_give_a_model(cli):
     """It named only package.module:function."""
     text = " ".join(cli("bench", "--help").output.split())
-    for words in ("path/to/file.py:function", "a .toml recipe file (its [spec] table",
-                  "docs/benchmark.md", "The suite's [budget] sets every model's epochs"):  # fmt: skip
+    for words in (
+        "path/to/file.py:function",
+        "a .toml recipe file (its [spec] table",
+        "docs/benchmark.md",
+        "The suite's [budget] sets every model's epochs",
+    ):
         assert words in text, words
