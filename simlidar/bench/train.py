@@ -156,11 +156,12 @@ def validation_split(
     return np.setdiff1d(rows, validation), validation
 
 
-def _fresh_noise(dataset, attrs: dict, seed: int, rows: np.ndarray):
+def fresh_noise(dataset, attrs: dict, seed: int, rows: np.ndarray):
     """``noise_augment``: a function drawing the train split's noise anew (same level, same
-    profile rule, from ``clean_delays``) for each epoch: the paper's "adding noise randomly"
-    as augmentation rather than one fixed draw per sample, for the training ``rows`` (the
-    validation rows keep the file's draw, like the test split). Seeded by the training seed."""
+    profile rule, from ``clean_delays``) for each epoch, (len(rows), H, W) float32 delays: the
+    paper's "adding noise randomly" as augmentation rather than one fixed draw per sample, for
+    the training ``rows`` (the validation rows keep the file's draw, like the test split).
+    Seeded by the training seed. The early-information bound draws the same way."""
     if "source" in attrs or "noise" not in attrs:
         raise ConfigError(
             f"{dataset}: training option noise_augment: expected a generated dataset "
@@ -172,9 +173,9 @@ def _fresh_noise(dataset, attrs: dict, seed: int, rows: np.ndarray):
     noise_on = attrs.get("noise_on", "returns")
     rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(7,))))
 
-    def draw() -> torch.Tensor:
+    def draw() -> np.ndarray:
         u = rng.random(clean.shape, dtype=np.float32)
-        return torch.from_numpy(noisy_delays(clean, level, u, missing, noise_on))[:, None]
+        return noisy_delays(clean, level, u, missing, noise_on)
 
     return draw
 
@@ -473,9 +474,9 @@ def train(
     if hasattr(model, "simlidar_fit"):
         parts = (x_train, y_train, x_val, y_val, silent_from)
         return _own_fit(model, recipe, spec, dataset, training, generator, device, parts)
-    fresh_noise = None
+    draw = None
     if training.noise_augment:
-        fresh_noise = _fresh_noise(dataset, attrs, seed, rows)
+        draw = fresh_noise(dataset, attrs, seed, rows)
     optimizer = make_optimizer(model.parameters(), training)
     epochs, budget, batch = training.epochs, training.max_seconds, training.batch_size
     schedule = None
@@ -487,8 +488,8 @@ def train(
     bar = tqdm(range(epochs), desc=f"train {recipe.get('name', '')}", disable=not progress)
     for epoch in bar:
         model.train()
-        if fresh_noise is not None:
-            x_train = fresh_noise()
+        if draw is not None:
+            x_train = torch.from_numpy(draw())[:, None]
         order = torch.randperm(len(y_train), generator=generator)
         losses = []
         # a scheduled early-decision term is off before its epoch

@@ -250,21 +250,21 @@ def test_noise_augment_draws_the_noise_anew_each_epoch(datasets):
     """Fresh U(0, a) on the clean delays under the split's rule, seeded, different per epoch."""
     import numpy as np
 
-    from simlidar.bench.train import _fresh_noise
+    from simlidar.bench.train import fresh_noise
     from simlidar.dataset.reader import read_split_info
 
     path = datasets[0.5]
     attrs = read_split_info(path / "train.h5").attrs
     clean, _ = load_split(path, "train", field="clean_delays")
     stored, _ = load_split(path, "train")
-    draw = _fresh_noise(path, attrs, seed=3, rows=np.arange(len(clean)))
-    first, second = draw()[:, 0].numpy(), draw()[:, 0].numpy()
+    draw = fresh_noise(path, attrs, seed=3, rows=np.arange(len(clean)))
+    first, second = draw(), draw()
     assert first.shape == clean.shape and not np.array_equal(first, second)
     assert not np.array_equal(first, stored)  # not the file's draw
     for x in (first, second):  # the physical rule: returns delayed by at most 0.5, clipped
         assert (x >= clean).all() and (x - clean <= 0.5 + 1e-6).all() and x.max() <= 1.0
         assert (x[clean == 1.0] == 1.0).all()  # a missing return stays missing
-    again = _fresh_noise(path, attrs, seed=3, rows=np.arange(len(clean)))()[:, 0].numpy()
+    again = fresh_noise(path, attrs, seed=3, rows=np.arange(len(clean)))()
     assert np.array_equal(again, first)  # seeded
     recipe = _small_recipe()
     recipe["training"]["noise_augment"] = True
