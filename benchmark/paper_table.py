@@ -34,8 +34,8 @@ from pathlib import Path
 import numpy as np
 
 from simlidar.bench.hardware import MAX_THREADS
-from simlidar.models.training import MAX_EPOCHS
-from simlidar.script_args import integers, run
+from simlidar.models.training import MAX_EPOCHS, PENALTY
+from simlidar.script_args import integers, numbers, run
 
 ROOT = Path(__file__).resolve().parents[1]
 LEVELS = (0.1, 0.2, 0.33, 0.5)
@@ -43,6 +43,8 @@ LEVELS = (0.1, 0.2, 0.33, 0.5)
 SEEDS = integers(0, 2**63 - 1)  # training seeds, as `simlidar train --seed`
 EPOCHS = integers(1, MAX_EPOCHS, one=True)
 JOBS = integers(1, MAX_THREADS, one=True)  # cells trained at a time
+PENALTIES = numbers(PENALTY.low, PENALTY.high)  # the training option early_penalty
+NOISE = numbers(0, 1, one=True)  # a dataset's noise level, as `simlidar generate --noise`
 
 
 def recipe_epochs(text: str) -> dict[str, int]:
