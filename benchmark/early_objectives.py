@@ -234,7 +234,7 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "benchmark/results/early-objectives")
     parser.add_argument("--no-train", action="store_true", help="summarise the cells there are")
     args = parser.parse_args(argv)
-    names, seeds = list(args.variants), args.seeds
+    names, seeds = list(args.variants), list(args.seeds)
     dataset = args.dataset or args.data / f"simlidar-32c-noise{args.noise:g}-paper-v2.0.0"
     from simlidar.dataset.loaders import split_info
 

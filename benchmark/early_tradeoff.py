@@ -38,7 +38,7 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "benchmark/results/early-tradeoff")
     parser.add_argument("--jobs", type=JOBS, default=2)
     args = parser.parse_args(argv)
-    penalties, seeds = args.penalties, args.seeds
+    penalties, seeds = list(args.penalties), list(args.seeds)
     dataset = datasets(args.data)[args.noise]
     cells = args.out / "cells"
     cells.mkdir(parents=True, exist_ok=True)

@@ -281,7 +281,7 @@ def main(argv=None) -> int:
     )
     args = parser.parse_args(argv)
     recipes = [r for r in args.recipes.split(",") if r]
-    seeds = args.seeds
+    seeds = list(args.seeds)
     check_recipes([*recipes, *args.epochs])
     reported = tomllib.loads((ROOT / "baselines/reported/wang2020.toml").read_text())
     paper = reported["simlidar"]["snn_accuracy"]

@@ -222,7 +222,7 @@ def main(argv=None) -> int:
         help="the docs' picture of one sample under both clocks ('' for none)",
     )
     args = parser.parse_args(argv)
-    seeds, penalties = args.seeds, args.penalties
+    seeds, penalties = list(args.seeds), list(args.penalties)
     from simlidar.generator.config import GeneratorConfig
     from simlidar.generator.profiles import load_profile
 
