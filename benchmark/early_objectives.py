@@ -35,7 +35,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from paper_table import ROOT, run_cells
+from paper_table import EPOCHS as EPOCH_COUNT
+from paper_table import JOBS, NOISE, ROOT, SEEDS, check_recipes, run_cells
+
+from simlidar.script_args import choices, run
 
 RECIPE = "snn_simlidar_tuned"
 EPOCHS = 30  # as benchmark/early_tradeoff.py's published curve
@@ -215,30 +218,28 @@ def targets(rows: list[dict], encoding: str) -> dict:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", type=Path, default=ROOT / "data")
-    parser.add_argument("--noise", type=float, default=0.1)
+    parser.add_argument("--noise", type=NOISE, default=0.1)
     parser.add_argument("--dataset", type=Path, help="a dataset folder (over --data / --noise)")
     parser.add_argument("--recipe", default=RECIPE)
     parser.add_argument(
         "--no-targets", action="store_true", help="leave out the targets (set for Sim LiDAR)"
     )
-    parser.add_argument("--variants", default=",".join(PUBLISHED))
-    parser.add_argument("--seeds", default="0,1,2")
-    parser.add_argument("--epochs", type=int, default=EPOCHS)
-    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--variants", type=choices(tuple(VARIANTS)), default=",".join(PUBLISHED))
+    parser.add_argument("--seeds", type=SEEDS, default="0,1,2")
+    parser.add_argument("--epochs", type=EPOCH_COUNT, default=EPOCHS)
+    parser.add_argument("--jobs", type=JOBS, default=2)
     parser.add_argument(
         "--bound", type=Path, default=ROOT / "benchmark/results/early-bound/bound.json"
     )
     parser.add_argument("--out", type=Path, default=ROOT / "benchmark/results/early-objectives")
     parser.add_argument("--no-train", action="store_true", help="summarise the cells there are")
     args = parser.parse_args(argv)
-    names = [v for v in args.variants.split(",") if v]
-    unknown = [v for v in names if v not in VARIANTS]
-    if unknown:
-        parser.error(f"--variants: unknown {unknown[0]!r}; expected some of {PUBLISHED}")
-    seeds = [int(s) for s in args.seeds.split(",") if s]
+    names, seeds = list(args.variants), list(args.seeds)
     dataset = args.dataset or args.data / f"simlidar-32c-noise{args.noise:g}-paper-v2.0.0"
-    if not dataset.is_dir():
-        parser.error(f"no dataset {dataset} (see the docstring)")
+    from simlidar.dataset.loaders import split_info
+
+    check_recipes([args.recipe])
+    split_info(dataset, "train"), split_info(dataset, "test")  # before anything is written
     cells = args.out / "cells"
     cells.mkdir(parents=True, exist_ok=True)
 
@@ -391,4 +392,4 @@ def write(out: Path, rows: list[dict], goals: list[dict], curves: dict, command:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

@@ -23,21 +23,22 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from paper_table import ROOT, datasets, done, run_cells
+from paper_table import EPOCHS, JOBS, PENALTIES, ROOT, SEEDS, datasets, done, run_cells
+
+from simlidar.script_args import run
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--penalties", default="0,0.3,1,3")
-    parser.add_argument("--seeds", default="0")
+    parser.add_argument("--penalties", type=PENALTIES, default="0,0.3,1,3")
+    parser.add_argument("--seeds", type=SEEDS, default="0")
     parser.add_argument("--noise", type=float, default=0.1, choices=(0.1, 0.2, 0.33, 0.5))
-    parser.add_argument("--epochs", type=int, default=None, help="override the recipe's 60")
+    parser.add_argument("--epochs", type=EPOCHS, default=None, help="override the recipe's 60")
     parser.add_argument("--data", type=Path, default=ROOT / "data")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmark/results/early-tradeoff")
-    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--jobs", type=JOBS, default=2)
     args = parser.parse_args(argv)
-    penalties = [float(p) for p in args.penalties.split(",") if p]
-    seeds = [int(s) for s in args.seeds.split(",") if s]
+    penalties, seeds = list(args.penalties), list(args.seeds)
     dataset = datasets(args.data)[args.noise]
     cells = args.out / "cells"
     cells.mkdir(parents=True, exist_ok=True)
@@ -137,4 +138,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

@@ -22,6 +22,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from simlidar.bench.hardware import MAX_THREADS
+from simlidar.generator.config import MAX_SPLIT_SIZE
+from simlidar.script_args import integers, run
+
+# a tenth of the samples is the test split, at least one sample of each of the 32 classes
+SAMPLES = integers(320, MAX_SPLIT_SIZE, one=True)
+
 
 def child(samples: int, workers: int, out: str) -> None:
     """One generation in this process; prints its figures as one JSON line."""
@@ -52,13 +59,15 @@ def child(samples: int, workers: int, out: str) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--samples", type=int, default=10_000_000, help="the large run")
-    parser.add_argument("--small", type=int, default=100_000, help="the small run (memory)")
-    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--samples", type=SAMPLES, default=10_000_000, help="the large run")
+    parser.add_argument("--small", type=SAMPLES, default=100_000, help="the small run (memory)")
+    parser.add_argument("--workers", type=integers(1, MAX_THREADS, one=True), default=2)
     parser.add_argument("--out", default=None, help="folder for the datasets (default: temp)")
     parser.add_argument("--keep", action="store_true", help="keep the datasets")
-    parser.add_argument("--child", type=int, default=None, help=argparse.SUPPRESS)
+    parser.add_argument("--child", type=SAMPLES, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.out is not None and not Path(args.out).is_dir():
+        parser.error(f"--out {args.out!r}: expected an existing folder")
     if args.child is not None:
         child(args.child, args.workers, args.out)
         return
@@ -79,4 +88,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

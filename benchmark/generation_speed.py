@@ -40,14 +40,15 @@ import numpy as np  # noqa: E402
 from simlidar import __version__  # noqa: E402
 from simlidar.dataset.schema import SHUFFLED, generated_shapes  # noqa: E402
 from simlidar.dataset.writer import SplitWriter  # noqa: E402
-from simlidar.generator.config import GeneratorConfig  # noqa: E402
+from simlidar.generator.config import MAX_SPLIT_SIZE, GeneratorConfig  # noqa: E402
 from simlidar.generator.generate import generate  # noqa: E402
 from simlidar.generator.pulses import split_rows  # noqa: E402
 from simlidar.generator.shard import generated_split_attrs  # noqa: E402
 from simlidar.generator.simulate import simulate  # noqa: E402
 from simlidar.scene.build import build_batch, place_instances  # noqa: E402
 from simlidar.scene.recipe import load_catalog  # noqa: E402
-from simlidar.sensor.raycast import Hits  # noqa: E402
+from simlidar.script_args import in_folder, integers, run  # noqa: E402
+from simlidar.sensor.raycast import MAX_BATCH, Hits  # noqa: E402
 
 
 def _trimesh_hits(mesh, face_surface, face_object, origins, directions, max_range_m):
@@ -190,11 +191,31 @@ def peak_memory_mb(samples: int, out: Path) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--samples", type=int, default=6000, help="train + test, fast way")
-    parser.add_argument("--naive-samples", type=int, default=300)
-    parser.add_argument("--memory", default="10000,100000", help="sample counts, or ''")
-    parser.add_argument("--json", type=Path, default=None, help="also write figures here")
+    parser.add_argument(  # a sixth of them the test split: at least one of each of 32 classes
+        "--samples",
+        type=integers(192, MAX_SPLIT_SIZE, one=True),
+        default=6000,
+        help="train + test, fast way",
+    )
+    parser.add_argument(
+        "--naive-samples",
+        type=integers(1, MAX_BATCH, one=True),
+        default=300,
+        help="at most the fast way's train samples",
+    )
+    parser.add_argument(
+        "--memory",
+        type=lambda text: integers(32, MAX_SPLIT_SIZE)(text) if text else (),  # 32 test samples
+        default="10000,100000",
+        help="sample counts, or ''",
+    )
+    parser.add_argument("--json", type=in_folder, default=None, help="also write figures here")
     args = parser.parse_args()
+    if args.naive_samples > args.samples * 5 // 6:
+        parser.error(
+            f"--naive-samples {args.naive_samples}: expected at most the {args.samples * 5 // 6} "
+            f"train samples of --samples {args.samples}"
+        )
 
     catalog = load_catalog()
     train = args.samples * 5 // 6
@@ -244,7 +265,7 @@ def main() -> None:
                 "identical_pulses": round(same, 5),
             }
 
-        counts = [int(c) for c in args.memory.split(",") if c]
+        counts = list(args.memory)
         if counts:
             reference = peak_memory_mb(1000, tmp / "m-ref")
             print(f"peak memory, 1,000 samples (reference): {reference:7.1f} MB")
@@ -261,4 +282,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

@@ -28,9 +28,10 @@ import simlidar.generator.simulate as simulate  # noqa: E402
 import simlidar.sensor.raycast as raycast  # noqa: E402
 from simlidar.dataset.writer import SplitWriter  # noqa: E402
 from simlidar.generator import shard as shard_module  # noqa: E402
-from simlidar.generator.config import GeneratorConfig  # noqa: E402
+from simlidar.generator.config import MAX_SPLIT_SIZE, GeneratorConfig  # noqa: E402
 from simlidar.generator.generate import generate  # noqa: E402
 from simlidar.scene.recipe import load_catalog  # noqa: E402
+from simlidar.script_args import integers, run  # noqa: E402
 from simlidar.sensor import embree  # noqa: E402
 
 SPENT: dict[str, float] = defaultdict(float)
@@ -60,7 +61,9 @@ class TimedScene(rtcs.EmbreeScene):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--samples", type=int, default=6144, help="train + test")
+    parser.add_argument(  # a sixth of them the test split: at least one of each of 32 classes
+        "--samples", type=integers(192, MAX_SPLIT_SIZE, one=True), default=6144, help="train + test"
+    )
     args = parser.parse_args()
     config = GeneratorConfig(train_size=args.samples * 5 // 6, test_size=args.samples // 6)
     n = config.train_size + config.test_size
@@ -86,4 +89,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

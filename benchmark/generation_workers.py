@@ -19,9 +19,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from simlidar.generator.config import GeneratorConfig
+from simlidar.bench.hardware import MAX_THREADS
+from simlidar.generator.config import MAX_SPLIT_SIZE, GeneratorConfig
 from simlidar.generator.generate import generate
 from simlidar.scene.recipe import load_catalog
+from simlidar.script_args import integers, run
+
+MAX_ROUNDS = 1000
 
 
 def digest(path: Path) -> str:
@@ -33,9 +37,21 @@ def digest(path: Path) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--samples", type=int, default=60_000, help="train + test samples")
-    parser.add_argument("--workers", type=int, default=2, help="the count to compare with 1")
-    parser.add_argument("--rounds", type=int, default=2, help="runs of each count")
+    parser.add_argument(
+        "--samples",
+        type=integers(1, MAX_SPLIT_SIZE, one=True),
+        default=60_000,
+        help="train + test samples",
+    )
+    parser.add_argument(
+        "--workers",
+        type=integers(2, MAX_THREADS, one=True),
+        default=2,
+        help="the count to compare with 1",
+    )
+    parser.add_argument(
+        "--rounds", type=integers(1, MAX_ROUNDS, one=True), default=2, help="runs of each count"
+    )
     args = parser.parse_args()
     test = max(32, args.samples // 6)
     config = GeneratorConfig(train_size=max(32, args.samples - test), test_size=test)
@@ -66,4 +82,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

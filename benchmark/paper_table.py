@@ -33,8 +33,44 @@ from pathlib import Path
 
 import numpy as np
 
+from simlidar.bench.hardware import MAX_THREADS
+from simlidar.models.training import MAX_EPOCHS, PENALTY
+from simlidar.script_args import integers, numbers, run
+
 ROOT = Path(__file__).resolve().parents[1]
 LEVELS = (0.1, 0.2, 0.33, 0.5)
+# the arguments this script shares with early_tradeoff, early_objectives and scan_timing
+SEEDS = integers(0, 2**63 - 1)  # training seeds, as `simlidar train --seed`
+EPOCHS = integers(1, MAX_EPOCHS, one=True)
+JOBS = integers(1, MAX_THREADS, one=True)  # cells trained at a time
+PENALTIES = numbers(PENALTY.low, PENALTY.high)  # the training option early_penalty
+NOISE = numbers(0, 1, one=True)  # a dataset's noise level, as `simlidar generate --noise`
+
+
+def recipe_epochs(text: str) -> dict[str, int]:
+    """An argparse type: ``RECIPE=N,...``, each N an epoch count (the recipes are checked with
+    :func:`check_recipes`)."""
+    epochs = {}
+    for part in text.split(",") if text else ():
+        name, equals, count = part.partition("=")
+        try:
+            if not name or not equals:
+                raise argparse.ArgumentTypeError(part)
+            epochs[name] = EPOCHS(count)
+        except argparse.ArgumentTypeError:
+            raise argparse.ArgumentTypeError(
+                f"{part!r}: expected RECIPE=N, N an integer in [1, {MAX_EPOCHS}]"
+            ) from None
+    return epochs
+
+
+def check_recipes(names) -> None:
+    """Load every recipe of ``names`` before any work: a ConfigError names one that does not
+    exist."""
+    from simlidar.models.registry import load_recipe
+
+    for name in names:
+        load_recipe(name)
 
 
 def _cell(
@@ -233,24 +269,26 @@ def plot(table: dict, cells: list[dict], path: Path) -> None:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--recipes", default="snn_simlidar,snn_simlidar_tuned")
-    parser.add_argument("--seeds", default="0,1,2")
+    parser.add_argument("--seeds", type=SEEDS, default="0,1,2")
     parser.add_argument("--data", type=Path, default=ROOT / "data")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmark/results/paper-table")
-    parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
+    parser.add_argument("--jobs", type=JOBS, default=min(2, os.cpu_count() or 1))
     parser.add_argument(
         "--epochs",
+        type=recipe_epochs,
         default="snn_simlidar=60",  # its recipe's 200 epochs were sized for a 600 s cap
         help="RECIPE=N,...: train these recipes for N epochs, not their own",
     )
     args = parser.parse_args(argv)
     recipes = [r for r in args.recipes.split(",") if r]
-    seeds = [int(s) for s in args.seeds.split(",") if s]
+    seeds = list(args.seeds)
+    check_recipes([*recipes, *args.epochs])
     reported = tomllib.loads((ROOT / "baselines/reported/wang2020.toml").read_text())
     paper = reported["simlidar"]["snn_accuracy"]
 
     paths = datasets(args.data)
     cells_dir = args.out / "cells"
-    epochs = {k: int(v) for k, v in (p.split("=") for p in args.epochs.split(",") if p)}
+    epochs = args.epochs
     tags = {r: f"-e{epochs[r]}" if r in epochs else "" for r in recipes}
     cells_dir.mkdir(parents=True, exist_ok=True)
     todo = []
@@ -290,4 +328,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

@@ -40,7 +40,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from paper_table import ROOT, done, run_cells
+from paper_table import EPOCHS, JOBS, NOISE, PENALTIES, ROOT, SEEDS, done, run_cells
+
+from simlidar.script_args import in_folder, run
 
 RECIPE = "snn_simlidar_tuned"
 TIMINGS = ("flash", "scan")
@@ -200,27 +202,32 @@ def timing_picture(data: dict[str, Path], rows: dict, out: Path) -> Path:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--seeds", default="0,1,2")
+    parser.add_argument("--seeds", type=SEEDS, default="0,1,2")
     parser.add_argument(
         "--penalties",
+        type=PENALTIES,
         default="0,1",
         help="training option early_penalty of each variant (benchmark/early_tradeoff.py)",
     )
-    parser.add_argument("--noise", type=float, default=0.2)
+    parser.add_argument("--noise", type=NOISE, default=0.2)
     parser.add_argument("--profile", default="physical")
-    parser.add_argument("--epochs", type=int, default=None, help="override the recipe's 60")
+    parser.add_argument("--epochs", type=EPOCHS, default=None, help="override the recipe's 60")
     parser.add_argument("--data", type=Path, default=ROOT / "data")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmark/results/scan-timing")
-    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--jobs", type=JOBS, default=2)
     parser.add_argument(
         "--picture",
-        type=lambda text: Path(text) if text else None,
+        type=lambda text: in_folder(text) if text else None,
         default=ROOT / "docs/img/scan-timing.png",
         help="the docs' picture of one sample under both clocks ('' for none)",
     )
     args = parser.parse_args(argv)
-    seeds = [int(s) for s in args.seeds.split(",") if s]
-    penalties = [float(p) for p in args.penalties.split(",") if p]
+    seeds, penalties = list(args.seeds), list(args.penalties)
+    from simlidar.generator.config import GeneratorConfig
+    from simlidar.generator.profiles import load_profile
+
+    # the profile and the configuration, before a dataset or a cell is written
+    GeneratorConfig.from_profile(load_profile(args.profile), noise=args.noise)
     data = twin_datasets(args.data, args.profile, args.noise)
     cell_dir = args.out / "cells"
     cell_dir.mkdir(parents=True, exist_ok=True)
@@ -289,4 +296,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    run(main)

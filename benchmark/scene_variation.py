@@ -19,31 +19,48 @@ from pathlib import Path
 
 from simlidar.bench.run import run_suite
 from simlidar.bench.suite import load_suite
-from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.config import MAX_SPLIT_SIZE, GeneratorConfig
 from simlidar.generator.generate import generate
+from simlidar.models.registry import load_recipe
+from simlidar.models.training import MAX_EPOCHS
 from simlidar.scene.recipe import load_catalog
+from simlidar.script_args import integers, numbers, run
+
+SIZE = integers(32, MAX_SPLIT_SIZE, one=True)  # at least one sample of each of the 32 classes
+EPOCHS = integers(1, MAX_EPOCHS, one=True)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--factors", default="1,0.5,0.25")
-    parser.add_argument("--noise", type=float, default=0.1)
-    parser.add_argument("--train-size", type=int, default=3000)
-    parser.add_argument("--test-size", type=int, default=600)
+    parser.add_argument("--factors", type=numbers(0, 1), default="1,0.5,0.25")
+    parser.add_argument("--noise", type=numbers(0, 1, one=True), default=0.1)
+    parser.add_argument("--train-size", type=SIZE, default=3000)
+    parser.add_argument("--test-size", type=SIZE, default=600)
     parser.add_argument("--models", default="snn_simlidar,cnn")
-    parser.add_argument("--snn-epochs", type=int, default=10)
-    parser.add_argument("--cnn-epochs", type=int, default=60)
+    parser.add_argument("--snn-epochs", type=EPOCHS, default=10)
+    parser.add_argument("--cnn-epochs", type=EPOCHS, default=60)
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
-    args.out.mkdir(parents=True, exist_ok=True)
     models = args.models.split(",")
+    for model in models:  # each one a recipe, and each factor a configuration, before any work
+        load_recipe(model)
+    configs = [
+        (
+            factor,
+            GeneratorConfig(
+                noise=args.noise,
+                train_size=args.train_size,
+                test_size=args.test_size,
+                variation=factor,
+            ),
+        )
+        for factor in args.factors
+    ]
+    args.out.mkdir(parents=True, exist_ok=True)
     epochs = {"snn_simlidar": args.snn_epochs, "cnn": args.cnn_epochs}  # the rest: recipe's own
     rows = []
-    for factor in (float(f) for f in args.factors.split(",")):
+    for factor, config in configs:
         start = time.perf_counter()
-        config = GeneratorConfig(
-            noise=args.noise, train_size=args.train_size, test_size=args.test_size, variation=factor
-        )
         written = generate(
             config,
             [args.noise],
@@ -80,4 +97,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

@@ -18,7 +18,6 @@ runs once to warm up, then timed.
 """
 
 import os
-import sys
 
 if hasattr(os, "sched_setaffinity"):
     os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
@@ -28,13 +27,13 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import json  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
 
-from simlidar.generator.config import GeneratorConfig  # noqa: E402
+from simlidar.generator.config import MAX_SPLIT_SIZE, GeneratorConfig  # noqa: E402
 from simlidar.generator.generate import BATCH  # noqa: E402
 from simlidar.generator.simulate import simulate  # noqa: E402
-from simlidar.generator.sweep import FRAME_BATCH, simulate_frames  # noqa: E402
+from simlidar.generator.sweep import FRAME_BATCH, MAX_FRAMES, simulate_frames  # noqa: E402
 from simlidar.scene.recipe import load_catalog  # noqa: E402
+from simlidar.script_args import in_folder, integers, run  # noqa: E402
 from simlidar.sensor.model import load_sensor  # noqa: E402
 from simlidar.sensor.rays import cycles_per_rotation  # noqa: E402
 
@@ -52,10 +51,12 @@ def _timed(run, total: int, batch: int) -> float:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--frames", type=int, default=128)
-    parser.add_argument("--samples", type=int, default=8192)
+    parser.add_argument("--frames", type=integers(1, MAX_FRAMES, one=True), default=128)
+    parser.add_argument(  # one window of each of the 32 classes at least
+        "--samples", type=integers(32, MAX_SPLIT_SIZE, one=True), default=8192
+    )
     parser.add_argument("--sensor", default="vlp16")
-    parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
+    parser.add_argument("--json", type=in_folder, default=None, help="also write the figures here")
     args = parser.parse_args(argv)
     catalog = load_catalog()
     config = GeneratorConfig(sensor=load_sensor(args.sensor), train_size=args.samples)
@@ -96,4 +97,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

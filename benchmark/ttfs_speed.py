@@ -26,9 +26,13 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from simlidar.bench.hardware import MAX_THREADS, check_threads
 from simlidar.bench.train import batch_loss, make_optimizer
 from simlidar.models.registry import build_model, load_recipe
 from simlidar.models.training import TrainingConfig
+from simlidar.script_args import integers, run
+
+MAX_STEPS = 100_000  # timed steps per model
 
 PAIRS = (  # (spiking, conventional, input shape, batch, target ratio)
     ("scnn_kitti", "cnn", (1, 50, 118), 10, 5.0),
@@ -74,11 +78,18 @@ def step_seconds(steps: int, *trainers) -> list[float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--steps", type=int, default=20, help="timed steps per model")
-    parser.add_argument("--threads", type=int, default=None, help="torch threads (default: all)")
+    parser.add_argument(
+        "--steps", type=integers(1, MAX_STEPS, one=True), default=20, help="timed steps per model"
+    )
+    parser.add_argument(
+        "--threads",
+        type=integers(1, MAX_THREADS, one=True),
+        default=None,
+        help="torch threads (default: all)",
+    )
     args = parser.parse_args()
     if args.threads:
-        torch.set_num_threads(args.threads)
+        torch.set_num_threads(check_threads(args.threads))
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads")
     for spiking, conventional, shape, size, target in PAIRS:
         x, y = batch(shape, size, 8 if spiking == "scnn_kitti" else 32)
@@ -95,4 +106,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

@@ -22,9 +22,11 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from ttfs_speed import PAIRS, batch, step_seconds, trainer
+from ttfs_speed import MAX_STEPS, PAIRS, batch, step_seconds, trainer
 
+from simlidar.bench.hardware import MAX_THREADS, check_threads
 from simlidar.models import ttfs
+from simlidar.script_args import integers, run
 
 TARGET = 20.0  # the torch form's step at most this many times the kernels' on a CPU
 
@@ -41,14 +43,21 @@ def in_torch_form(step):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--steps", type=int, default=20, help="timed steps per form")
-    parser.add_argument("--threads", type=int, default=None, help="torch threads (default: all)")
+    parser.add_argument(
+        "--steps", type=integers(1, MAX_STEPS, one=True), default=20, help="timed steps per form"
+    )
+    parser.add_argument(
+        "--threads",
+        type=integers(1, MAX_THREADS, one=True),
+        default=None,
+        help="torch threads (default: all)",
+    )
     parser.add_argument(
         "--model", choices=[p[0] for p in PAIRS], default="snn_simlidar", help="spiking recipe"
     )
     args = parser.parse_args()
     if args.threads:
-        torch.set_num_threads(args.threads)
+        torch.set_num_threads(check_threads(args.threads))
     name, _, shape, size, _ = next(p for p in PAIRS if p[0] == args.model)
     classes = 8 if name == "scnn_kitti" else 32
     x, y = batch(shape, size, classes)
@@ -65,4 +74,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

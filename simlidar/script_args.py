@@ -3,8 +3,10 @@ value is one line naming it and what was expected, exit code 2, and that a Simli
 while a script runs is one line and exit code 1, never a traceback."""
 
 import argparse
+import math
 import sys
 from collections.abc import Callable
+from pathlib import Path
 
 from simlidar.errors import SimlidarError
 
@@ -14,17 +16,32 @@ def integers(
 ) -> Callable[[str], tuple[int, ...] | int]:
     """An argparse type: a comma-separated list of integers in [low, high] (``"4,8,16"``), or
     with ``one`` a single integer."""
-    bounds = f"in [{low}, {high}]" if high is not None else f">= {low}"
-    expected = f"an integer {bounds}" if one else f"comma-separated integers {bounds}"
+    return _listed(int, "integer", low, high, one)
 
-    def parse(text: str) -> tuple[int, ...] | int:
+
+def numbers(
+    low: float, high: float | None = None, one: bool = False
+) -> Callable[[str], tuple[float, ...] | float]:
+    """An argparse type: a comma-separated list of finite numbers in [low, high]
+    (``"0,0.3,1"``), or with ``one`` a single number."""
+    return _listed(float, "number", low, high, one)
+
+
+def _listed(kind: type, noun: str, low, high, one: bool) -> Callable:
+    """:func:`integers` and :func:`numbers`: ``kind`` parses each comma-separated part."""
+    bounds = f"in [{low}, {high}]" if high is not None else f">= {low}"
+    article = "an" if noun[0] in "aeiou" else "a"
+    expected = f"{article} {noun} {bounds}" if one else f"comma-separated {noun}s {bounds}"
+
+    def parse(text: str):
         try:
-            values = tuple(int(part) for part in text.split(","))
+            values = tuple(kind(part) for part in text.split(","))
         except ValueError:
             values = ()
         if (
             not values
             or (one and len(values) > 1)
+            or not all(math.isfinite(v) for v in values if kind is float)
             or any(v < low or (high is not None and v > high) for v in values)
         ):
             raise argparse.ArgumentTypeError(f"{text!r}: expected {expected}")
@@ -46,6 +63,15 @@ def choices(known: tuple[str, ...]) -> Callable[[str], tuple[str, ...]]:
         return values
 
     return parse
+
+
+def in_folder(text: str) -> Path:
+    """An argparse type: a file to write whose folder exists (checked before any work, as the
+    file is written at the end)."""
+    path = Path(text)
+    if not text or not path.parent.is_dir() or path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a file in an existing folder")
+    return path
 
 
 def run(main: Callable[[], int | None]) -> None:

@@ -159,3 +159,74 @@ def test_early_bound_refuses_a_bad_argument_in_one_line_writing_nothing(args, wo
     (line,) = [x for x in done.stderr.splitlines() if "error: " in x]
     assert words in line, line
     assert not any(tmp_path.iterdir())
+
+
+BAD_ARGUMENTS = [
+    ("early_objectives.py", ["--variants", "near,nonsense"], "argument --variants: 'nonsense'"),
+    ("early_objectives.py", ["--seeds", "0,-1"], "argument --seeds: '0,-1': expected"),
+    ("early_objectives.py", ["--noise", "nan"], "argument --noise: 'nan': expected a number"),
+    ("early_objectives.py", ["--jobs", "0"], "argument --jobs: '0': expected an integer in"),
+    ("early_objectives.py", ["--dataset", "missing-dataset"], "missing-dataset: expected a dat"),
+    ("early_objectives.py", ["--recipe", "nosuch"], "model recipe 'nosuch': expected one of"),
+    ("early_tradeoff.py", ["--penalties", "0,-1"], "argument --penalties: '0,-1': expected"),
+    ("early_tradeoff.py", ["--epochs", "0"], "argument --epochs: '0': expected an integer in"),
+    ("early_tradeoff.py", ["--noise", "0.15"], "argument --noise: invalid choice: 0.15"),
+    ("generation_scale.py", ["--samples", "100"], "argument --samples: '100': expected an int"),
+    ("generation_scale.py", ["--workers", "0"], "argument --workers: '0': expected an integer"),
+    ("generation_scale.py", ["--out", "missing"], "--out 'missing': expected an existing folder"),
+    ("generation_speed.py", ["--samples", "abc"], "argument --samples: 'abc': expected"),
+    ("generation_speed.py", ["--memory", "0"], "argument --memory: '0': expected comma-sep"),
+    ("generation_speed.py", ["--json", "no/x.json"], "--json: 'no/x.json': expected a file in"),
+    ("generation_stages.py", ["--samples", "0"], "argument --samples: '0': expected an integer"),
+    ("generation_workers.py", ["--workers", "1"], "argument --workers: '1': expected an integ"),
+    ("generation_workers.py", ["--rounds", "0"], "argument --rounds: '0': expected an integer"),
+    ("paper_table.py", ["--seeds", "x"], "argument --seeds: 'x': expected comma-separated"),
+    ("paper_table.py", ["--epochs", "cnn=0"], "argument --epochs: 'cnn=0': expected RECIPE=N"),
+    ("paper_table.py", ["--recipes", "nosuch"], "model recipe 'nosuch': expected one of"),
+    ("scan_timing.py", ["--noise", "2"], "argument --noise: '2': expected a number in [0, 1]"),
+    ("scan_timing.py", ["--penalties", "inf"], "argument --penalties: 'inf': expected"),
+    ("scan_timing.py", ["--profile", "nosuch"], "profile 'nosuch': expected one of"),
+    ("scan_timing.py", ["--picture", "no/x.png"], "--picture: 'no/x.png': expected a file in"),
+    ("scene_variation.py", ["--factors", "1,0"], "variation=0.0: expected a factor in (0, 1]"),
+    ("scene_variation.py", ["--train-size", "5"], "argument --train-size: '5': expected an"),
+    ("scene_variation.py", ["--models", "nosuch"], "model recipe 'nosuch': expected one of"),
+    ("sweep_speed.py", ["--frames", "0"], "argument --frames: '0': expected an integer in"),
+    ("sweep_speed.py", ["--sensor", "nosuch"], "sensor 'nosuch': expected one of"),
+    ("ttfs_speed.py", ["--steps", "0"], "argument --steps: '0': expected an integer in"),
+    ("ttfs_speed.py", ["--threads", "-2"], "argument --threads: '-2': expected an integer in"),
+    ("ttfs_torch_speed.py", ["--steps", "x"], "argument --steps: 'x': expected an integer in"),
+    ("ttfs_torch_speed.py", ["--model", "cnn"], "argument --model: invalid choice: 'cnn'"),
+]
+# where a script writes by default (the repository's benchmark/results, or --out required):
+# the bad runs are sent to tmp_path / "out", which must not be made
+WRITES = {
+    "early_objectives.py",
+    "early_tradeoff.py",
+    "paper_table.py",
+    "scan_timing.py",
+    "scene_variation.py",
+}
+
+
+@pytest.mark.parametrize(
+    "script, args, words", BAD_ARGUMENTS, ids=[f"{s}{' '.join(a)}" for s, a, _ in BAD_ARGUMENTS]
+)
+def test_benchmark_scripts_refuse_a_bad_argument_in_one_line_writing_nothing(
+    script, args, words, tmp_path
+):
+    """The CLI's rule for every script that takes arguments: one line naming the value, exit
+    code 1 or 2, no traceback, nothing written (each used to be a traceback, a run on
+    nonsense, or a traceback after the work)."""
+    out = ["--out", str(tmp_path / "out")] if script in WRITES else []
+    extra = ["--picture", ""] if script == "scan_timing.py" and "--picture" not in args else []
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "benchmark" / script), *args, *out, *extra],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
+    assert done.returncode in (1, 2) and "Traceback" not in done.stderr, done.stderr
+    (line,) = [x for x in done.stderr.splitlines() if "error: " in x]
+    assert words in line, line
+    assert not any(tmp_path.iterdir())
