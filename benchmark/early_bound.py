@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from simlidar.bench.bound import LEARNERS
 from simlidar.bench.hardware import MAX_THREADS, check_threads
 from simlidar.models import ttfs
 from simlidar.script_args import choices, integers, run
@@ -34,6 +35,7 @@ SUITE_CELLS = [ROOT / f"benchmark/results/{suite}/cells" for suite in ("paper", 
 # the learner's widest hidden layer: 16 times the published 256 (a 4096 x 4096 layer is 64 MiB)
 MAX_HIDDEN = 4096
 ENCODINGS = tuple(f"{d}/{m}" for d in ttfs.DIRECTIONS for m in ttfs.MISSING)
+LEARNER_CHOICES = (*LEARNERS, "published")  # the families, or the runs before issue 42
 
 
 def main(argv=None) -> int:
@@ -57,6 +59,21 @@ def main(argv=None) -> int:
         help="scan-timed data: the learner reads each pixel's time of flight by the sensor's "
         "firing clock (sensor) or the arrival times as they are (arrival)",
     )
+    parser.add_argument(
+        "--learners",
+        type=choices(LEARNER_CHOICES),
+        default="mlp,wide",
+        help="the learner families whose best each row gives, trained with the networks' "
+        "advantages (fresh noise every epoch, every training row; each also as its seeds' "
+        "ensemble: simlidar.bench.bound.LEARNERS), or 'published': the one MLP of --hidden on "
+        "the file's noise draw, as the runs before issue 42",
+    )
+    parser.add_argument(
+        "--per-sample",
+        action="store_true",
+        help="also the per-sample form: one learner (wide) for views at any k, asked about "
+        "each test sample at every k (simlidar.bench.bound.per_sample)",
+    )
     parser.add_argument("--threads", type=integers(1, MAX_THREADS, one=True), default=1)
     parser.add_argument(
         "--out",
@@ -79,6 +96,14 @@ def main(argv=None) -> int:
         split_info(dataset, "train"), split_info(dataset, "test")
     torch.set_num_threads(args.threads)
     config = replace(BoundConfig(), hidden=args.hidden)
+    options = {"config": config}
+    if "published" in args.learners:
+        if len(args.learners) > 1:
+            parser.error("--learners published: expected it alone (the runs before issue 42)")
+    else:
+        options["learners"] = {name: LEARNERS[name] for name in args.learners}
+    if args.per_sample:
+        options["per_sample"] = LEARNERS["wide"]
     runs = args.out / "runs"
     runs.mkdir(parents=True, exist_ok=True)
     for dataset in args.datasets:
@@ -92,7 +117,7 @@ def main(argv=None) -> int:
                 continue
             start = time.perf_counter()
             result = dataset_bound(
-                dataset, direction, missing, args.clock, ks=args.ks, seeds=args.seeds, config=config
+                dataset, direction, missing, args.clock, ks=args.ks, seeds=args.seeds, **options
             )
             result.update(dataset=dataset.name, seconds=time.perf_counter() - start)
             path.write_text(json.dumps(result, indent=1) + "\n")
@@ -100,7 +125,8 @@ def main(argv=None) -> int:
             for row in result["rows"]:
                 print(
                     f"  k={row['k']}: {row['input_spikes_median']:.0f} spikes (median), "
-                    f"accuracy {row['accuracy_mean']:.3f} +- {row['accuracy_std']:.3f}"
+                    f"accuracy {row['accuracy_mean']:.3f} +- {row['accuracy_std']:.3f} "
+                    f"{row.get('best', '')}"
                 )
     report(args.out)
     return 0

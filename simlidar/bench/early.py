@@ -54,9 +54,13 @@ def early_decisions(
     timing and the window's first firing under scan timing. ``last_input_ns_mean`` is when a
     sample's last input spike comes (what a network that needs every input waits for) and
     ``wait_saved_mean`` the mean fraction of that wait a decided sample did not need,
-    ``1 - decision / last input``. Under a ``far_first`` encoding the network's clock is not
-    the sensor's, and these sensor times are None (``decision_time_mean`` is network time)."""
+    ``1 - decision / last input``. ``clock`` says which clock the decision and the input
+    spikes consumed are on (:func:`_clock`): ``sensor``, or ``network-order`` under a
+    far-first encoding, whose sensor times are None (``decision_time_mean`` is network time)
+    and whose ``decision_sensor_ns_mean`` is the end of the window, when every return is back.
+    """
     runs, y, unit_ns, last, arrived = decisions(model, dataset, split)
+    window_ns = delay_unit_ns(split_info(dataset, split).attrs)  # what a delay of 1.0 stands for
     decided = [d for d in runs if d.label >= 0]
     spikes = np.array([d.spikes for d in runs])
     times_ns = [d.time_ns(model.scale, unit_ns) if d.label >= 0 and unit_ns else None for d in runs]
@@ -78,6 +82,7 @@ def early_decisions(
         "accumulates_mean": float(np.mean([d.accumulates for d in runs])),
         "energy_pj_mean": {str(a): float(spikes.mean() * a) for a in ALPHAS_PJ},
     }
+    summary.update(_clock(unit_ns, window_ns, known, len(decided)))
     if arrived is not None:  # behind an input budget: what had arrived, let through or not
         summary["input_spikes_arrived_mean"] = float(arrived.mean())
     if per_sample:
@@ -91,12 +96,35 @@ def early_decisions(
     return summary
 
 
+SENSOR, NETWORK_ORDER = "sensor", "network-order"  # the clocks an early figure can be on
+
+
+def _clock(unit_ns, window_ns, known: list, decided: int) -> dict:
+    """Which clock the summary's "decision" and input-spike counts are on (issue 42), and the
+    decisions' mean in sensor time: ``sensor`` where the network's input order is the sensor's
+    (near first: ns after the flash, or after the window's first firing under scan timing);
+    ``network-order`` where it is not (far first spikes the far returns first, which a sensor
+    delivers last: such a decision waits, in sensor time, for the whole window, ``window_ns``
+    after time zero). None where the data has no sensor time (DVS) or nothing was decided."""
+    if unit_ns:
+        return {
+            "clock": SENSOR,
+            "decision_sensor_ns_mean": float(np.mean(known)) if known else None,
+        }
+    if window_ns is None:
+        return {"clock": NETWORK_ORDER, "decision_sensor_ns_mean": None}
+    return {"clock": NETWORK_ORDER, "decision_sensor_ns_mean": window_ns if decided else None}
+
+
 def format_early(e: dict) -> str:
     """One line on how early a network decides (what ``simlidar train`` prints)."""
     if e["decision_time_ns_mean"]:
         when = _duration(e["decision_time_ns_mean"])
     elif e["decision_time_mean"] is not None:  # decided, but not in sensor time
         when = f"network time {e['decision_time_mean']:.3f}"
+        if e.get("decision_sensor_ns_mean"):  # far first: the whole window in sensor time
+            end = _duration(e["decision_sensor_ns_mean"])
+            when += f" (network order; in sensor time the window's end, {end})"
     else:
         when = "never"
     if e.get("wait_saved_mean") is not None:

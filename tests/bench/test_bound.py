@@ -18,9 +18,10 @@ import math
 import numpy as np
 import pytest
 
-from simlidar.bench.bound import BoundConfig, arrived, bound, spike_times
+from simlidar.bench.bound import BoundConfig, arrived, bound, rounded_up_accuracy, spike_times
 
 SMALL = BoundConfig(hidden=(64, 64), max_epochs=60, patience=10)
+FAST = BoundConfig(hidden=(64, 64), max_epochs=30, patience=5)
 CLASSES = 4
 
 
@@ -115,3 +116,51 @@ def test_the_sensor_clock_finds_a_class_written_in_the_time_of_flight():
     assert result["rows"][0]["accuracy_mean"] >= 0.95
     with pytest.raises(ValueError, match="far_first"):
         bound(train, test, CLASSES, math.inf, "far_first", emission=(e_train, e_test))
+
+
+def test_several_learners_give_the_best_of_their_seeds_and_ensembles():
+    """Issue 42: a row's bound is the best of every family's seed mean and seed ensemble."""
+    learners = {"mlp": FAST, "wide": BoundConfig(hidden=(128, 128), max_epochs=30, patience=5)}
+    train, test = _toy(400, 0, late=False), _toy(100, 1, late=False)
+    result = bound(train, test, CLASSES, math.inf, ks=(1,), seeds=(0, 1), learners=learners)
+    assert set(result["learner"]) == {"mlp", "wide"}
+    for row in result["rows"]:
+        found = row["learners"]
+        candidates = {
+            **{name: f["accuracy_mean"] for name, f in found.items()},
+            **{f"{name}/ensemble": f["ensemble"] for name, f in found.items()},
+        }
+        assert row["accuracy_mean"] == max(candidates.values()) >= 0.95
+        assert candidates[row["best"]] == row["accuracy_mean"]
+        assert all(len(f["accuracy"]) == 2 and "scores" not in f["runs"][0] for f in found.values())
+    first, every = result["rows"]
+    best = [max(f["ensemble"] for f in row["learners"].values()) for row in (first, every)]
+    assert rounded_up_accuracy(result, np.ones(100)) == best[0]  # k = 1 is measured
+    assert rounded_up_accuracy(result, np.full(100, 2)) == best[1]  # beyond: every spike
+
+
+def test_the_per_sample_form_knows_each_sample_at_its_own_count():
+    """Early toy: the class is in each sample's first spike, so the learner trained at any k
+    knows it once a few spikes have come; the late toy's class is in the last spike: at k = 4
+    it is at chance. A network that decided each sample at its own count is bounded by the
+    matrix read there."""
+    from simlidar.bench.bound import pack, per_sample, per_sample_accuracy, unpack
+
+    early = per_sample(
+        _toy(400, 0, False), _toy(100, 1, False), CLASSES, math.inf, seeds=(0,), config=FAST
+    )
+    late = per_sample(
+        _toy(400, 0, True), _toy(100, 1, True), CLASSES, math.inf, seeds=(0,), config=FAST
+    )
+    assert early["k_max"] == 64 and early["samples"] == 100
+    assert set(early["correct"]) == {"0", "ensemble"}
+    for k in (4, 8):  # one learner for every k is weaker at the ends (k = 1: 59 %, 64: 84 %)
+        assert per_sample_accuracy(early, np.full(100, k)) >= 0.95
+    assert per_sample_accuracy(late, np.full(100, 4)) <= 0.45  # chance: 25 %, 100 samples
+    mixed = np.where(np.arange(100) % 2 == 0, 64, 4)
+    correct = unpack(late["correct"]["ensemble"], (64, 100))
+    expected = (correct[63, ::2].sum() + correct[3, 1::2].sum()) / 100
+    assert per_sample_accuracy(late, mixed) == pytest.approx(expected)
+    assert per_sample_accuracy(late, np.zeros(100)) == per_sample_accuracy(late, np.ones(100))
+    matrix = np.random.default_rng(0).random((5, 7)) > 0.5
+    assert np.array_equal(unpack(pack(matrix), (5, 7)), matrix)

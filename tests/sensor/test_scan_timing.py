@@ -171,6 +171,30 @@ def test_early_decisions_are_reported_in_sweep_time(twins):
     assert min(t for t, _ in decided) > 1e4
     assert early["decision_time_ns_mean"] == pytest.approx(np.mean([t for t, _ in decided]))
     assert early["wait_saved_mean"] == pytest.approx(np.mean([1 - t / w for t, w in decided]))
+    assert early["clock"] == "sensor" and early["decision_sensor_ns_mean"] == pytest.approx(
+        early["decision_time_ns_mean"]
+    )
+
+
+@pytest.mark.parametrize("timing", ["flash", "scan"])
+def test_a_far_first_decision_is_on_the_networks_order_and_takes_the_whole_window(twins, timing):
+    """Issue 42: far first spikes the far returns first, which a sensor delivers last; its
+    decision figures are labelled network order, and in sensor time it has waited for every
+    return: the window's end (667 ns after a flash, the sweep's window under scan timing)."""
+    from simlidar.bench.early import early_decisions, format_early
+    from simlidar.bench.train import train
+    from simlidar.dataset.loaders import delay_unit_ns, split_info
+    from simlidar.models.registry import load_recipe
+
+    recipe = load_recipe("snn_simlidar")
+    recipe["architecture"]["direction"] = "far_first"
+    result = train(recipe, twins[timing], epochs=1, progress=False)
+    early = early_decisions(result.model, twins[timing])
+    window = delay_unit_ns(split_info(twins[timing], "test").attrs)
+    assert early["clock"] == "network-order" and early["decision_time_ns_mean"] is None
+    assert early["decision_sensor_ns_mean"] == window
+    assert window == pytest.approx(667.128, abs=1e-3) if timing == "flash" else window > 9e6
+    assert "network order; in sensor time the window's end" in format_early(early)
 
 
 def test_timing_is_checked_and_stored_only_when_scan():
