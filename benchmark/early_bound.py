@@ -160,6 +160,94 @@ def snn_points() -> list[dict]:
     return points
 
 
+# the committed cells of spiking networks trained by the benchmark scripts (their own layout)
+SCRIPT_CELLS = [ROOT / f"benchmark/results/{name}/cells" for name in
+                ("early-objectives", "early-tradeoff", "paper-table")]  # fmt: skip
+
+
+def network_cells() -> list[dict]:
+    """Every committed spiking-network cell (the benchmark scripts' and the suites'
+    ``snn_*`` cells): source folder, variant, dataset, seed, the encoding it read
+    (``direction``, ``missing``), its gate (``input_budget``, or None), its accuracy by the
+    event-driven run, and the input spikes it consumed before each test decision."""
+    cells = []
+    for folder in SCRIPT_CELLS:
+        for path in sorted(folder.glob("*.json")):
+            cell = json.loads(path.read_text())
+            architecture = cell.get("architecture") or {}
+            cells.append(
+                {
+                    "source": folder.parent.name,
+                    "variant": path.stem.split("__")[1],
+                    "dataset": cell["dataset"],
+                    "seed": cell["seed"],
+                    "direction": architecture.get("direction", "near_first"),
+                    "missing": architecture.get("missing", "as_value"),
+                    "gate": architecture.get("input_budget"),
+                    "accuracy": cell["early"]["accuracy"],
+                    "spikes": cell["input_spikes"],
+                }
+            )
+    for folder in SUITE_CELLS:
+        for path in sorted(folder.glob("*__snn_*__seed*.json")):
+            cell = json.loads(path.read_text())
+            cells.append(
+                {
+                    "source": folder.parent.name,
+                    "variant": cell["model"],
+                    "dataset": cell["dataset"],
+                    "seed": cell["seed"],
+                    "direction": "near_first",  # the shipped recipes' encoding
+                    "missing": "as_value",
+                    "gate": None,
+                    "accuracy": cell["early"]["accuracy"],
+                    "spikes": cell["per_sample"]["input_spikes"],
+                }
+            )
+    return cells
+
+
+def cell_bounds(results: list[dict], cells: list[dict]) -> list[dict]:
+    """Each cell beside the bound of its dataset and encoding, where a run of several
+    learners has one: behind a gate of k the row at k (the network read at most k spikes);
+    otherwise the per-sample form at the cell's own decision counts (the better of the seeds'
+    mean and their ensemble) and the looser rounded-up form, and the larger of the two."""
+    from simlidar.bench.bound import per_sample_accuracy, rounded_up_accuracy
+
+    runs = {
+        (r["dataset"], r["encoding"]["direction"], r["encoding"]["missing"]): r
+        for r in results
+        if isinstance(r["learner"], dict) and "mlp" in r["learner"] and "clock" not in r["encoding"]
+    }
+    found = []
+    for cell in cells:
+        run = runs.get((cell["dataset"], cell["direction"], cell["missing"]))
+        if run is None:
+            continue
+        entry = {**{k: v for k, v in cell.items() if k != "spikes"}}
+        if cell["gate"] is not None:
+            row = next((r for r in run["rows"] if r["k"] == cell["gate"]), None)
+            if row is None:
+                continue
+            entry.update(form="at the gate's k", bound=row["accuracy_mean"])
+        else:
+            form = run.get("per_sample")
+            exact = None
+            if form is not None:
+                seeds = [per_sample_accuracy(form, cell["spikes"], str(s)) for s in form["seeds"]]
+                ensemble = per_sample_accuracy(form, cell["spikes"], "ensemble")
+                exact = max(float(np.mean(seeds)), ensemble)
+            rounded = rounded_up_accuracy(run, cell["spikes"])
+            entry.update(
+                form="per sample",
+                per_sample=exact,
+                rounded_up=rounded,
+                bound=max(rounded, exact if exact is not None else 0.0),
+            )
+        found.append(entry)
+    return found
+
+
 def report(out: Path) -> None:
     """bound.json, bound.md and bound.png from every run under ``out``/runs."""
     results = [json.loads(p.read_text()) for p in sorted((out / "runs").glob("*.json"))]
@@ -177,6 +265,9 @@ def report(out: Path) -> None:
         "",
     ]
     for r in results:
+        if "mlp" in r["learner"] and isinstance(r["learner"]["mlp"], dict):
+            lines += _families_table(r)
+            continue
         lines += [
             f"## {r['dataset']}, {_encoding(r)}",
             "",
@@ -207,6 +298,84 @@ def report(out: Path) -> None:
         )
     (out / "bound.md").write_text("\n".join(lines) + "\n")
     plot(results, points, out / "bound.png")
+    found = cell_bounds(results, network_cells())
+    if found:
+        (out / "cells.md").write_text(_cells_table(found))
+
+
+def _families_table(r: dict) -> list[str]:
+    """A run of several learner families (issue 42): per k the bound (the best family's seed
+    mean or seed ensemble, named), every family's seed mean +- sample standard deviation and
+    ensemble, and the per-sample form's learner asked about every test sample at that k."""
+    from simlidar.bench.bound import per_sample_accuracy
+
+    names = list(r["learner"])
+    form = r.get("per_sample")
+    lines = [
+        f"## {r['dataset']}, {_encoding(r)}",
+        "",
+        f"seeds {r['seeds']}; learner families {names} (fresh noise every epoch, every training "
+        f"row once validation chose the epochs), {r['seconds']:.0f} s; +- is the sample "
+        "standard deviation over seeds",
+        "",
+        "| k | spikes (median) | authors (mean) | bound % | best | "
+        + " | ".join(f"{n} % | {n} ensemble %" for n in names)
+        + (" | any-k learner, ensemble % |" if form else " |"),
+        "| ---: | ---: | ---: | ---: | --- | " + " | ".join("---: | ---:" for _ in names)
+        + (" | ---: |" if form else " |"),
+    ]  # fmt: skip
+    for row in r["rows"]:
+        k = "all" if row["k"] is None else row["k"]
+        cells = [
+            f"{f['accuracy_mean']:.1%} +- {f['accuracy_std']:.1%} | {f['ensemble']:.1%}"
+            for f in (row["learners"][n] for n in names)
+        ]
+        tail = ""
+        if form:
+            count = form["k_max"] if row["k"] is None else min(row["k"], form["k_max"])
+            spikes = np.full(form["samples"], count)
+            tail = f" | {per_sample_accuracy(form, spikes):.1%}"
+        lines.append(
+            f"| {k} | {row['input_spikes_median']:.0f} | {row['input_spikes_authors_mean']:.1f} "
+            f"| {row['accuracy_mean']:.1%} | {row['best']} | " + " | ".join(cells) + tail + " |"
+        )
+    return [*lines, ""]
+
+
+def _cells_table(found: list[dict]) -> str:
+    """Every committed spiking-network cell beside the bound (:func:`cell_bounds`), grouped by
+    source, variant and dataset: the accuracy of each seed and the bound's smallest margin."""
+    groups: dict[tuple, list[dict]] = {}
+    for entry in found:
+        groups.setdefault((entry["source"], entry["variant"], entry["dataset"]), []).append(entry)
+    lines = [
+        "# Committed spiking-network cells beside the bound",
+        "",
+        "Behind a gate of k: the bound's row at k. Otherwise the per-sample form at each test",
+        "sample's own decision count (the any-k learner: the better of its seeds' mean and",
+        "ensemble) and the looser rounded-up form (each sample read at the first measured k at",
+        "or above its count), the bound being the larger (per seed: each seed decided at its own",
+        "counts; the lowest shown). Margin: the smallest of bound minus accuracy over the seeds.",
+        "",
+        "| source | variant | dataset | encoding | seeds: accuracy % | form | per sample % | "
+        "rounded up % | bound % | margin |",
+        "| --- | --- | --- | --- | --- | --- | ---: | ---: | ---: | ---: |",
+    ]
+    for (source, variant, dataset), entries in sorted(groups.items()):
+        margin = min(e["bound"] - e["accuracy"] for e in entries)  # the closest seed
+        bound = min(e["bound"] for e in entries)  # per seed: each seed's own decision counts
+        seeds = ", ".join(f"{e['accuracy']:.2%}" for e in sorted(entries, key=lambda e: e["seed"]))
+        exact = [e.get("per_sample") for e in entries]
+        rounded = [e.get("rounded_up") for e in entries]
+        shown = lambda values: (  # noqa: E731
+            f"{min(values):.1%}" if all(v is not None for v in values) else "-"
+        )
+        lines.append(
+            f"| {source} | {variant} | {dataset} | {entries[0]['direction']} | {seeds} | "
+            f"{entries[0]['form']} | {shown(exact)} | {shown(rounded)} | {bound:.1%} | "
+            f"{100 * margin:+.1f} |"
+        )
+    return "\n".join(lines) + "\n"
 
 
 def plot(results: list[dict], points: list[dict], path: Path) -> None:
