@@ -216,8 +216,7 @@ def received_power_w(
     receiver: Receiver, range_m, reflectance, incidence_rad=0.0, extinction_per_m=0.0
 ):
     """Received peak power for an extended Lambertian target that fills the beam, by the LiDAR
-    range equation (Rasshofer et al. 2011, eq. 3; Hahner et al. ICCV 2021, eq. 3 with the
-    hard-target response)::
+    range equation (Rasshofer et al. 2011; the hard target of Hahner et al., ICCV 2021)::
 
         P_r = P_0 * rho * cos(theta) * A_r * eta * exp(-2 * alpha * R) / (pi * R^2)
 
