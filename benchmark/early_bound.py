@@ -258,10 +258,12 @@ def report(out: Path) -> None:
     lines = [
         "# The early-information bound",
         "",
-        "Test accuracy (mean +- std over seeds) of an MLP given what has arrived by the k-th",
-        "input spike; `spikes` is the median arrived in the test split (ties at the k-th",
-        "spike's time arrive together), `authors` the mean counted by the authors' rule",
-        "(t > 0). Made by `benchmark/early_bound.py` (its docstring has the command).",
+        "Test accuracy of a learner given what has arrived by the k-th input spike (one MLP,",
+        "mean +- population std over seeds; or, in runs of several learner families, the best",
+        "family's seed mean or seed ensemble); `spikes` is the median arrived in the test split",
+        "(ties at the k-th spike's time arrive together), `authors` the mean counted by the",
+        "authors' rule (t > 0). Made by `benchmark/early_bound.py` (its docstring has the",
+        "command; docs/paper-table.md the published ones).",
         "",
     ]
     for r in results:

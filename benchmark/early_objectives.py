@@ -228,9 +228,7 @@ def main(argv=None) -> int:
     parser.add_argument("--seeds", type=SEEDS, default="0,1,2")
     parser.add_argument("--epochs", type=EPOCH_COUNT, default=EPOCHS)
     parser.add_argument("--jobs", type=JOBS, default=2)
-    parser.add_argument(
-        "--bound", type=Path, default=ROOT / "benchmark/results/early-bound/bound.json"
-    )
+    parser.add_argument("--bound", type=Path, default=ROOT / "benchmark/results/bound/bound.json")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmark/results/early-objectives")
     parser.add_argument("--no-train", action="store_true", help="summarise the cells there are")
     args = parser.parse_args(argv)
