@@ -148,18 +148,27 @@ def test_early_objectives_reads_the_bound_and_the_targets_by_hand():
     cells = {
         "far-exp0.1": [cell(0, 0.98, [196] * 5), cell(1, 0.97, [190, 200, 196, 196, 196])],
         "far-exp1": [cell(0, 0.46, [40] * 4)],
+        "far-exp0.03": [
+            cell(s, a, [190] * 5) for s, a in enumerate([0.98, 0.975, 0.98, 0.975, 0.98])
+        ],
     }
     rows = eo.summarise(cells, {"far_first/as_value": curve})
-    early, late = rows
+    early, late, steady = rows
     assert early["accuracy"] == pytest.approx(97.5) and early["median"] == 196
     assert early["accuracy_std"] == pytest.approx(0.7071, abs=1e-4)
+    # 95 % interval of two seeds: t(0.975, 1) = 12.706 times 0.7071 / sqrt(2)
+    assert early["accuracy_ci95"] == pytest.approx([97.5 - 6.353, 97.5 + 6.353], abs=1e-3)
     assert early["bound"] == pytest.approx(99.0 + 0.8 * 16 / 76) and not early["bound_measured"]
-    assert late["gap"] == pytest.approx(55.0 - 46.0)
+    assert late["gap"] == pytest.approx(55.0 - 46.0) and late["accuracy_ci95"] is None
+    # five seeds: mean 97.8, std 0.2739, t(0.975, 4) = 2.776: lower end 97.46
+    assert steady["accuracy_ci95"][0] == pytest.approx(97.8 - 2.776 * 0.2739 / 5**0.5, abs=1e-3)
     goals = eo.targets(rows, "far_first/as_value")
     assert goals["median_limit"] == 196
-    assert goals["points_meeting_97_at_limit"] == ["far-exp0.1"]
-    assert goals["points_within_5_of_bound"] == ["far-exp0.1"]
-    assert goals["points_farther_than_5"] == ["far-exp1"]
+    # issue 42: a point meets a target by its interval's lower end: two seeds at 98 and 97 % do
+    # not (91.1 %), five between 97.5 and 98 % do
+    assert goals["points_meeting_97_at_limit"] == ["far-exp0.03"]
+    assert goals["points_within_5_of_bound"] == ["far-exp0.03"]
+    assert goals["points_farther_than_5"] == ["far-exp0.1", "far-exp1"]
 
 
 @pytest.mark.parametrize(
