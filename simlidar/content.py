@@ -121,6 +121,17 @@ def key_error(where: str, key: str, expected: str, got) -> ConfigError:
     return ConfigError(f"{where}: key '{key}': expected {expected}, got {shown(got)}")
 
 
+def check_keys(where: str, data: dict, keys, optional=()) -> None:
+    """Refuse a content file's table ``data`` holding a key not in ``keys``, or missing one of
+    ``keys`` that is not ``optional``: a one-line ConfigError starting with ``where``."""
+    for key in data:
+        if key not in keys:
+            raise key_error(where, key, f"one of {sorted(keys)}", key)
+    for key in keys:
+        if key not in data and key not in optional:
+            raise ConfigError(f"{where}: key '{key}' is missing")
+
+
 def finite_number(value) -> bool:
     """A TOML int or float that is finite (booleans are not numbers here); an integer too
     large for a float (``1`` followed by 400 zeros) is not: every user of such a number takes

@@ -18,6 +18,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from simlidar.content import (
+    check_keys,
     content_dir,
     finite_number,
     key_error,
@@ -250,12 +251,7 @@ _OPTIONAL = {"pitch_deg", "rot_corrections_deg", "firing_slots"}
 
 def _checked(where: str, data: dict) -> dict:
     """The file's values with their types checked and numbers made floats (slots ints)."""
-    for key in data:
-        if key not in _FILE_KEYS:
-            raise key_error(where, key, f"one of {sorted(_FILE_KEYS)}", key)
-    for key in _FILE_KEYS:
-        if key not in data and key not in _OPTIONAL:
-            raise ConfigError(f"{where}: key '{key}' is missing")
+    check_keys(where, data, _FILE_KEYS, _OPTIONAL)
     values = {}
     for key, value in data.items():
         if key in _STRINGS:

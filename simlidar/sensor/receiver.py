@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from simlidar.content import (
+    check_keys,
     content_dir,
     finite_number,
     key_error,
@@ -116,12 +117,7 @@ _RECEIVER_KEYS = [f.name for f in fields(Receiver) if f.name != "name"]
 
 def _receiver_values(where: str, data: dict) -> dict:
     """The file's values with their types checked: a ConfigError naming the key otherwise."""
-    for key in data:
-        if key not in _RECEIVER_KEYS:
-            raise key_error(where, key, f"one of {sorted(_RECEIVER_KEYS)}", key)
-    for key in _RECEIVER_KEYS:
-        if key not in data and key not in _INTS:
-            raise ConfigError(f"{where}: key '{key}' is missing")
+    check_keys(where, data, _RECEIVER_KEYS, _INTS)
     values = {}
     for key, value in data.items():
         if key in _STRINGS:
