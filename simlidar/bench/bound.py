@@ -238,8 +238,7 @@ def bound(
     """
     if emission is not None and direction != ttfs.NEAR_FIRST:
         raise ValueError(f"direction={direction!r}: the sensor's clock reads near_first times")
-    times = [spike_times(s[0], no_return, direction, missing) for s in (train, test)]
-    fired = [None, None] if emission is None else [e.reshape(len(e), -1) for e in emission]
+    times, fired = _split_times(train, test, no_return, direction, missing, emission)
     families = learners or {"mlp": config}
     rows = []
     for k in [*ks, None]:
@@ -298,6 +297,14 @@ def bound(
     }
 
 
+def _split_times(train, test, no_return, direction, missing, emission):
+    """The train and test splits' spike times (N, P) by the encoding, and their emission times
+    (N, P) (None each under flash timing)."""
+    times = [spike_times(s[0], no_return, direction, missing) for s in (train, test)]
+    fired = [None, None] if emission is None else [e.reshape(len(e), -1) for e in emission]
+    return times, fired
+
+
 def _family(runs: list[dict], y_test: np.ndarray) -> dict:
     """One learner family's seeds at one k: accuracies (sample standard deviation) and the
     accuracy of their ensemble; the runs' records without their scores."""
@@ -339,8 +346,7 @@ def per_sample(
     returns : {"learner", "seeds", "k_max": P, "samples": N, "correct": {seed or "ensemble":
         the (P, N) matrix of right answers at k = 1..P, packed (:func:`unpack`)}}
     """
-    times = [spike_times(s[0], no_return, direction, missing) for s in (train, test)]
-    fired = [None, None] if emission is None else [e.reshape(len(e), -1) for e in emission]
+    times, fired = _split_times(train, test, no_return, direction, missing, emission)
     points, n = times[1].shape[1], len(train[1])
     views = [arrived(times[1], k, fired[1], scale)[0] for k in range(1, points + 1)]
     correct, summed = {}, 0.0
