@@ -254,3 +254,44 @@ def test_the_bound_reads_a_scan_by_the_sensors_clock(twins):
     last_in = np.where(first, emission, -np.inf).max(axis=1)
     first_out = np.where(spiking & ~first, emission, np.inf).min(axis=1)
     assert (last_in < first_out).all()
+
+
+@pytest.mark.parametrize("profile", ["physical", "paper"])
+def test_fresh_noise_of_a_scan_split_is_the_flash_twins_made_arrival_times(
+    twins, tmp_path, cli, profile
+):
+    """The networks' and the bound's fresh noise (``noise_augment``) is drawn on the time of
+    flight, as the generator draws it, and then made arrival times: the scan draw is the flash
+    twin's draw of the same seed on the sweep's clock. Before issue 42 it was added to the
+    arrival times, a jitter of the noise level times the whole window (0.2 x 9.5 ms)."""
+    from simlidar.bench.train import fresh_noise
+    from simlidar.generator.pulses import scan_delays
+
+    pair = twins
+    if profile == "paper":  # a missing return is 0.0 plus noise: it arrives with its emission
+        pair = {}
+        for timing in ("flash", "scan"):
+            args = [*SMALL[:4], "--profile", "paper", "--timing", timing]
+            result = cli("generate", *args, "--out", tmp_path, "--json")
+            assert result.exit_code == 0, result.output
+            pair[timing] = Path(json.loads(result.stdout)["datasets"][0]["path"])
+    attrs = {t: read_split_info(pair[t] / "train.h5").attrs for t in pair}
+    rows = np.arange(40)
+    flash = fresh_noise(pair["flash"], attrs["flash"], seed=5, rows=rows)()
+    scan = fresh_noise(pair["scan"], attrs["scan"], seed=5, rows=rows)()
+    with h5py.File(pair["scan"] / "train.h5") as g:
+        emission = g["emission_ns"][:40]
+    a = attrs["scan"]
+    expected = scan_delays(flash, emission, a["tof_max_ns"], a["delay_unit_ns"])
+    assert np.array_equal(scan >= 1.0, expected >= 1.0)
+    # float32 arrival times of a 9.5 ms unit are 0.5 ns apart; the noise is 0.2 x 667 ns
+    assert np.abs(scan - expected).max() * a["delay_unit_ns"] < 2.0
+    stored = load_split_field(pair["scan"], "delays")[:40]
+    both = (stored < 1.0) & (scan < 1.0)  # (noise can push a return past the window: 1.0)
+    jitter = np.abs(scan - stored)[both] * a["delay_unit_ns"]
+    assert both.mean() > 0.5 and jitter.max() < 0.2 * a["tof_max_ns"] + 2.0
+
+
+def load_split_field(path: Path, field: str) -> np.ndarray:
+    with h5py.File(path / "train.h5") as f:
+        return f[field][:]
