@@ -47,6 +47,14 @@ def main(argv=None) -> int:
     parser.add_argument("--ks", type=integers(1), default="4,8,16,32,64,128,180,256")
     parser.add_argument("--seeds", type=integers(0, 2**32 - 1), default="0,1,2")
     parser.add_argument(
+        "--columns",
+        type=integers(1),
+        default=None,
+        help="scan-timed data on the sensor's clock: also the bound once the sweep's first C "
+        "firings are back, for each C (simlidar.bench.bound.bound's columns; the rows that "
+        "benchmark/sweep_decisions.py reads)",
+    )
+    parser.add_argument(
         "--hidden",
         type=integers(1, MAX_HIDDEN),
         default="256,256",
@@ -93,7 +101,18 @@ def main(argv=None) -> int:
 
     check_threads(args.threads)
     for dataset in args.datasets:  # each one a dataset, before anything is written
-        split_info(dataset, "train"), split_info(dataset, "test")
+        attrs = split_info(dataset, "train").attrs
+        split_info(dataset, "test")
+        if args.columns and (attrs.get("timing") != "scan" or args.clock != "sensor"):
+            parser.error(
+                f"--columns with {dataset.name}: expected a scan-timed dataset read by the "
+                "sensor's clock"
+            )
+        if args.columns and max(args.columns) > attrs["config"]["width"]:
+            parser.error(
+                f"--columns {max(args.columns)}: expected at most the width of "
+                f"{dataset.name} ({attrs['config']['width']} columns)"
+            )
     torch.set_num_threads(args.threads)
     config = replace(BoundConfig(), hidden=args.hidden)
     options = {"config": config}
@@ -104,6 +123,8 @@ def main(argv=None) -> int:
         options["learners"] = {name: LEARNERS[name] for name in args.learners}
     if args.per_sample:
         options["per_sample"] = LEARNERS["wide"]
+    if args.columns:
+        options["columns"] = args.columns
     runs = args.out / "runs"
     runs.mkdir(parents=True, exist_ok=True)
     for dataset in args.datasets:
@@ -127,6 +148,11 @@ def main(argv=None) -> int:
                     f"  k={row['k']}: {row['input_spikes_median']:.0f} spikes (median), "
                     f"accuracy {row['accuracy_mean']:.3f} +- {row['accuracy_std']:.3f} "
                     f"{row.get('best', '')}"
+                )
+            for row in result.get("column_rows", []):
+                print(
+                    f"  {row['columns']} columns, {row['time_us_median']:.0f} us: accuracy "
+                    f"{row['accuracy_mean']:.3f} {row.get('best', '')}"
                 )
     report(args.out)
     return 0
@@ -341,7 +367,30 @@ def _families_table(r: dict) -> list[str]:
             f"| {k} | {row['input_spikes_median']:.0f} | {row['input_spikes_authors_mean']:.1f} "
             f"| {row['accuracy_mean']:.1%} | {row['best']} | " + " | ".join(cells) + tail + " |"
         )
-    return [*lines, ""]
+    lines.append("")
+    if r.get("column_rows"):
+        lines += [
+            "By the sweep's first C firings: each sample seen once the last pulse of its first",
+            "C columns has had its listening window (its emission + tof_max); `time` is the",
+            "median of that moment, us after the window's first firing.",
+            "",
+            "| columns | time (us, median) | spikes (median) | bound % | best | "
+            + " | ".join(f"{n} % | {n} ensemble %" for n in names) + " |",
+            "| ---: | ---: | ---: | ---: | --- | " + " | ".join("---: | ---:" for _ in names)
+            + " |",
+        ]  # fmt: skip
+        for row in r["column_rows"]:
+            cells = [
+                f"{f['accuracy_mean']:.1%} +- {f['accuracy_std']:.1%} | {f['ensemble']:.1%}"
+                for f in (row["learners"][n] for n in names)
+            ]
+            lines.append(
+                f"| {row['columns']} | {row['time_us_median']:.0f} | "
+                f"{row['input_spikes_median']:.0f} | {row['accuracy_mean']:.1%} | "
+                f"{row['best']} | " + " | ".join(cells) + " |"
+            )
+        lines.append("")
+    return lines
 
 
 def _cells_table(found: list[dict]) -> str:

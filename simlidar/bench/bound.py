@@ -75,20 +75,28 @@ def spike_times(
 
 
 def arrived(
-    times: np.ndarray, k: int | None, emission: np.ndarray | None = None, scale: float = 1.0
+    times: np.ndarray,
+    k: int | None,
+    emission: np.ndarray | None = None,
+    scale: float = 1.0,
+    until: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """What has arrived by the k-th spike of each sample.
+    """What has arrived by the k-th spike of each sample (or by the time ``until``).
 
     times : (N, P) spike times, inf = no spike; k : spikes, None for each sample's own count
     emission : (N, P) when each pixel's pulse left, in the units of ``times`` (the sensor's
         clock), or None; a pixel then shows its time minus its emission (at least 0), times
         ``scale``
+    until : (N,) each sample's time, in the units of ``times``, or None: the view at that
+        time instead of the k-th spike's (``k`` is then not read)
     returns : (N, 2, P) float32 view (times, arrived mask), (N,) spikes arrived
     """
     spiking = np.isfinite(times)
     ordered = np.sort(times, axis=1)  # inf last
     counts = spiking.sum(axis=1)
-    if k is None:
+    if until is not None:
+        nth = np.asarray(until, dtype=np.float64)
+    elif k is None:
         nth = np.where(counts > 0, ordered[np.arange(len(times)), np.maximum(counts - 1, 0)], 0.0)
     else:
         index = np.clip(np.minimum(k, counts) - 1, 0, None)  # fewer spikes: all arrived
@@ -220,6 +228,7 @@ def bound(
     scale: float = 1.0,
     fresh=None,
     learners: dict[str, BoundConfig] | None = None,
+    columns=(),
 ) -> dict:
     """The bound on (delays (N, ...), labels (N,)) train and test splits: one row per k (and
     one for each sample's own count, ``k`` None), each with the test accuracy of every seed
@@ -235,14 +244,29 @@ def bound(
         (their class probabilities averaged), and ``accuracy_mean`` is the best of those
         (``best`` names it): the bound no learner of the project is to beat. Without it, one
         learner (``config``), as the published runs before issue 42.
+    columns : scan-timed data on the sensor's clock (``emission``): also one row per count C
+        of the sweep's first firings (``column_rows``), each sample seen when the last pulse
+        of its first C columns has had its listening window (that pulse's emission plus
+        ``tof_max``, 1 / ``scale`` in delay units): the view of every sensor time from then
+        until the next firing, when a network fed those columns decides
+        (benchmark/sweep_decisions.py); ``until_median`` is that time's median, delay units.
     """
     if emission is not None and direction != ttfs.NEAR_FIRST:
         raise ValueError(f"direction={direction!r}: the sensor's clock reads near_first times")
     times, fired = _split_times(train, test, no_return, direction, missing, emission)
+    if columns and emission is None:
+        raise ValueError("columns: expected scan-timed data on the sensor's clock (emission)")
     families = learners or {"mlp": config}
-    rows = []
-    for k in [*ks, None]:
-        (x, _), (x_test, got) = (arrived(t, k, e, scale) for t, e in zip(times, fired))
+    points = [("k", k, (None, None)) for k in [*ks, None]]
+    for c in columns:  # when the last pulse of the first c columns is back, per sample
+        ends = [e.reshape(len(e), -1, e.shape[-1])[..., :c].max(axis=(1, 2)) for e in emission]
+        points.append(("columns", c, tuple(end + 1.0 / scale for end in ends)))
+    rows, column_rows = [], []
+    for key, k, until in points:
+        kk = k if key == "k" else None
+        (x, _), (x_test, got) = (
+            arrived(t, kk, e, scale, u) for t, e, u in zip(times, fired, until)
+        )
         after_zero = ((x_test[:, 1] > 0) & (times[1] > 0)).sum(axis=1)
         found = {}
         for name, learner in families.items():
@@ -251,16 +275,19 @@ def bound(
                 draw = None
                 if learner.fresh_noise:
                     delays = fresh(seed)
-                    draw = _view_draw(delays, k, no_return, direction, missing, fired[0], scale)
+                    view = (kk, no_return, direction, missing, fired[0], scale, until[0])
+                    draw = _view_draw(delays, *view)
                 fitted = fit(x, train[1], x_test, test[1], classes, seed, learner, draw, True)
                 runs.append(fitted)
             found[name] = _family(runs, test[1])
         row = {
-            "k": k,
+            key: k,
             "input_spikes_median": float(np.median(got)),
             "input_spikes_mean": float(got.mean()),
             "input_spikes_authors_mean": float(after_zero.mean()),
         }
+        if key == "columns":
+            row["until_median"] = float(np.median(until[1]))
         if learners is None:
             (only,) = found.values()
             accuracy = only["accuracy"]
@@ -284,17 +311,18 @@ def bound(
                 best=best[0],
                 learners=found,
             )
-        rows.append(row)
+        (rows if key == "k" else column_rows).append(row)
     learner = {**asdict(config), "model": "mlp", "selection": SELECTION}
     if learners is not None:
         learner = {name: asdict(c) for name, c in learners.items()}
-    return {
+    result = {
         "encoding": {"direction": direction, "missing": missing, "no_return": no_return},
         "seeds": list(seeds),
         "learner": learner,
         "spikes_total_mean": float(np.isfinite(times[1]).sum(axis=1).mean()),
         "rows": rows,
     }
+    return {**result, "column_rows": column_rows} if columns else result
 
 
 def _split_times(train, test, no_return, direction, missing, emission):
@@ -412,12 +440,13 @@ def rounded_up_accuracy(result: dict, spikes) -> float:
     return float(np.array(right)[first, np.arange(len(spikes))].mean())
 
 
-def _view_draw(delays, k, no_return, direction, missing, emission, scale):
-    """A function giving the training view at ``k`` of a fresh draw of ``delays()``."""
+def _view_draw(delays, k, no_return, direction, missing, emission, scale, until=None):
+    """A function giving the training view at ``k`` (or ``until``) of a fresh draw of
+    ``delays()``."""
 
     def draw() -> np.ndarray:
         times = spike_times(delays(), no_return, direction, missing)
-        return arrived(times, k, emission, scale)[0]
+        return arrived(times, k, emission, scale, until)[0]
 
     return draw
 
@@ -469,4 +498,7 @@ def dataset_bound(
         )
     if scan:
         result["encoding"]["clock"] = clock
+        unit_us = float(attrs["delay_unit_ns"]) / 1000.0
+        for row in result.get("column_rows", []):
+            row["time_us_median"] = row.pop("until_median") * unit_us
     return result

@@ -26,17 +26,24 @@ class SpikingNet(nn.Module):
     input_budget : None (every input spike), or a gate that lets only each sample's first
         ``input_budget`` spikes through (:func:`simlidar.models.ttfs.first_spikes`), in
         training and in the event-driven evaluation alike
+    input_columns : None (every column), or a gate that lets only the spikes of the image's
+        first ``input_columns`` columns (the last axis) through, the rest being no spike
+        (:func:`simlidar.models.ttfs.first_columns`). Columns are the sweep's firings in
+        order (a scan-timed dataset's ``emission_ns`` grows along them), so on flash delays
+        this is the network that per-pixel delay lines make of a scan: it decides once the
+        first ``input_columns`` firings are back (benchmark/sweep_decisions.py, docs/snn.md)
     """
 
     simlidar_spec = ModelSpec(output=FIRST_SPIKE_TIMES)  # first-spike times (z), not logits
 
     def __init__(
         self,
-        layers: list[nn.Module],
-        scale: float,
+        layers: list[nn.Module] = (),
+        scale: float = 3.0,
         direction: str = ttfs.NEAR_FIRST,
         missing: str = ttfs.AS_VALUE,
         input_budget: int | None = None,
+        input_columns: int | None = None,
     ):
         for key, value, allowed in (
             ("direction", direction, ttfs.DIRECTIONS),
@@ -49,7 +56,11 @@ class SpikingNet(nn.Module):
                 f"scale={scale!r}: expected a value in (0, {MAX_SCALE}] so that "
                 "exp(scale * delay) stays finite in float32"
             )
-        _check_budget(input_budget)
+        for key, value in (("input_budget", input_budget), ("input_columns", input_columns)):
+            if value is not None and (
+                isinstance(value, bool) or not isinstance(value, int) or value < 1
+            ):
+                raise ConfigError(f"{key}={value!r}: expected a whole number >= 1")
         super().__init__()
         self.layers = nn.ModuleList(layers)
         self.scale = scale
@@ -57,6 +68,16 @@ class SpikingNet(nn.Module):
         self.direction = direction
         self.missing = missing
         self.input_budget = input_budget
+        self.input_columns = input_columns
+
+    def arriving_fraction(self, input_shape) -> float:
+        """The fraction of the inputs that can spike behind the gates: a first dense layer
+        starts with weights that let a neuron fire on that many (:class:`DenseTTFS`)."""
+        inputs = int(torch.tensor(input_shape).prod())
+        fraction = 1.0 if self.input_budget is None else min(1.0, self.input_budget / inputs)
+        if self.input_columns is not None:
+            fraction = min(fraction, self.input_columns / input_shape[-1])
+        return fraction
 
     event_driven = True  # the decision evaluator (simlidar.models.decisions) runs it
 
@@ -84,8 +105,10 @@ class SpikingNet(nn.Module):
         return z if self.input_budget is None else ttfs.first_spikes(z, self.input_budget)
 
     def arriving_spikes(self, delays: torch.Tensor) -> torch.Tensor:
-        """The input spikes before the input budget's gate: every spike the data send."""
-        return ttfs.encode(delays, self.scale, self.silent_from, self.direction, self.missing)
+        """The input spikes before the input budget's gate: every spike the data send (of the
+        first ``input_columns`` columns: the later ones arrive after the decision)."""
+        z = ttfs.encode(delays, self.scale, self.silent_from, self.direction, self.missing)
+        return z if self.input_columns is None else ttfs.first_columns(z, self.input_columns)
 
     def penalty(self) -> torch.Tensor:
         """Mean weight-sum penalty over layers (keeps every neuron able to fire)."""
@@ -112,66 +135,41 @@ class SpikingNet(nn.Module):
 
 
 def dense_snn(
-    input_shape,
-    classes,
-    generator=None,
-    hidden=(400,),
-    scale=3.0,
-    excess=2.0,
-    spread=1.0,
-    direction=ttfs.NEAR_FIRST,
-    missing=ttfs.AS_VALUE,
-    input_budget=None,
+    input_shape, classes, generator=None, hidden=(400,), excess=2.0, spread=1.0, **encoding
 ) -> SpikingNet:
     """Dense TTFS network: inputs (all pixels) - hidden... - classes (256-400-32 on Sim LiDAR).
-    ``direction``, ``missing`` and ``input_budget``: the input encoding (:class:`SpikingNet`)."""
+    ``encoding``: the input's keywords of :class:`SpikingNet` (``scale`` 3.0, ``direction``,
+    ``missing``, ``input_budget``, ``input_columns``)."""
+    net = SpikingNet(**encoding)
     sizes = [int(torch.tensor(input_shape).prod())] + list(hidden) + [classes]
-    arriving = [_arriving(input_shape, input_budget)] + [1.0] * len(hidden)
-    layers = [
+    arriving = [net.arriving_fraction(input_shape)] + [1.0] * len(hidden)
+    net.layers.extend(
         DenseTTFS(a, b, excess, spread, generator, f) for a, b, f in zip(sizes, sizes[1:], arriving)
-    ]
-    return SpikingNet(layers, scale, direction, missing, input_budget)
+    )
+    return net
 
 
-def _check_budget(input_budget) -> None:
-    if input_budget is not None and (
-        isinstance(input_budget, bool) or not isinstance(input_budget, int) or input_budget < 1
-    ):
-        raise ConfigError(f"input_budget={input_budget!r}: expected a whole number >= 1")
-
-
-def _arriving(input_shape, input_budget) -> float:
-    """The fraction of the inputs that spike behind ``input_budget``: the first layer starts
-    with weights that let a neuron fire on that many (:class:`DenseTTFS`)."""
-    _check_budget(input_budget)
-    inputs = int(torch.tensor(input_shape).prod())
-    return 1.0 if input_budget is None else min(1.0, input_budget / inputs)
-
-
-def spiking_cnn(  # the same keyword arguments as dense_snn on purpose: recipes name them
+def spiking_cnn(
     input_shape,
     classes,
     generator=None,
     conv=((48, 5, 2), (24, 5, 2)),
     dense=(256,),
-    scale=3.0,
     excess=2.0,
     spread=1.0,
-    direction=ttfs.NEAR_FIRST,
-    missing=ttfs.AS_VALUE,
-    input_budget=None,
+    **encoding,
 ) -> SpikingNet:
     """Spiking CNN: TTFS convolutions (channels, kernel, stride; padded with "no spike"),
     then dense TTFS layers (the paper's KITTI network: 48 and 24 channels of 5x5 stride 2,
-    dense 256, dense C). ``direction``, ``missing`` and ``input_budget``: the input encoding
-    (:class:`SpikingNet`)."""
+    dense 256, dense C). ``encoding``: as :func:`dense_snn`'s."""
+    net = SpikingNet(**encoding)
     c, h, w = input_shape
     layers: list[nn.Module] = []
-    # behind an input budget only a first dense layer starts for the inputs that arrive: a
+    # behind a gate only a first dense layer starts for the inputs that arrive: a
     # convolution's patch arrives together or not at all (near returns first: the object and
     # the road close by), and scaled for the whole image's fraction its neurons blew up
-    # (benchmark/results/early-objectives-crops/scaled-init/); SpikingNet checks the budget
-    arriving = 1.0 if conv else _arriving(input_shape, input_budget)
+    # (benchmark/results/early-objectives-crops/scaled-init/)
+    arriving = 1.0 if conv else net.arriving_fraction(input_shape)
     for channels, kernel, stride in conv:
         pad = kernel // 2
         layers.append(ConvTTFS(c, channels, kernel, stride, pad, excess, spread, generator))
@@ -182,4 +180,5 @@ def spiking_cnn(  # the same keyword arguments as dense_snn on purpose: recipes 
     layers += [
         DenseTTFS(a, b, excess, spread, generator, f) for a, b, f in zip(sizes, sizes[1:], arriving)
     ]
-    return SpikingNet(layers, scale, direction, missing, input_budget)
+    net.layers.extend(layers)
+    return net

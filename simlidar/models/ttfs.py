@@ -123,6 +123,15 @@ def first_spikes(z: torch.Tensor, budget: int) -> torch.Tensor:
     return torch.where(flat <= nth[:, None], flat, torch.inf).view_as(z)
 
 
+def first_columns(z: torch.Tensor, columns: int) -> torch.Tensor:
+    """Input spikes ``z`` (B, ..., W) (z domain) with only the first ``columns`` columns of the
+    last axis kept; the later ones become no spike. Under scan timing the columns are the
+    sweep's firings in order, so a network behind this gate has what the sensor delivered by
+    the end of its ``columns``-th firing (:class:`simlidar.models.networks.SpikingNet`)."""
+    keep = torch.arange(z.shape[-1], device=z.device) < columns
+    return torch.where(keep, z, torch.inf)
+
+
 def uses_kernels(*tensors: torch.Tensor) -> bool:
     """True where :func:`dense` and :func:`conv2d` run the compiled kernels: every tensor on
     the CPU, outside :func:`torch_form`."""

@@ -164,3 +164,33 @@ def test_the_per_sample_form_knows_each_sample_at_its_own_count():
     assert per_sample_accuracy(late, np.zeros(100)) == per_sample_accuracy(late, np.ones(100))
     matrix = np.random.default_rng(0).random((5, 7)) > 0.5
     assert np.array_equal(unpack(pack(matrix), (5, 7)), matrix)
+
+
+def _sweep_toy(n: int, seed: int):
+    """A class written only in the time of flight of column 5 (of 8; the farther of its first
+    four rows), under an emission clock that grows with the column (the last axis)."""
+    rng = np.random.default_rng(seed)
+    y = rng.integers(0, CLASSES, n)
+    tof = rng.uniform(0.2, 0.3, (n, 8, 8))
+    tof[np.arange(n), y, 5] = rng.uniform(0.6, 0.7, n)
+    emission = np.arange(8) * 0.1 + rng.uniform(0, 0.05, (n, 1, 1)) + np.zeros((n, 8, 8))
+    return (emission + tof * 1e-3).astype(np.float32), y, emission
+
+
+def test_the_bound_by_the_sweeps_first_columns_knows_what_they_hold():
+    """The rows by columns (the sensor time a column-gated network decides at): at 5 columns
+    the class has not been fired at (chance), at 6 it has come back; the k rows are as before."""
+    (*train, e_train), (*test, e_test) = _sweep_toy(600, 0), _sweep_toy(200, 1)
+    options = {"ks": (), "seeds": (0,), "config": SMALL, "emission": (e_train, e_test)}
+    result = bound(train, test, CLASSES, math.inf, scale=1e3, columns=(5, 6), **options)
+    five, six = result["column_rows"]
+    assert (five["columns"], six["columns"]) == (5, 6)
+    assert five["accuracy_mean"] < 0.5 and six["accuracy_mean"] >= 0.95
+    assert five["input_spikes_median"] == 40 and six["input_spikes_median"] == 48
+    # the moment: the last pulse of the first c columns, plus its listening window (1 / scale)
+    ends = e_test[..., :6].max(axis=(1, 2)) + 1e-3
+    assert six["until_median"] == pytest.approx(np.median(ends))
+    assert [r["k"] for r in result["rows"]] == [None]
+    assert "column_rows" not in bound(train, test, CLASSES, math.inf, scale=1e3, **options)
+    with pytest.raises(ValueError, match="columns: expected scan-timed data"):
+        bound(train, test, CLASSES, math.inf, ks=(), seeds=(0,), config=SMALL, columns=(5,))

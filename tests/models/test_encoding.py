@@ -231,3 +231,33 @@ def test_behind_a_budget_a_convolution_keeps_its_weights():
     assert (torch.isfinite(z[:, :, :5, :5]).flatten(1).sum(1) == 25).all()
     first = gated.layers[0](z)  # kernel 5, stride 2, padding 2: output (1, 1) sees rows 0-4
     assert torch.isfinite(first[:, :, 1, 1]).double().mean() > 0.5
+
+
+def test_a_column_gate_lets_only_the_sweeps_first_firings_through():
+    """``input_columns``: the spikes of the first columns (the sweep's first firings) and no
+    other, in training's forward pass and the event-driven evaluation alike; the first dense
+    layer starts for the inputs that arrive, and the gate is checked like the budget."""
+    from simlidar.errors import ConfigError
+    from simlidar.models.decisions import decide_all
+
+    delays = torch.rand((8, 1, 16, 16), generator=torch.Generator().manual_seed(1)).double()
+    model = dense_snn((1, 16, 16), 4, torch.Generator().manual_seed(0), input_columns=5)
+    free = dense_snn((1, 16, 16), 4, torch.Generator().manual_seed(0))
+    model.double(), free.double()
+    z = model.input_spikes(delays)
+    assert torch.isfinite(z[..., :5]).all() and torch.isinf(z[..., 5:]).all()
+    assert torch.equal(z[..., :5], free.input_spikes(delays)[..., :5])
+    assert torch.equal(model.arriving_spikes(delays), z)  # later columns come after a decision
+    assert model.arriving_fraction((1, 16, 16)) == 5 / 16
+    assert torch.isfinite(model.layers[0](z)).double().mean() > 0.5  # started for 80 inputs
+    # the later columns cannot change the decision: the output is that of the first 5 alone
+    changed = delays.clone()
+    changed[..., 5:] = torch.rand((8, 1, 16, 11), generator=torch.Generator().manual_seed(2))
+    assert torch.equal(model(delays), model(changed))
+    runs = decide_all(model, model.input_spikes(delays))
+    assert [d.input_total for d in runs] == [80] * 8
+    both = dense_snn((1, 16, 16), 4, input_budget=16, input_columns=4)
+    assert both.arriving_fraction((1, 16, 16)) == 16 / 256
+    for bad in (0, 2.5, True, "3"):
+        with pytest.raises(ConfigError, match=r"input_columns=.*: expected a whole number >= 1"):
+            dense_snn((1, 16, 16), 4, input_columns=bad)
