@@ -154,9 +154,11 @@ PARSED = {
     "sensor", "catalog", "catalog_sha256", "row_laser_ids", "row_elevation_deg",
     "column_azimuth_deg", "tof_max_ns", "delay_unit_ns", "time_window_us", "no_return_delay",
     "min_object_hits", "profile", "noise_on", "input_spikes", "timing", "shard", "shards",
-    "input_sha256", "simulated_from", "frames_without_objects",
+    "input_sha256", "simulated_from", "frames_without_objects", "receiver", "receiver_sha256",
+    "materials", "materials_sha256",
 }  # fmt: skip
-TEXT = {"simlidar_version", "class_mode", "catalog_sha256", "profile", "input_sha256"}
+TEXT = {"simlidar_version", "class_mode", "catalog_sha256", "profile", "input_sha256",
+        "receiver_sha256", "materials_sha256"}  # fmt: skip
 NUMBERS = {"seed", "noise", "classes", "tof_max_ns", "delay_unit_ns", "time_window_us",
            "no_return_delay", "min_object_hits", "shard", "shards"}  # fmt: skip
 HOSTILE = {

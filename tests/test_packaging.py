@@ -44,7 +44,7 @@ def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
     for folder in ("baselines", "benchmark", "profiles", "sensors"):
         shipped = {n.split("/")[-1] for n in names if n.startswith(f"simlidar/_content/{folder}/")}
         assert {p.name for p in (ROOT / folder).glob("*.toml")} <= shipped
-    # the receivers and materials of issue 41 (data the generator does not read yet)
+    # the receivers and materials of issue 41 (the sensor profile reads them)
     for path in [
         *(ROOT / "sensors" / "receivers").glob("*.toml"),
         ROOT / "scenes" / "materials.toml",

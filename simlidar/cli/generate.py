@@ -321,7 +321,7 @@ def profiles(as_json):
         click.echo(
             f"  variation {p['variation']!r}, shift {p['shift']!r}, missing return "
             f"{p['missing_delay']!r}, noise on {p['noise_on']}, input spikes: "
-            f"{p['spikes']}"
+            f"{p['spikes']}" + (f", receiver {p['receiver']}" if "receiver" in p else "")
         )
 
 

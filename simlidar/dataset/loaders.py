@@ -58,7 +58,9 @@ def load_split(path: str | Path, split: str = "train", field: str = "delays"):
 FIELDS = ("delays", "clean_delays")  # what the datasets of samples read as a sample
 # what load_split reads: a generated split's per-pixel datasets, (N, H, W) each
 PIXEL_FIELDS = tuple(
-    name for name, (_, tail) in generated_schema("scan").items() if len(tail(1, 1)) == 2
+    name
+    for name, (_, tail) in generated_schema("scan", receiver=True).items()
+    if len(tail(1, 1)) == 2
 )
 
 

@@ -22,7 +22,14 @@ from simlidar.dataset.schema import (
     split_source,
 )
 from simlidar.dataset.shards import find_split_files, shard_of
-from simlidar.dataset.version import GENERATOR, PHYSICAL_VERSION, SCAN_VERSION, SOURCES, major
+from simlidar.dataset.version import (
+    GENERATOR,
+    PHYSICAL_VERSION,
+    SCAN_VERSION,
+    SENSOR_VERSION,
+    SOURCES,
+    major,
+)
 from simlidar.errors import ConfigError, DatasetError, first_line, shown
 from simlidar.resources import check_memory, size_text
 
@@ -128,6 +135,32 @@ def check_attributes(path: Path, attrs: dict) -> list[str]:
             Sensor.from_dict(attrs["sensor"])
         except ConfigError as exc:
             problems.append(f"{path}: attribute 'sensor': {exc}")
+    if "receiver" in attrs and split_source(attrs) == GENERATOR:
+        problems += _receiver_problems(path, attrs, bad)
+    return problems
+
+
+def _receiver_problems(path: Path, attrs: dict, bad: set) -> list[str]:
+    """A generated split with a receiver: its receiver and materials attributes present and
+    each what its file would hold (the card and readers use their values)."""
+    from simlidar.sensor.receiver import checked_materials, checked_receiver
+
+    problems = [
+        f"{path}: attribute '{name}' missing (a split with a receiver holds it)"
+        for name in ("receiver_sha256", "materials", "materials_sha256")
+        if name not in attrs
+    ]
+    if "receiver" not in bad:
+        given = {k: v for k, v in attrs["receiver"].items() if k != "name"}
+        try:
+            checked_receiver("attribute 'receiver'", attrs["receiver"]["name"], given)
+        except ConfigError as exc:
+            problems.append(f"{path}: {exc}")
+    if "materials" in attrs and "materials" not in bad:
+        try:
+            checked_materials("attribute 'materials'", attrs["materials"])
+        except ConfigError as exc:
+            problems.append(f"{path}: {exc}")
     return problems
 
 
@@ -136,7 +169,8 @@ def datasets_of(path: Path, f: h5py.File) -> tuple[dict[str, h5py.Dataset], list
     soft or external link (which would read another file's data) and, under a name the
     schemas use, a group."""
     datasets, problems = {}, []
-    names = set(generated_schema("scan")) | {n for s in CONVERTED_SCHEMAS.values() for n in s}
+    names = set(generated_schema("scan", receiver=True))
+    names |= {n for s in CONVERTED_SCHEMAS.values() for n in s}
     for name in f:
         link = f.get(name, getlink=True)
         if not isinstance(link, h5py.HardLink):
@@ -293,10 +327,13 @@ def read_split_info(path: Path) -> SplitInfo:
 
 def written_version(attrs) -> str | None:
     """The version this simlidar writes for a split like this one, when it is not its source's
-    current version: a scan-timed split is SCAN_VERSION (3.0.0); a generated split without a
-    profile follows the physical rule, still written as PHYSICAL_VERSION (1.0.0)."""
+    current version: a split with a receiver is SENSOR_VERSION (4.0.0); a scan-timed split is
+    SCAN_VERSION (3.0.0); a generated split without a profile follows the physical rule, still
+    written as PHYSICAL_VERSION (1.0.0)."""
     if split_source(attrs) != GENERATOR:
         return None
+    if "receiver" in attrs:
+        return SENSOR_VERSION
     if _decode(attrs.get("timing", "flash")) == "scan":
         return SCAN_VERSION
     return PHYSICAL_VERSION if "profile" not in attrs else None

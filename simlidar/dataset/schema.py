@@ -39,6 +39,13 @@ SCHEMA: dict[str, tuple[str, object]] = {
 SCAN_SCHEMA: dict[str, tuple[str, object]] = {
     "emission_ns": ("float64", lambda h, w: (h, w)),
 }
+# Stored besides SCHEMA by datasets of a profile with a receiver (attribute `receiver`, profile
+# `sensor`) only, for the same reason
+RECEIVER_SCHEMA: dict[str, tuple[str, object]] = {
+    "intensity": ("uint8", lambda h, w: (h, w)),
+    "reflectance": ("float32", lambda h, w: (h, w)),
+    "power_w": ("float32", lambda h, w: (h, w)),
+}
 # A sweep's frames file: its name, its `format` attribute and its datasets, name -> (dtype,
 # trailing shape given the lasers H and the cycles C of a rotation; SCHEMA's form, another
 # file's); beside them `emission_ns` (H, C) float64, the same for every frame. Its version:
@@ -72,7 +79,7 @@ POINT_DTYPE = np.dtype(
 )
 # The shuffle filter helps gzip on the noisy delays (random mantissas) and hurts it on the
 # quantised clean delays and times of flight (measured: smaller and faster without it).
-SHUFFLED = {"delays", "phase", "shift", "object_pose"}
+SHUFFLED = {"delays", "phase", "shift", "object_pose", "reflectance", "power_w"}
 REQUIRED_ATTRS = (
     "dataset_version",
     "simlidar_version",
@@ -179,6 +186,10 @@ ATTRIBUTES = {
     "noise_on": Choice(("all", "returns")),
     "input_spikes": Choice(("all", "returns")),
     "timing": Choice(("flash", "scan")),
+    "receiver": JsonObject(("name", "model")),
+    "receiver_sha256": Text(),
+    "materials": JsonObject(),
+    "materials_sha256": Text(),
     "shard": Range(0, 2**31, "an integer"),
     "shards": Range(1, 2**31, "an integer"),
     "input_sha256": Text(),
@@ -221,19 +232,24 @@ CONVERTED_SCHEMAS: dict[str, dict[str, tuple[str, tuple]]] = {
 }
 
 
-def generated_schema(timing: str = "flash") -> dict[str, tuple[str, object]]:
-    """:data:`SCHEMA`, and :data:`SCAN_SCHEMA` under scan timing."""
-    return SCHEMA | SCAN_SCHEMA if timing == "scan" else SCHEMA
+def generated_schema(
+    timing: str = "flash", receiver: bool = False
+) -> dict[str, tuple[str, object]]:
+    """:data:`SCHEMA`, with :data:`SCAN_SCHEMA` under scan timing and :data:`RECEIVER_SCHEMA`
+    under a receiver."""
+    return (
+        SCHEMA | (SCAN_SCHEMA if timing == "scan" else {}) | (RECEIVER_SCHEMA if receiver else {})
+    )
 
 
 def generated_shapes(
-    height: int, width: int, timing: str = "flash"
+    height: int, width: int, timing: str = "flash", receiver: bool = False
 ) -> dict[str, tuple[str, tuple]]:
     """name -> (dtype, trailing shape) of a generated split of ``height`` rows (the sensor's
-    beams) and ``width`` columns, of ``timing`` "flash" or "scan"."""
+    beams) and ``width`` columns, of ``timing`` "flash" or "scan", with a receiver or not."""
     return {
         name: (dtype, tail(height, width))
-        for name, (dtype, tail) in generated_schema(timing).items()
+        for name, (dtype, tail) in generated_schema(timing, receiver).items()
     }
 
 
@@ -247,12 +263,19 @@ def split_source(attrs) -> str:
 
 
 def expected_shapes(
-    source: str, n: int, h: int, w: int, e: int = 0, timing: str = "flash"
+    source: str,
+    n: int,
+    h: int,
+    w: int,
+    e: int = 0,
+    timing: str = "flash",
+    receiver: bool = False,
 ) -> dict[str, tuple]:
     """name -> (dtype, full shape) of every dataset a split of ``source`` must hold
-    (``timing``: a generated split's ``timing`` attribute, "flash" where it has none)."""
+    (``timing``: a generated split's ``timing`` attribute, "flash" where it has none;
+    ``receiver``: whether it has a ``receiver`` attribute)."""
     if source == GENERATOR:
-        shapes = generated_shapes(h, w, timing)
+        shapes = generated_shapes(h, w, timing, receiver)
         return {name: (dtype, (n, *tail)) for name, (dtype, tail) in shapes.items()}
     if source not in CONVERTED_SCHEMAS:
         known = ", ".join([GENERATOR, *CONVERTED_SCHEMAS])

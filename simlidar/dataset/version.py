@@ -17,6 +17,10 @@ PHYSICAL_VERSION = "1.0.0"
 # reader that knows only flash delays must refuse them (a new MAJOR); the flash datasets made
 # by this simlidar keep the versions above and their bytes.
 SCAN_VERSION = "3.0.0"
+# Datasets of a profile with a receiver (`sensor`, flash or scan timing): a hit returns only when
+# the receiver detects it, returns carry range noise that grows as the signal falls, and the
+# splits gain intensity, reflectance and received power (a new MAJOR: the records change).
+SENSOR_VERSION = "4.0.0"
 
 # Release dates are part of the published metadata (croissant.json's datePublished), so they are
 # constants too: a dataset's bytes never depend on the day it was generated.
@@ -24,6 +28,7 @@ RELEASE_DATES: dict[str, str] = {
     "1.0.0": "2026-11-22",
     "2.0.0": "2026-11-23",
     "3.0.0": "2026-11-23",
+    "4.0.0": "2026-11-25",
 }
 
 RELEASE_NOTES: dict[str, str] = {
@@ -47,13 +52,26 @@ RELEASE_NOTES: dict[str, str] = {
         "delays mean something else, hence a new MAJOR: a reader of flash delays refuses these "
         "files. Flash datasets keep their versions (2.0.0, physical 1.0.0) and bytes."
     ),
+    "4.0.0": (
+        "Profile `sensor` (issue 41): pulses a receiver would report. Each catalog surface of a "
+        "sample is made of a material with a reflectance drawn in its cited range; a hit "
+        "returns only when its received power (LiDAR range equation: range, reflectance, "
+        "incidence; no atmosphere) reaches the VLP-16 receiver's threshold, and a return "
+        "moves by Gaussian range noise that grows as the power falls. New per-pulse datasets "
+        "`intensity` (the VLP-16's calibrated reflectivity byte), `reflectance` and `power_w`; "
+        "attributes `receiver`, `materials` and their sha256. Records change, hence a new "
+        "MAJOR, for flash and scan timing alike. The other profiles keep their versions and "
+        "bytes."
+    ),
 }
 
 
 def dataset_version(config) -> str:
     """The version a generated dataset of ``config`` (a GeneratorConfig) carries:
-    SCAN_VERSION under scan timing, PHYSICAL_VERSION for the physical pulse rule (its records
-    are those of 1.0.0), else DATASET_VERSION."""
+    SENSOR_VERSION under a receiver, SCAN_VERSION under scan timing, PHYSICAL_VERSION for the
+    physical pulse rule (its records are those of 1.0.0), else DATASET_VERSION."""
+    if config.receiver is not None:
+        return SENSOR_VERSION
     if config.timing == "scan":
         return SCAN_VERSION
     return PHYSICAL_VERSION if config.profile is None else DATASET_VERSION

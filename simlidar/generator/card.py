@@ -53,6 +53,9 @@ _DOCS = {  # one line per dataset of a split file; the full table is docs/datase
     "phase": "head rotation phase, in azimuth steps",
     "shift": "delay shift applied to the sample's returns",
     "emission_ns": "when each pulse left the sensor, ns from the window's first firing",
+    "intensity": "the receiver's reflectivity byte of each return (0 = no return)",
+    "reflectance": "drawn reflectance of the surface each pulse hit (NaN = nothing hit)",
+    "power_w": "received power of the hit, W, detected or not (0 = nothing hit)",
 }
 
 
@@ -73,7 +76,7 @@ def generated_front_matter(path: Path) -> dict:
     config = stored_config(splits["train"])
     features = [
         hf_feature(name, dtype, tail(height, width), attrs["class_names"])
-        for name, (dtype, tail) in generated_schema(config.timing).items()
+        for name, (dtype, tail) in generated_schema(config.timing, "receiver" in attrs).items()
     ]
     title = f"{NAME}, {attrs['classes']} classes, noise {attrs['noise']}"
     config_name = f"noise{float(attrs['noise'])!r}"
@@ -208,8 +211,9 @@ def _profile_line(config: GeneratorConfig) -> str:
         f"missing return written as {rule['missing_delay']!r}, noise on "
         f"{'every pixel' if rule['noise_on'] == 'all' else 'returns only'}, input spikes: "
         f"{'every pixel' if rule['spikes'] == 'all' else 'returns only'}; scene variation "
-        f"{config.variation!r}, delay shift {config.shift_max!r} (simlidar's "
-        "`docs/profiles.md`)"
+        f"{config.variation!r}, delay shift {config.shift_max!r}"
+        + (f", receiver `{config.receiver}`" if config.receiver is not None else "")
+        + " (simlidar's `docs/profiles.md`)"
     )
 
 
@@ -238,6 +242,13 @@ def _missing_meaning(config: GeneratorConfig) -> str:
             " Under this dataset's profile a missing return is written as 0.0 (before noise), "
             "not 1.0, and every pixel is an input spike (the paper's protocol)."
         )
+    if config.receiver is not None:
+        text += (
+            " Under this dataset's receiver a hit too weak to detect is no return too (a "
+            "drop-out: `power_w` > 0 where `tof_ns` is NaN), and a return's time of flight "
+            "carries the receiver's range noise (in `clean_delays` too: clean means without "
+            "the U(0, a) noise)."
+        )
     if config.timing == "scan":
         text += (
             f" Scan timing: each value is then made the pulse's arrival time in the sweep, "
@@ -246,6 +257,28 @@ def _missing_meaning(config: GeneratorConfig) -> str:
             "ms); 1.0 stays 1.0."
         )
     return text
+
+
+def _receiver_lines(attrs) -> str:
+    """The Generation process paragraph on the receiver (none without one)."""
+    if "receiver" not in attrs:
+        return ""
+    receiver, surfaces = attrs["receiver"], attrs["materials"]["surfaces"]
+    return (
+        f"Receiver: a hit returns only when the {receiver['model']} receiver detects it "
+        f"(`sensors/receivers/{receiver['name']}.toml`, values from {receiver['manual']} and "
+        f"the sources it cites; sha256 `{attrs['receiver_sha256']}`): received power by the "
+        "LiDAR range equation from the range, the surface's reflectance and the incidence angle "
+        f"(no atmosphere), at least the threshold {receiver['threshold_w']:g} W; a return "
+        f"moves by Gaussian range noise of {receiver['accuracy_m']:g} m x sqrt(threshold / "
+        "power) before the range is quantised. Each catalog surface of a sample is one "
+        "material drawn from the materials file (sha256 "
+        f"`{attrs['materials_sha256']}`), with a reflectance drawn uniformly in its range: "
+        + "; ".join(f"{s}: {', '.join(m)}" for s, m in surfaces.items())
+        + ". These draws come from a stream of the sample's own, "
+        "`SeedSequence(seed, spawn_key=(split, index, 41))`, so the scenes are those of the "
+        "`physical` profile with the same seed (simlidar's `docs/sensor-model.md`).\n"
+    )
 
 
 def generated_card(path: str | Path) -> str:
@@ -291,7 +324,9 @@ def generated_card(path: str | Path) -> str:
             ["dataset", "dtype", "shape", "meaning"],
             [
                 [f"`{name}`", dtype, str(("N", *tail(height, width))).replace("'", ""), _DOCS[name]]
-                for name, (dtype, tail) in generated_schema(config.timing).items()
+                for name, (dtype, tail) in generated_schema(
+                    config.timing, "receiver" in attrs
+                ).items()
             ],
         )
         + "\n",
@@ -328,6 +363,7 @@ def generated_card(path: str | Path) -> str:
             ]
         )
         + "\n",
+        _receiver_lines(attrs),
         f"Noise: `delays = min(clean_delays + a * u, 1)` with `u ~ U(0, 1)` per pulse and "
         f"a = {attrs['noise']}{_noise_details(config)}. Seed {attrs['seed']}: every sample has "
         "its own random stream "

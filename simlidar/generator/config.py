@@ -110,7 +110,11 @@ class GeneratorConfig:
         """A config that follows ``profile``; ``variation`` and ``shift_max`` given here
         override the profile's. The shipped ``physical`` profile is stored as None (the 1.0.0
         rule), so that its datasets keep the bytes of 1.0.0."""
-        physical = profile.name == "physical" and profile.pulse_rule == PHYSICAL_RULE
+        physical = (
+            profile.name == "physical"
+            and profile.pulse_rule == PHYSICAL_RULE
+            and profile.receiver is None
+        )
         return cls(
             variation=profile.variation if variation is None else variation,
             shift_max=profile.shift if shift_max is None else shift_max,
@@ -121,6 +125,11 @@ class GeneratorConfig:
     @property
     def profile_name(self) -> str:
         return "physical" if self.profile is None else self.profile.name
+
+    @property
+    def receiver(self) -> str | None:
+        """The profile's receiver (name or file), None where every hit in range returns."""
+        return None if self.profile is None else self.profile.receiver
 
     @property
     def pulse_rule(self) -> dict:
@@ -157,6 +166,8 @@ class GeneratorConfig:
             del values["variation"]  # absent means 1 (and keeps older datasets' bytes)
         if values["profile"] is None:
             del values["profile"]  # absent means the physical rule of 1.0.0 (same reason)
+        else:
+            values["profile"] = self.profile.to_dict()  # optional keys only where set
         if values["timing"] == "flash":
             del values["timing"]  # absent means flash (same reason)
         return values

@@ -23,6 +23,7 @@ from simlidar.dataset.version import dataset_version
 from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.card import generated_card, generated_croissant
 from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.returns import check_physics, receiver_physics
 from simlidar.generator.shard import remove_partials, split_shards, write_shard
 from simlidar.generator.simulate import class_plan, simulate
 from simlidar.processes import capped_workers, die_with_parent, one_blas_thread
@@ -197,6 +198,8 @@ def generate(
     configs = [config.with_noise(level) for level in noise_levels]
     catalog = catalog.for_sensor(config.sensor.name)  # what is stored: the recipes used
     class_plan(catalog, config.classes)  # fail before touching the disk
+    if config.receiver is not None:  # and its receiver fits the sensor and the catalog
+        check_physics(receiver_physics(config.profile), config.sensor, catalog.surfaces)
     out = Path(out)
     finals = [out / generated_name(c) for c in configs]
     if len(set(finals)) != len(finals):

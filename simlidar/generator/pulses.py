@@ -23,7 +23,7 @@ Conventions (``docs/sensor-model.md`` explains them):
 
 import numpy as np
 
-from simlidar.dataset.schema import SCHEMA
+from simlidar.dataset.schema import RECEIVER_SCHEMA, SCHEMA
 from simlidar.sensor.model import Sensor, tof_ns
 
 NO_RETURN = 1.0
@@ -115,8 +115,9 @@ def split_rows(samples, config) -> dict[str, np.ndarray]:
     :class:`~simlidar.generator.config.GeneratorConfig`: the profile's pulse rule and
     ``U(0, noise)`` noise applied to the clean delays (:func:`profile_pulses`;
     ``clean_delays`` are written under the rule too, before noise), under scan timing both
-    made arrival times (:func:`scan_delays`) and the emission times stored; every other field
-    as simulated."""
+    made arrival times (:func:`scan_delays`) and the emission times stored; under a receiver
+    its fields (:data:`~simlidar.dataset.schema.RECEIVER_SCHEMA`); every other field as
+    simulated."""
     rule = config.pulse_rule
     clean, noisy = profile_pulses(
         samples.clean_delays,
@@ -130,4 +131,6 @@ def split_rows(samples, config) -> dict[str, np.ndarray]:
         window, tof_max = config.scan_window_ns, config.sensor.tof_max_ns
         rows = {n: scan_delays(d, samples.emission_ns, tof_max, window) for n, d in rows.items()}
         rows["emission_ns"] = samples.emission_ns
+    if config.receiver is not None:
+        rows |= {name: getattr(samples, name) for name in RECEIVER_SCHEMA}
     return rows | {name: getattr(samples, name) for name in SCHEMA if name not in rows}

@@ -19,6 +19,7 @@ from simlidar.dataset.version import dataset_version
 from simlidar.dataset.writer import SplitWriter
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.pulses import split_rows
+from simlidar.generator.returns import fingerprint, receiver_physics
 from simlidar.generator.simulate import class_plan
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.model import row_order
@@ -71,7 +72,9 @@ def write_shard(
     from ``batches``, an iterator of its simulated batches in order. Each file is written
     under a hidden name of its own and renamed when complete; on any error the hidden files
     are removed."""
-    shapes = generated_shapes(configs[0].sensor.beams, configs[0].width, configs[0].timing)
+    first = configs[0]
+    receiver = first.receiver is not None
+    shapes = generated_shapes(first.sensor.beams, first.width, first.timing, receiver)
     token = secrets.token_hex(4)  # two runs of one shard (a retried task) never share a file
     writers: list[SplitWriter] = []
     try:
@@ -140,4 +143,11 @@ def generated_split_attrs(config: GeneratorConfig, catalog: Catalog, split: str)
     if config.timing == "scan":  # absent: flash (and the bytes of flash datasets)
         attrs["timing"] = "scan"
         attrs["delay_unit_ns"] = config.scan_window_ns
+    if config.receiver is not None:  # absent: every hit in range returns (the other profiles)
+        physics = receiver_physics(config.profile)
+        receiver, materials = physics.receiver_dict(), physics.materials_dict()
+        attrs["receiver"] = json.dumps(receiver, sort_keys=True)
+        attrs["receiver_sha256"] = fingerprint(receiver)
+        attrs["materials"] = json.dumps(materials, sort_keys=True)
+        attrs["materials_sha256"] = fingerprint(materials)
     return attrs

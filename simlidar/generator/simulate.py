@@ -4,7 +4,9 @@ Randomness: every sample has its own stream, ``SeedSequence(seed, spawn_key=(spl
 read in a fixed order: 2 variates for the class factor not fixed by the label, the noise
 variates (H x W, H the sensor's beams), then one block of parameters per attempt. A sample's
 content therefore depends on (seed, split, index, config, catalog) only, never on the batch
-it was made in.
+it was made in. A profile with a receiver (``sensor``) draws its own variates from a second
+stream of the sample (:mod:`simlidar.generator.returns`), after the scene is accepted; the
+stream above is read exactly as under the other profiles.
 """
 
 from dataclasses import dataclass
@@ -14,6 +16,7 @@ import numpy as np
 from simlidar.errors import ConfigError, SimlidarError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.pulses import delays_from_range, quantise_range, shift_delays
+from simlidar.generator.returns import check_physics, receive, receiver_physics, receiver_stream
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.raycast import MAX_BATCH, cast
@@ -89,6 +92,10 @@ class Samples:
     # (n, H, W) float64, when each pulse left the sensor, ns from the window's first firing
     # (from the phase of the draw, before it is stored as float32)
     emission_ns: np.ndarray
+    # under a profile with a receiver only (simlidar.generator.returns.Returns), else None:
+    intensity: np.ndarray | None = None  # (n, H, W) uint8, reflectivity byte, 0: no return
+    reflectance: np.ndarray | None = None  # (n, H, W) float32, NaN: no hit
+    power_w: np.ndarray | None = None  # (n, H, W) float32, 0: no hit
 
 
 def sample_stream(seed: int, split: str, index: int) -> np.random.Generator:
@@ -106,13 +113,16 @@ def batched_backend(
     directions,
     slots,
     max_range_m,
+    incidence=False,
 ):
     """Scenes -> first hits for a whole batch: numpy triangles, one Embree scene, one call.
 
+    incidence : also give each hit's |cos incidence| (asked only under a receiver)
     returns : Hits, object pose (B, 3)
     """
     scene = build_batch(catalog, layout, obj, layout_uniforms, object_uniforms)
-    return cast(scene, origins, directions, slots, max_range_m), scene.object_pose
+    hits = cast(scene, origins, directions, slots, max_range_m, incidence=incidence)
+    return hits, scene.object_pose
 
 
 def simulate(
@@ -133,6 +143,9 @@ def simulate(
     sensor, width = config.sensor, config.width
     catalog = catalog.for_sensor(sensor.name).with_variation(config.variation)
     plan = class_plan(catalog, config.classes)
+    physics = receiver_physics(config.profile) if config.receiver is not None else None
+    if physics is not None:
+        choices = check_physics(physics, sensor, catalog.surfaces)
     index = np.arange(start, stop)
     n = len(index)
     labels = index % plan.classes
@@ -152,6 +165,10 @@ def simulate(
     phase = np.zeros(n)
     shift = np.zeros(n)
     emission = np.zeros((n, sensor.beams, width))
+    if physics is not None:  # the hits within range, unquantised, and their incidence
+        hit_m = np.full((n, sensor.beams, width), np.nan)
+        cos_incidence = np.zeros((n, sensor.beams, width), np.float32)
+    more = {} if physics is None else {"incidence": True}  # other backends take no such key
     pending = np.arange(n)
     while len(pending):
         attempts[pending] += 1
@@ -167,6 +184,7 @@ def simulate(
             directions,
             index[pending] % MAX_BATCH,
             sensor.max_range_m,
+            **more,
         )
         r = quantise_range(hits.range_m, sensor)
         on_object = (hits.on_object & ~np.isnan(r)).sum(axis=(1, 2))
@@ -184,6 +202,9 @@ def simulate(
         done = pending[ok]
         range_m[done] = r[ok]
         surface[done] = np.where(np.isnan(r[ok]), 0, hits.surface[ok])
+        if physics is not None:
+            hit_m[done] = np.where(np.isnan(r[ok]), np.nan, hits.range_m[ok])
+            cos_incidence[done] = hits.cos_incidence[ok]
         pose[done] = object_pose[ok]
         hits_out[done] = on_object[ok]
         phase[done] = u[ok, 0]
@@ -204,6 +225,15 @@ def simulate(
                 "to hit the object (the shipped scenes need about 8 or more at 36 deg) and "
                 "recipes whose object and layout the sensor can see (docs/sensor-model.md)"
             )
+    received = {}
+    if physics is not None:
+        split_id = SPLIT_IDS[split]
+        streams = [receiver_stream(config.seed, split_id, i) for i in index]
+        got = receive(physics, choices, sensor, streams, hit_m, surface, cos_incidence)
+        range_m = got.range_m
+        surface = np.where(np.isnan(range_m), 0, surface).astype(np.uint8)
+        received = {"intensity": got.intensity, "reflectance": got.reflectance}
+        received["power_w"] = got.power_w
     tof, clean = delays_from_range(range_m, sensor)
     if config.shift_max > 0:
         clean = shift_delays(clean, shift)
@@ -221,4 +251,5 @@ def simulate(
         phase=phase.astype(np.float32),
         shift=shift.astype(np.float32),
         emission_ns=emission,
+        **received,
     )

@@ -63,7 +63,8 @@ def _check_split(
         events = datasets["event_t_us"].shape[0] if "event_t_us" in datasets else 0
         try:
             timing = attrs.get("timing", "flash")
-            shapes = expected_shapes(source, size, height, width, events, timing)
+            receiver = "receiver" in attrs
+            shapes = expected_shapes(source, size, height, width, events, timing, receiver)
         except DatasetError as exc:  # an unknown source
             return problems + [f"{path}: {exc}"], None
         for name, (dtype, shape) in shapes.items():

@@ -3,13 +3,14 @@
 A receiver file lives in ``sensors/receivers/`` (``vlp16``, ``hdl64e``) and materials in
 ``scenes/materials.toml``; every value is cited in its file (sources quoted in
 ``docs/research/receiver-sources.md``). The functions here are pure numpy: the LiDAR range
-equation, the detection threshold, the range noise and fog extinction. **The generator does not
-use any of this yet**: datasets keep their bytes. ``docs/sensor-model.md`` ("Receiver") gives
-every formula with its source.
+equation, the detection threshold, the range noise, the reported reflectivity and fog extinction.
+The generator uses them under a profile with a receiver (``sensor``, through
+:mod:`simlidar.generator.returns`); the other profiles never do, and keep their bytes.
+``docs/sensor-model.md`` ("Receiver") gives every formula with its source.
 """
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +24,7 @@ from simlidar.content import (
     read_toml,
     shipped_or_path,
 )
-from simlidar.errors import ConfigError
+from simlidar.errors import ConfigError, shown
 
 MAX_RECEIVER_BYTES = 64 * 1024
 MAX_MATERIALS_BYTES = 256 * 1024
@@ -31,6 +32,9 @@ RETURN_MODES = ("strongest", "last", "dual")
 MATERIAL_KINDS = ("diffuse", "specular", "retroreflective")
 # Koschmieder: visibility is the range at which a black target's contrast falls to 5 %
 KOSCHMIEDER_CONTRAST = 0.05
+# unsourced estimate: the Lambertian-equivalent gain reported as the top of the retro-reflector
+# scale (the manual's "ideal reflection", 255): the top of materials.toml's retroreflector range
+IDEAL_RETRO_GAIN = 50.0
 
 
 @dataclass(frozen=True)
@@ -149,11 +153,26 @@ def load_receiver(name_or_path: str | Path) -> Receiver:
     checked. Raises ConfigError naming the file, the key and what was expected."""
     path = shipped_or_path(name_or_path, "sensors/receivers", "receiver")
     where = f"receiver {path}"
-    values = _receiver_values(where, read_named_toml(path, where, MAX_RECEIVER_BYTES))
+    return checked_receiver(where, path.stem, read_named_toml(path, where, MAX_RECEIVER_BYTES))
+
+
+def checked_receiver(where: str, name: str, data) -> Receiver:
+    """The receiver ``name`` of a receiver file's keys ``data`` (also a receiver stored in a
+    dataset, :func:`receiver_to_dict`), every key checked; a ConfigError starting with
+    ``where``."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{where}: expected a table of {_RECEIVER_KEYS}, got {shown(data)}")
+    values = _receiver_values(where, data)
     try:
-        return Receiver(name=path.stem, **values)
+        return Receiver(name=name, **values)
     except ConfigError as exc:
         raise ConfigError(f"{where}: {exc}") from None
+
+
+def receiver_to_dict(receiver: Receiver) -> dict:
+    """A receiver's keys as its file writes them, and its name (the inverse of
+    :func:`checked_receiver`)."""
+    return asdict(receiver) | {"return_modes": list(receiver.return_modes)}
 
 
 def _material(where: str, name: str, table) -> Material:
@@ -191,7 +210,15 @@ def load_materials(path: str | Path | None = None) -> tuple[dict[str, Material],
     ConfigError naming the file and the key."""
     path = Path(path) if path is not None else content_dir("scenes") / "materials.toml"
     where = f"materials {path}"
-    data = read_toml(path, MAX_MATERIALS_BYTES, ConfigError, where)
+    return checked_materials(where, read_toml(path, MAX_MATERIALS_BYTES, ConfigError, where))
+
+
+def checked_materials(where: str, data) -> tuple[dict[str, Material], dict]:
+    """The materials and surfaces of a materials file's content ``data`` (also one stored in a
+    dataset, :func:`materials_to_dict`), every key checked; a ConfigError starting with
+    ``where``."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{where}: expected tables 'material' and 'surfaces', got {shown(data)}")
     for key in data:
         if key not in ("material", "surfaces"):
             raise key_error(where, key, "'material' or 'surfaces'", key)
@@ -206,6 +233,20 @@ def load_materials(path: str | Path | None = None) -> tuple[dict[str, Material],
         if not isinstance(names, list) or not names or not set(names) <= materials.keys():
             raise key_error(where, f"surfaces.{surface}", f"a list of {sorted(materials)}", names)
     return materials, surfaces
+
+
+def materials_to_dict(materials: dict[str, Material], surfaces: dict) -> dict:
+    """Materials and surfaces as a materials file writes them (the inverse of
+    :func:`checked_materials`)."""
+    tables = {
+        m.name: {
+            "kind": m.kind,
+            "reflectance": m.reflectance,
+            "reflectance_range": [m.reflectance_min, m.reflectance_max],
+        }
+        for m in materials.values()
+    }
+    return {"material": tables, "surfaces": surfaces}
 
 
 def received_power_w(
@@ -263,6 +304,27 @@ def range_noise_m(receiver: Receiver, power_w):
     positive = power_w > 0.0
     sigma = receiver.accuracy_m * np.sqrt(receiver.threshold_w / np.where(positive, power_w, 1.0))
     return np.where(positive, sigma, np.inf)
+
+
+def reflectivity_byte(receiver: Receiver, reflectance, retroreflective=False):
+    """The calibrated reflectivity a receiver reports for a return (uint8, the arguments'
+    broadcast shape). VLP-16 manual sec. 6.1 p. 32: "Diffuse reflectors report values from 0 to
+    100 for reflectivities from 0% to 100%" (here ``round(reflectivity_diffuse_max * rho)``,
+    clipped to the diffuse scale); "Retroreflectors report values from 101 to 255, where 255
+    represents an ideal reflection" (here 101 at gain 1 to 255 at ``IDEAL_RETRO_GAIN``,
+    linear in log gain: unsourced estimate, the manual gives no curve). A ConfigError for a
+    receiver without a scale."""
+    low, top = receiver.reflectivity_diffuse_max, receiver.reflectivity_max
+    if low == 0:
+        raise ConfigError(
+            f"receiver {receiver.name!r}: no reflectivity scale (reflectivity_diffuse_max); "
+            "expected a receiver whose manual defines one"
+        )
+    rho = np.asarray(reflectance, dtype=float)
+    diffuse = np.clip(np.round(low * rho), 0, low)
+    gain = np.log(np.clip(rho, 1.0, IDEAL_RETRO_GAIN)) / math.log(IDEAL_RETRO_GAIN)
+    retro = low + 1 + np.round((top - low - 1) * gain)
+    return np.where(retroreflective, retro, diffuse).astype(np.uint8)
 
 
 def koschmieder_extinction_per_m(visibility_m):

@@ -1,0 +1,222 @@
+"""The `sensor` profile (issue 41): a receiver decides which hits return. Its draws leave the
+other profiles' untouched, dark far surfaces drop out, intensity follows the VLP-16 manual's
+scale, the same seed gives the same bytes, and a bad receiver key is one line."""
+
+import hashlib
+import json
+import math
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+import simlidar.generator.simulate as simulate_module
+from simlidar.errors import ConfigError
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.generate import generate
+from simlidar.generator.profiles import load_profile
+from simlidar.generator.returns import Physics, receive, receiver_physics
+from simlidar.sensor.model import load_sensor
+from simlidar.sensor.receiver import Material, load_receiver, reflectivity_byte
+
+SIZES = dict(train_size=64, test_size=32)
+C_M_PER_NS = 0.299792458
+
+
+def _generate(out, profile, catalog, noise=0.1, **options):
+    config = GeneratorConfig.from_profile(load_profile(profile), **SIZES)
+    (written,) = generate(config, [noise], catalog, out, progress=False, preview=False, **options)
+    return written.path
+
+
+@pytest.fixture(scope="module")
+def twins(tmp_path_factory, catalog):
+    """A `sensor` dataset and its `physical` twin (same seed, sizes and noise)."""
+    out = tmp_path_factory.mktemp("sensor")
+    return {name: _generate(out / name, name, catalog) for name in ("sensor", "physical")}
+
+
+def _read(path, split="train"):
+    with h5py.File(path / f"{split}.h5") as f:
+        return {name: f[name][:] for name in f}, dict(f.attrs)
+
+
+def test_paper_and_physical_never_enter_the_receiver(tmp_path, catalog, monkeypatch):
+    """Neither profile reads a receiver or draws from its stream: with both made to fail, they
+    still generate, without the sensor profile's fields and attributes. (Their bytes: the
+    digests of tests/test_profiles.py.)"""
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the receiver path was entered")
+
+    for name in ("receive", "receiver_physics", "receiver_stream"):
+        monkeypatch.setattr(simulate_module, name, refuse)
+    for profile in ("paper", "physical"):
+        data, attrs = _read(_generate(tmp_path / profile, profile, catalog))
+        assert not {"intensity", "reflectance", "power_w"} & set(data)
+        assert not {"receiver", "materials", "receiver_sha256"} & set(attrs)
+        assert "receiver" not in json.loads(attrs["config"]).get("profile", {})
+
+
+def test_the_sensor_profile_sees_the_physical_scenes_and_returns_a_subset(twins):
+    """The receiver's own stream leaves the sample's untouched: the same scenes, phases and
+    attempts as the physical twin; every sensor return is a physical return, moved by range
+    noise of a few centimetres (3 cm at the threshold), and some physical returns are gone."""
+    for split in ("train", "test"):
+        sensor, attrs = _read(twins["sensor"], split)
+        physical, _ = _read(twins["physical"], split)
+        for name in ("labels", "layout", "object", "object_pose", "phase", "attempts"):
+            np.testing.assert_array_equal(sensor[name], physical[name])
+        returned = ~np.isnan(sensor["tof_ns"])
+        assert not (returned & np.isnan(physical["tof_ns"])).any()
+        moved_m = np.abs(sensor["tof_ns"] - physical["tof_ns"])[returned] * C_M_PER_NS / 2
+        assert moved_m.max() < 5 * 0.03 and (moved_m > 0.002).mean() > 0.5
+        dropped = ~returned & ~np.isnan(physical["tof_ns"])
+        assert dropped.mean() > 0.05
+        # a drop-out is a hit below the threshold (power_w keeps the hit's power)
+        threshold = load_receiver("vlp16").threshold_w
+        assert (sensor["power_w"][dropped] < threshold).all()
+        assert (sensor["power_w"][returned] >= threshold * (1 - 1e-6)).all()
+        assert attrs["dataset_version"] == "4.0.0" and attrs["profile"] == "sensor"
+        assert json.loads(attrs["receiver"])["name"] == "vlp16"
+
+
+def _physics(*reflectances):
+    """VLP-16 physics whose surface label k (from 1) is one material of reflectance
+    ``reflectances[k - 1]`` exactly."""
+    materials = {
+        f"m{k}": Material(f"m{k}", "diffuse", rho, rho, rho)
+        for k, rho in enumerate(reflectances, start=1)
+    }
+    physics = Physics(load_receiver("vlp16"), materials, {})
+    return physics, [[]] + [[m] for m in materials.values()]
+
+
+def test_a_dark_surface_far_away_drops_out_where_a_light_one_returns():
+    """By hand: the VLP-16 is calibrated to reach 100 m at reflectance 0.8 (normal
+    incidence), so R_max = 100 m * sqrt(rho / 0.8): 25 m at rho = 0.05. At 40 m the light
+    surface returns and the dark one is dropped; at 20 m both return; at 60 degrees of
+    incidence the light one reaches 100 m * sqrt(0.5) = 70.7 m (65 m returns, 75 m not)."""
+    physics, choices = _physics(0.05, 0.8)
+    sensor = load_sensor("vlp16")
+    range_m = np.array([[[40.0, 40.0, 20.0, 20.0, 65.0, 75.0]]])
+    surface = np.array([[[1, 2, 1, 2, 2, 2]]], np.uint8)
+    cosine = np.float32([[[1, 1, 1, 1, 0.5, 0.5]]])
+    streams = [np.random.default_rng(0)]
+    got = receive(physics, choices, sensor, streams, range_m, surface, cosine)
+    returned = ~np.isnan(got.range_m[0, 0])
+    assert returned.tolist() == [False, True, True, True, True, False]
+    assert math.isclose(
+        got.power_w[0, 0, 1], 80 * 0.8 * 3.1416e-4 * 0.05 / (math.pi * 40**2), rel_tol=1e-6
+    )
+    np.testing.assert_allclose(got.range_m[0, 0, returned], range_m[0, 0, returned], atol=0.2)
+    assert got.intensity[0, 0].tolist() == [0, 80, 5, 80, 80, 0]
+
+
+def test_drop_outs_grow_with_range(twins):
+    """Among the physical twin's returns, the share the receiver drops rises with their range
+    (10 m bins to 30 m, then 30-100 m): near returns all come back, far ones mostly not."""
+    sensor, _ = _read(twins["sensor"])
+    physical, _ = _read(twins["physical"])
+    range_m = physical["tof_ns"] * C_M_PER_NS / 2
+    dropped = np.isnan(sensor["tof_ns"])
+    shares = []
+    for low, high in ((1, 10), (10, 20), (20, 30), (30, 100)):
+        inside = (range_m >= low) & (range_m < high)
+        assert inside.sum() > 200  # enough pulses for a share
+        shares.append(dropped[inside].mean())
+    assert shares == sorted(shares), shares
+    assert shares[0] < 0.02 and shares[-1] > 0.5, shares
+
+
+def test_intensity_and_reflectance_follow_the_manuals_scale(twins):
+    """VLP-16 manual sec. 6.1: diffuse reflectors report 0-100 for 0-100 % (here
+    round(100 rho)); retro-reflectors 101-255, 255 an ideal reflection. Each surface of a sample
+    has one reflectance, drawn in its material's range; no return reads 0."""
+    data, attrs = _read(twins["sensor"])
+    materials = json.loads(attrs["materials"])
+    names = list(attrs["surface_names"])
+    returned = ~np.isnan(data["tof_ns"])
+    expected = np.round(100 * data["reflectance"][returned].astype(np.float64))
+    np.testing.assert_array_equal(data["intensity"][returned], expected)
+    assert (data["intensity"][~returned] == 0).all() and data["intensity"].max() <= 100
+    hit = data["power_w"] > 0
+    assert np.isnan(data["reflectance"][~hit]).all()
+    for label in np.unique(data["surface"][returned]):
+        ranges = [materials["material"][m]["reflectance_range"] for m in
+                  materials["surfaces"][names[label]]]  # fmt: skip
+        low, high = min(r[0] for r in ranges), max(r[1] for r in ranges)
+        for sample in range(len(data["labels"])):
+            values = np.unique(data["reflectance"][sample][data["surface"][sample] == label])
+            assert len(values) <= 1 and ((low <= values) & (values <= high)).all()
+    # every sample draws its own: the road's reflectance differs from sample to sample
+    road = names.index("road")
+    per_sample = [
+        data["reflectance"][i][data["surface"][i] == road][:1] for i in range(len(data["labels"]))
+    ]
+    drawn = np.concatenate(per_sample)
+    assert len(drawn) > 40 and len(np.unique(drawn)) == len(drawn)
+    receiver = load_receiver("vlp16")
+    assert reflectivity_byte(receiver, [0.0, 0.004, 0.5, 1.0, 1.2]).tolist() == [0, 0, 50, 100, 100]
+    retro = reflectivity_byte(receiver, [1.0, 50.0, 500.0, math.sqrt(50.0)], True)
+    assert retro.tolist() == [101, 255, 255, 178]  # 101 + round(154 / 2)
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(b"".join((path / n).read_bytes() for n in ("train.h5", "test.h5")))
+
+
+def test_the_same_seed_gives_the_same_bytes(twins, tmp_path, catalog):
+    """Whatever the batch size: the receiver's draws belong to each sample's own stream."""
+    again = _generate(tmp_path, "sensor", catalog, batch_size=7)
+    assert again.name == twins["sensor"].name == "simlidar-32c-noise0.1-sensor-v4.0.0"
+    assert _digest(again).hexdigest() == _digest(twins["sensor"]).hexdigest()
+
+
+PROFILE = (
+    'description = "x"\nvariation = 1.0\nshift = 0.0\nmissing_delay = 1.0\n'
+    'noise_on = "returns"\nspikes = "returns"\n'
+)
+
+
+@pytest.mark.parametrize(
+    "extra, expected",
+    [
+        ('receiver = "nosuch"\n', "key 'receiver': receiver 'nosuch': expected one of"),
+        ("receiver = 3\n", "key 'receiver': expected a receiver name or a .toml file, got 3"),
+        ('receiver = "hdl64e"\n', "receiver 'hdl64e' has no reflectivity scale"),
+        ('materials = "m.toml"\n', "key 'materials': expected no materials without a receiver"),
+        ('receiver = "vlp16"\nmaterials = "absent.toml"\n', "key 'materials': materials"),
+    ],
+)
+def test_a_bad_receiver_key_is_one_line_and_writes_nothing(tmp_path, cli, extra, expected):
+    path = tmp_path / "mine.toml"
+    path.write_text(PROFILE + extra)
+    with pytest.raises(ConfigError) as error:
+        load_profile(path)
+    assert str(path) in str(error.value) and expected in str(error.value)
+    assert "\n" not in str(error.value)
+    result = cli("generate", "--profile", path, "--out", tmp_path / "out")
+    assert result.exit_code == 2 and expected in result.output
+    assert "Traceback" not in result.output and not (tmp_path / "out").exists()
+
+
+def test_a_receiver_of_another_sensor_is_refused_before_writing(tmp_path, cli):
+    result = cli("generate", "--profile", "sensor", "--sensor", "hdl64e", "--out", tmp_path / "o")
+    assert result.exit_code == 2 and "receiver 'vlp16' with sensor 'hdl64e'" in result.output
+    assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
+
+
+def test_verify_wants_the_receiver_fields_and_reads_old_datasets(twins, tmp_path, cli):
+    assert cli("verify", twins["sensor"]).exit_code == 0
+    assert cli("verify", twins["physical"]).exit_code == 0
+    copy = tmp_path / "d"
+    copy.mkdir()
+    for item in twins["sensor"].iterdir():
+        (copy / item.name).write_bytes(item.read_bytes())
+    with h5py.File(copy / "train.h5", "a") as f:
+        del f["intensity"]
+    result = cli("verify", copy)
+    assert result.exit_code == 1 and "dataset 'intensity' missing" in result.output
+    assert receiver_physics(load_profile("sensor")).receiver.name == "vlp16"
