@@ -172,6 +172,49 @@ def test_early_objectives_reads_the_bound_and_the_targets_by_hand():
     assert goals["points_farther_than_5"] == ["far-exp0.1", "far-exp1"]
 
 
+def test_sweep_decisions_reads_each_decision_on_the_sensors_clock(tmp_path, cli):
+    """A column-gated network decides when the last pulse of its first C columns left (the
+    scan twin's emission) plus its own latency; the bound's row for C stands beside it, and a
+    target counts a point by its interval's lower end."""
+    import json
+
+    import h5py
+    import numpy as np
+
+    sweep = _script("sweep_decisions")
+    small = ["--train-size", "64", "--test-size", "32", "--profile", "paper", "--noise", "0.1"]
+    paths = {}
+    for timing in ("flash", "scan"):
+        done = cli("generate", *small, "--timing", timing, "--out", tmp_path, "--json")
+        assert done.exit_code == 0, done.output
+        paths[timing] = Path(json.loads(done.stdout)["datasets"][0]["path"])
+    with h5py.File(paths["scan"] / "test.h5") as f:
+        emission = f["emission_ns"][:]
+    fired, after = sweep.firing_times(paths["scan"], 3)
+    assert np.array_equal(fired, emission[:, :, :3].max(axis=(1, 2)))
+    assert np.array_equal(after, emission[:, :, 3].min(axis=1)) and (after > fired + 5e5).all()
+    assert sweep.firing_times(paths["scan"], 16)[1] is None
+    t_out = [250.0] * 31 + [None]  # one sample undecided
+    cells = [
+        {"seed": s, "test_accuracy": a, "decision_time_ns": t_out, "input_spikes": [48] * 32}
+        for s, a in enumerate([0.80, 0.82, 0.81, 0.80, 0.82])
+    ]
+    times, late = sweep.sensor_times(cells[0], paths["scan"], 3)
+    assert late == 0 and np.isnan(times[-1])
+    assert times[:-1] == pytest.approx((fired[:-1] + 250.0) / 1000.0)
+    bound = {3: {"accuracy_mean": 0.84, "time_us_median": 1200.0, "best": "wide/ensemble"}}
+    row = sweep.summarise(cells, paths["scan"], 3, 16, bound)
+    assert row["undecided"] == 5 and row["decision_us_median"] == pytest.approx(
+        np.median((fired[:-1] + 250.0) / 1000.0)
+    )
+    low = row["accuracy_ci95"][0]  # mean 81, std 1, t(0.975, 4) = 2.776: 79.76
+    assert low == pytest.approx(81.0 - 2.776 * 1.0 / 5**0.5, abs=1e-3)
+    assert row["gap"] == pytest.approx(84.0 - low) and not row["every_column"]
+    goals = sweep.targets({"paper:0.1": [row], "physical:0.2": [{**row, "every_column": True}]})
+    assert [g["met_by_columns"] for g in goals] == [[], [3]]  # 4.2 points; 5 allowed there
+    assert goals[0]["closest"]["gap"] == pytest.approx(84.0 - low)
+
+
 @pytest.mark.parametrize(
     "args, words",
     [
@@ -231,6 +274,10 @@ BAD_ARGUMENTS = [
     ("scene_variation.py", ["--factors", "1,0"], "variation=0.0: expected a factor in (0, 1]"),
     ("scene_variation.py", ["--train-size", "5"], "argument --train-size: '5': expected an"),
     ("scene_variation.py", ["--models", "nosuch"], "model recipe 'nosuch': expected one of"),
+    ("sweep_decisions.py", ["--datasets", "paper:0.3"], "'paper:0.3': expected profile:noise"),
+    ("sweep_decisions.py", ["--datasets", "lidar:0.1"], "'lidar:0.1': expected profile:noise"),
+    ("sweep_decisions.py", ["--columns", "17"], "argument --columns: '17': expected comma-sep"),
+    ("sweep_decisions.py", ["--seeds", "x"], "argument --seeds: 'x': expected comma-separated"),
     ("sweep_speed.py", ["--frames", "0"], "argument --frames: '0': expected an integer in"),
     ("sweep_speed.py", ["--sensor", "nosuch"], "sensor 'nosuch': expected one of"),
     ("ttfs_speed.py", ["--steps", "0"], "argument --steps: '0': expected an integer in"),
@@ -246,6 +293,7 @@ WRITES = {
     "paper_table.py",
     "scan_timing.py",
     "scene_variation.py",
+    "sweep_decisions.py",
 }
 
 
