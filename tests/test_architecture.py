@@ -1,7 +1,8 @@
 """The package's stages import one way (docs/architecture.md): a module imports only from its
 own stage or the stages below it, and no modules import each other in a circle, counting
 imports made inside functions. No module or script uses another module's private
-(underscore) name: a name shared is public."""
+(underscore) name: a name shared is public. The tests mirror the package: every package folder
+has a test folder of its name."""
 
 import ast
 from pathlib import Path
@@ -10,6 +11,7 @@ import simlidar
 
 PACKAGE = Path(simlidar.__file__).parent
 ROOT = PACKAGE.parent
+TESTS = Path(__file__).resolve().parent
 # The package and the scripts that use it (tests may reach into a module's private parts)
 USERS = [PACKAGE, ROOT / "benchmark", ROOT / "examples"]
 # lowest first; a module may import its own stage and those before it
@@ -200,3 +202,32 @@ def test_the_checker_sees_a_private_name(tmp_path):
         "simlidar.generator.simulate._x",
         "simlidar.dataset.reader._decode",
     }
+
+
+def untested_folders(package: Path, tests: Path) -> list[str]:
+    """The package folders of ``package`` (those with an ``__init__.py``, at any depth) that
+    have no folder of the same path under ``tests`` holding a ``test_*.py`` file."""
+    return [
+        str(init.parent.relative_to(package))
+        for init in sorted(package.rglob("__init__.py"))
+        if init.parent != package
+        and "__pycache__" not in init.parts
+        and not any((tests / init.parent.relative_to(package)).glob("test_*.py"))
+    ]
+
+
+def test_every_package_folder_has_its_test_folder():
+    missing = untested_folders(PACKAGE, TESTS)
+    assert not missing, "; ".join(f"simlidar/{m}/ has no tests/{m}/test_*.py" for m in missing)
+
+
+def test_the_checker_sees_a_folder_without_tests(tmp_path):
+    for folder in ("package/a", "package/b", "package/b/c", "package/d/__pycache__"):
+        (tmp_path / folder).mkdir(parents=True)
+        (tmp_path / folder / "__init__.py").touch()
+    (tmp_path / "package" / "__init__.py").touch()
+    (tmp_path / "tests" / "a").mkdir(parents=True)
+    (tmp_path / "tests" / "a" / "test_x.py").touch()
+    (tmp_path / "tests" / "b").mkdir()
+    (tmp_path / "tests" / "b" / "conftest.py").touch()  # a folder, but no tests in it
+    assert untested_folders(tmp_path / "package", tmp_path / "tests") == ["b", "b/c"]

@@ -295,7 +295,8 @@ def test_the_card_command_regenerates_a_shipped_profile(tmp_path, profile, cli):
         assert (tmp_path / "b" / first.name / name).read_bytes() == (first / name).read_bytes()
 
 
-# the command line written out, as in test_cli.py's variation test: each test its own flags
+# the command line written out, as in tests/cli/test_cli.py's variation test: each test its
+# own flags
 def test_the_encoding_follows_the_profile(tmp_path, cli):
     from simlidar.bench.early import early_decisions
     from simlidar.bench.train import load_checkpoint, save_checkpoint, train

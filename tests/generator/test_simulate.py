@@ -80,7 +80,8 @@ def test_a_sample_does_not_depend_on_the_batch_it_is_made_in(catalog, start, siz
         part = simulate(config, catalog, "test", offset, offset + size)
         for field in dataclasses.fields(part):
             a, b = getattr(part, field.name), getattr(whole, field.name)
-            if a is None:  # a receiver's field (tests/test_sensor_profile.py: batch sizes)
+            # a receiver's field (tests/generator/test_sensor_profile.py: batch sizes)
+            if a is None:
                 assert b is None, field.name
                 continue
             b = b[offset - start : offset - start + size]

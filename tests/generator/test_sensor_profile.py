@@ -45,7 +45,7 @@ def _read(path, split="train"):
 def test_paper_and_physical_never_enter_the_receiver(tmp_path, catalog, monkeypatch):
     """Neither profile reads a receiver or draws from its stream: with both made to fail, they
     still generate, without the sensor profile's fields and attributes. (Their bytes: the
-    digests of tests/test_profiles.py.)"""
+    digests of tests/generator/test_profiles.py.)"""
 
     def refuse(*args, **kwargs):
         raise AssertionError("the receiver path was entered")
