@@ -53,6 +53,7 @@ from scan_timing import twin_datasets
 from simlidar.script_args import integers, run
 
 RECIPE = "snn_simlidar_tuned"
+HIDDEN = 400  # the recipe's hidden layer; --hidden adds wider ones beside it
 PROFILES = ("paper", "physical")
 NOISES = (0.1, 0.2)
 # (profile, noise): (most us into the window, most points below the bound, columns: None = any)
@@ -101,18 +102,30 @@ def sensor_times(cell: dict, scan: Path, columns: int) -> tuple[np.ndarray, int]
     return at / 1000.0, late
 
 
-def bound_rows(bound_json: Path, scan_name: str) -> dict[int, dict]:
-    """The bound's rows by columns for the scan twin (near first, sensor clock): C -> row."""
+def bound_rows(bound_json: Path, scan_name: str) -> dict:
+    """The bound's rows by columns for the scan twin (near first, sensor clock): C -> row, and
+    "all" -> the row with every spike arrived (k None)."""
     if not bound_json.is_file():
         return {}
     for b in json.loads(bound_json.read_text())["bounds"]:
         if b["dataset"] == scan_name and b["encoding"]["direction"] == "near_first":
-            return {r["columns"]: r for r in b.get("column_rows", [])}
+            every = [r for r in b["rows"] if r["k"] is None]
+            return {r["columns"]: r for r in b.get("column_rows", [])} | {"all": every[0]}
     return {}
 
 
-def summarise(found: list[dict], scan: Path, columns: int, width: int, bound: dict) -> dict:
-    """One point: the seeds' cells of one dataset and gate beside the bound's row."""
+def bound_for(bound: dict, columns: int, width: int) -> dict | None:
+    """The bound's row for a network behind ``columns`` of ``width`` columns; with every column,
+    the better of that row and the every-spike row (the same information, two learner runs)."""
+    rows = [bound.get(columns)] + ([bound.get("all")] if columns == width else [])
+    rows = [r for r in rows if r is not None]
+    return max(rows, key=lambda r: r["accuracy_mean"], default=None)
+
+
+def summarise(
+    found: list[dict], scan: Path, columns: int, width: int, bound: dict, hidden: int = HIDDEN
+) -> dict:
+    """One point: the seeds' cells of one dataset, gate and hidden width beside the bound."""
     acc = np.array([100 * c["test_accuracy"] for c in found])
     times, late = [], 0
     for cell in found:
@@ -123,6 +136,7 @@ def summarise(found: list[dict], scan: Path, columns: int, width: int, bound: di
     decided = times[np.isfinite(times)]
     row = {
         "columns": columns,
+        "hidden": hidden,
         "every_column": columns == width,
         "seeds": [c["seed"] for c in found],
         "accuracy": float(acc.mean()),
@@ -139,11 +153,11 @@ def summarise(found: list[dict], scan: Path, columns: int, width: int, bound: di
         ),
         "input_spikes_median": float(np.median(np.concatenate([c["input_spikes"] for c in found]))),
     }
-    b = bound.get(columns)
+    b = bound_for(bound, columns, width)
     if b is not None:
         row.update(
             bound=100 * b["accuracy_mean"],
-            bound_time_us=b["time_us_median"],
+            bound_time_us=b.get("time_us_median", bound[columns]["time_us_median"]),
             bound_best=b.get("best"),
             gap=100 * b["accuracy_mean"] - low_end(row),
         )
@@ -161,7 +175,7 @@ def targets(points: dict) -> list[dict]:
         pool = [r for r in rows if "gap" in r and (which != "all" or r["every_column"])]
         if limit_us is not None:
             pool = [r for r in pool if r["decision_us_median"] <= limit_us]
-        met = [r["columns"] for r in pool if r["gap"] <= gap]
+        met = [f"{r['columns']} (hidden {r['hidden']})" for r in pool if r["gap"] <= gap]
         closest = min(pool, key=lambda r: r["gap"], default=None)
         found.append(
             {
@@ -174,7 +188,7 @@ def targets(points: dict) -> list[dict]:
                 "met_by_columns": met,
                 "closest": None
                 if closest is None
-                else {k: closest[k] for k in ("columns", "gap", "decision_us_median")},
+                else {k: closest[k] for k in ("columns", "hidden", "gap", "decision_us_median")},
             }
         )
     return found
@@ -190,6 +204,12 @@ def main(argv=None) -> int:
         help="profile:noise, comma-separated (flash and scan twins under --data, made if missing)",
     )
     parser.add_argument("--columns", type=integers(1, 16), default="4,6,8,10,12,16")
+    parser.add_argument(
+        "--hidden",
+        type=integers(1, 4096),
+        default=str(HIDDEN),
+        help="the hidden layer's widths to train (the recipe's: 400)",
+    )
     parser.add_argument("--seeds", type=SEEDS, default="0,1,2,3,4")
     parser.add_argument("--jobs", type=JOBS, default=2)
     parser.add_argument(
@@ -203,16 +223,21 @@ def main(argv=None) -> int:
     pairs = {f"{p}:{n:g}": twin_datasets(args.data, p, n) for p, n in args.datasets}
     cells.mkdir(parents=True, exist_ok=True)
 
-    def cell_path(flash: Path, columns: int, seed: int) -> Path:
-        return cells / f"{flash.name}__columns{columns}__seed{seed}.json"
+    def cell_path(flash: Path, columns: int, hidden: int, seed: int) -> Path:
+        wider = "" if hidden == HIDDEN else f"-hidden{hidden}"
+        return cells / f"{flash.name}__columns{columns}{wider}__seed{seed}.json"
+
+    def architecture(columns: int, hidden: int) -> dict:
+        return {"input_columns": columns} | ({} if hidden == HIDDEN else {"hidden": [hidden]})
 
     todo = [
-        (RECIPE, str(twins["flash"]), s, str(cell_path(twins["flash"], c, s)), None, None,
-         {"input_columns": c})
+        (RECIPE, str(twins["flash"]), s, str(cell_path(twins["flash"], c, h, s)), None, None,
+         architecture(c, h))
         for s in args.seeds  # seed 0 of every point first: a first look comes early
         for twins in pairs.values()
+        for h in args.hidden
         for c in args.columns
-        if not cell_path(twins["flash"], c, s).is_file()
+        if not cell_path(twins["flash"], c, h, s).is_file()
     ]  # fmt: skip
     if not args.no_train:
         run_cells(todo, args.jobs)
@@ -222,14 +247,15 @@ def main(argv=None) -> int:
         width = _width(scan)
         bound = bound_rows(args.bound, scan.name)
         rows = []
-        for c in args.columns:
-            found = [
-                json.loads(cell_path(flash, c, s).read_text())
-                for s in args.seeds
-                if cell_path(flash, c, s).is_file()
-            ]
-            if found:
-                rows.append(summarise(found, scan, c, width, bound))
+        for h in args.hidden:
+            for c in args.columns:
+                found = [
+                    json.loads(cell_path(flash, c, h, s).read_text())
+                    for s in args.seeds
+                    if cell_path(flash, c, h, s).is_file()
+                ]
+                if found:
+                    rows.append(summarise(found, scan, c, width, bound, h))
         points[name] = rows
     goals = targets(points)
     given = argv if argv is not None else sys.argv[1:]
@@ -267,10 +293,10 @@ def write(out: Path, points: dict, goals: list[dict], bounds: dict, command: str
         lines += [
             f"## {name}",
             "",
-            "| columns | accuracy % | decision (us): median (p10 / p90) | t_out (ns) | "
+            "| columns | hidden | accuracy % | decision (us): median (p10 / p90) | t_out (ns) | "
             "input spikes (median) | bound % (at us) | gap | undecided | after the next "
             "firing |",
-            "| ---: | --- | --- | ---: | ---: | --- | ---: | ---: | ---: |",
+            "| ---: | ---: | --- | --- | ---: | ---: | --- | ---: | ---: | ---: |",
         ]
         for r in rows:
             std = f" ± {r['accuracy_std']:.2f}" if r["accuracy_std"] is not None else ""
@@ -282,7 +308,8 @@ def write(out: Path, points: dict, goals: list[dict], bounds: dict, command: str
                 else "- | -"
             )
             lines.append(
-                f"| {r['columns']} | {r['accuracy']:.2f}{std} (n={len(r['seeds'])}) | "
+                f"| {r['columns']} | {r['hidden']} | {r['accuracy']:.2f}{std} "
+                f"(n={len(r['seeds'])}) | "
                 f"{r['decision_us_median']:.0f} ({r['decision_us_p10']:.0f} / "
                 f"{r['decision_us_p90']:.0f}) | {r['t_out_ns_median']:.0f} | "
                 f"{r['input_spikes_median']:.0f} | {bound} | {r['undecided']} | "
@@ -294,7 +321,8 @@ def write(out: Path, points: dict, goals: list[dict], bounds: dict, command: str
         for g in goals:
             closest = g["closest"]
             near = (
-                f"closest: {closest['columns']} columns, {closest['gap']:+.1f} points at "
+                f"closest: {closest['columns']} columns, hidden {closest['hidden']}, "
+                f"{closest['gap']:+.1f} points at "
                 f"{closest['decision_us_median'] / 1000:.2f} ms"
                 if closest
                 else "no point with a bound"
@@ -321,7 +349,8 @@ def plot(points: dict, bounds: dict, path: Path) -> None:
     colours = dict(zip(points, ("tab:blue", "tab:red", "tab:cyan", "tab:orange")))
     for name, rows in points.items():
         colour = colours[name]
-        b = sorted(bounds.get(name, {}).values(), key=lambda r: r["time_us_median"])
+        b = [r for key, r in bounds.get(name, {}).items() if key != "all"]
+        b.sort(key=lambda r: r["time_us_median"])
         if b:
             ax.plot(
                 [r["time_us_median"] / 1000 for r in b],
