@@ -115,11 +115,15 @@ def bound_rows(bound_json: Path, scan_name: str) -> dict:
 
 
 def bound_for(bound: dict, columns: int, width: int) -> dict | None:
-    """The bound's row for a network behind ``columns`` of ``width`` columns; with every column,
-    the better of that row and the every-spike row (the same information, two learner runs)."""
-    rows = [bound.get(columns)] + ([bound.get("all")] if columns == width else [])
-    rows = [r for r in rows if r is not None]
-    return max(rows, key=lambda r: r["accuracy_mean"], default=None)
+    """The bound for a network behind ``columns`` of ``width`` columns: the best of the rows
+    measured with as much information or less (fewer columns: a learner may ignore the later
+    ones; with every column also the every-spike row, the same information). None without a
+    row for ``columns`` itself."""
+    if columns not in bound:
+        return None
+    rows = [r for c, r in bound.items() if c != "all" and c <= columns]
+    rows += [bound["all"]] if columns == width and "all" in bound else []
+    return max(rows, key=lambda r: r["accuracy_mean"])
 
 
 def summarise(
@@ -157,7 +161,8 @@ def summarise(
     if b is not None:
         row.update(
             bound=100 * b["accuracy_mean"],
-            bound_time_us=b.get("time_us_median", bound[columns]["time_us_median"]),
+            bound_time_us=bound[columns]["time_us_median"],
+            bound_from=b.get("columns", "every spike"),
             bound_best=b.get("best"),
             gap=100 * b["accuracy_mean"] - low_end(row),
         )
@@ -285,8 +290,9 @@ def write(out: Path, points: dict, goals: list[dict], bounds: dict, command: str
         "(median and p10 / p90 over every test sample of every seed); `t_out`: the network's "
         "own latency after its aligned input (median, ns). Bound: the early-information bound "
         "once the first C columns are back (`benchmark/early_bound.py --columns`, two learner "
-        "families with fresh noise, the best of their seed means and ensembles), at the "
-        "median time shown; gap: bound minus the lower end of the 95 % interval.",
+        "families with fresh noise, the best of their seed means and ensembles; the best row "
+        "with as much information or less, named where it is another row), at the median "
+        "time shown; gap: bound minus the lower end of the 95 % interval.",
         "",
     ]
     for name, rows in points.items():
@@ -302,8 +308,9 @@ def write(out: Path, points: dict, goals: list[dict], bounds: dict, command: str
             std = f" ± {r['accuracy_std']:.2f}" if r["accuracy_std"] is not None else ""
             if r["accuracy_ci95"]:
                 std += f" [{r['accuracy_ci95'][0]:.2f}, {r['accuracy_ci95'][1]:.2f}]"
+            source = "" if r.get("bound_from") == r["columns"] else f", from {r['bound_from']}"
             bound = (
-                f"{r['bound']:.1f} ({r['bound_time_us']:.0f}) | {r['gap']:+.1f}"
+                f"{r['bound']:.1f} ({r['bound_time_us']:.0f} us{source}) | {r['gap']:+.1f}"
                 if "bound" in r
                 else "- | -"
             )

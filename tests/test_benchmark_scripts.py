@@ -202,7 +202,7 @@ def test_sweep_decisions_reads_each_decision_on_the_sensors_clock(tmp_path, cli)
     times, late = sweep.sensor_times(cells[0], paths["scan"], 3)
     assert late == 0 and np.isnan(times[-1])
     assert times[:-1] == pytest.approx((fired[:-1] + 250.0) / 1000.0)
-    bound = {3: {"accuracy_mean": 0.84, "time_us_median": 1200.0, "best": "wide/ensemble"}}
+    bound = {3: {"accuracy_mean": 0.84, "time_us_median": 1200.0, "columns": 3}}
     row = sweep.summarise(cells, paths["scan"], 3, 16, bound)
     assert row["undecided"] == 5 and row["decision_us_median"] == pytest.approx(
         np.median((fired[:-1] + 250.0) / 1000.0)
@@ -212,11 +212,15 @@ def test_sweep_decisions_reads_each_decision_on_the_sensors_clock(tmp_path, cli)
     assert row["gap"] == pytest.approx(84.0 - low) and not row["every_column"]
     goals = sweep.targets({"paper:0.1": [row], "physical:0.2": [{**row, "every_column": True}]})
     assert [g["met_by_columns"] for g in goals] == [[], ["3 (hidden 400)"]]  # 4.2; 5 allowed
-    # with every column, the bound is the better of its row and the every-spike row
-    bound[16] = {"accuracy_mean": 0.84, "time_us_median": 9436.0}
+    # the best row with as much information or less: fewer columns, and with every column
+    # the every-spike row
+    bound[2] = {"accuracy_mean": 0.85, "time_us_median": 600.0, "columns": 2}
+    bound[16] = {"accuracy_mean": 0.84, "time_us_median": 9436.0, "columns": 16}
     bound["all"] = {"accuracy_mean": 0.86, "k": None}
     assert sweep.bound_for(bound, 16, 16)["accuracy_mean"] == 0.86
-    assert sweep.bound_for(bound, 3, 16)["accuracy_mean"] == 0.84
+    assert sweep.bound_for(bound, 3, 16)["accuracy_mean"] == 0.85
+    assert sweep.bound_for(bound, 2, 16)["accuracy_mean"] == 0.85
+    assert sweep.bound_for(bound, 5, 16) is None  # no row of its own
     assert goals[0]["closest"]["gap"] == pytest.approx(84.0 - low)
 
 
