@@ -119,7 +119,6 @@ def _hex_sha256(ctx, param, value):
     help="Expected sha256 of the archive (default: read from URL.sha256).",
 )
 @click.option("--out", type=OutFolder(), default=DEFAULT_OUT, show_default=True)
-# its own range and default: the option list looks like generate's, the values are fetch's
 @click.option(
     "--timeout",
     type=FiniteRange(0.1, MAX_TIMEOUT_S),

@@ -65,7 +65,6 @@ KITTI = About(
 }""",
 )
 
-# the same fields as KITTI's: each source's own text (data, not repeated code)
 DVS_BARREL = About(
     name="DVS barrel first spikes (simlidar)",
     license="unknown",

@@ -128,7 +128,6 @@ def converted_card(path: str | Path) -> str:
         if (path / "preview.png").exists()
         else "",
         f"{about.description}\n",
-        # its own rows (the generator's card's look alike: other rows, in another order)
         table(
             ["", ""],
             [

@@ -34,7 +34,6 @@ EARLY_BETA = Range(0.05, 100, "a finite number", note="(time constants)")
 
 @dataclass(frozen=True)
 class TrainingConfig:
-    # one setting() each, with its own rule and help: the repeated shape is the declaration
     lr: float = setting(help="Learning rate.", rule=Range(0, None, "a number", low_open=True))
     batch_size: int = setting(help="Samples per step.", rule=Range(1, None, "an integer"))
     epochs: int = setting(help="Epoch cap.", rule=Range(1, MAX_EPOCHS, "an integer"))

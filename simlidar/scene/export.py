@@ -9,7 +9,7 @@ from simlidar.errors import DatasetError
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 
-# One colour per surface label (RGBA), cycled if a catalog has more surfaces (data: rows alike).
+# One colour per surface label (RGBA), cycled if a catalog has more surfaces.
 _PALETTE = np.array(
     [
         [128, 128, 128, 255],
