@@ -13,8 +13,8 @@ from simlidar.dataset.schema import CONVERTED_SCHEMAS, SPLITS
 from simlidar.dataset.version import SOURCES
 from simlidar.generator.about import CITATION
 from simlidar.release.card import (
+    card_head,
     class_table,
-    front_matter_block,
     hf_feature,
     hf_front_matter,
     table,
@@ -122,12 +122,12 @@ def converted_card(path: str | Path) -> str:
     _, dates, notes = SOURCES[info.source]
     sample = f"{info.height} x {info.width} float32 delays in [0, 1]"
     sections = [
-        front_matter_block(converted_front_matter(path)),
-        f"# {about.name}: {len(names)} classes\n",
-        "![one example per class (test split)](preview.png)\n"
-        if (path / "preview.png").exists()
-        else "",
-        f"{about.description}\n",
+        *card_head(
+            path,
+            converted_front_matter(path),
+            f"{about.name}: {len(names)} classes",
+            about.description,
+        ),
         table(
             ["", ""],
             [

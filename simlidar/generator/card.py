@@ -29,8 +29,8 @@ from simlidar.generator.about import (
 )
 from simlidar.generator.config import GeneratorConfig
 from simlidar.release.card import (
+    card_head,
     class_table,
-    front_matter_block,
     hf_feature,
     hf_front_matter,
     table,
@@ -294,12 +294,12 @@ def generated_card(path: str | Path) -> str:
     version = attrs["dataset_version"]
     height, width = splits["train"].height, splits["train"].width
     sections = [
-        front_matter_block(generated_front_matter(path)),
-        f"# {NAME}: {len(names)} classes, noise {attrs['noise']}\n",
-        "![one example per class (test split)](preview.png)\n"
-        if (path / "preview.png").exists()
-        else "",
-        f"{description(sensor)}\n",
+        *card_head(
+            path,
+            generated_front_matter(path),
+            f"{NAME}: {len(names)} classes, noise {attrs['noise']}",
+            description(sensor),
+        ),
         table(
             ["", ""],
             [

@@ -97,6 +97,18 @@ def front_matter_block(meta: dict) -> str:
     return f"---\n{yaml.safe_dump(meta, sort_keys=False, allow_unicode=True, width=1000)}---\n"
 
 
+def card_head(path: str | Path, meta: dict, title: str, description: str) -> list[str]:
+    """The first sections of a dataset directory's card: the front matter (``meta``), the
+    title, the preview if the directory has one, and the description."""
+    preview = Path(path) / "preview.png"
+    return [
+        front_matter_block(meta),
+        f"# {title}\n",
+        "![one example per class (test split)](preview.png)\n" if preview.exists() else "",
+        f"{description}\n",
+    ]
+
+
 def write_card(path: str | Path, text: str) -> Path:
     """(Re)write ``README.md`` of a dataset directory with ``text`` (replaced, never written
     through a link)."""
