@@ -22,6 +22,26 @@ from simlidar.models.training import TrainingConfig
 METRICS = "neurobench-2.3.0-definitions/v1"  # what measure() computes; a cell records it
 
 
+def decision_record(
+    model: torch.nn.Module,
+    dataset: Path,
+    spec: ModelSpec,
+    silent_from: float,
+    x: torch.Tensor,
+    y: np.ndarray,
+    per_sample: bool = False,
+) -> dict:
+    """How early a spiking network decides on the test split ``x`` (N, 1, H, W), ``y``:
+    ``{"stepped": ...}`` for a network of stepped spikes (:func:`stepped_decisions`),
+    ``{"early": ...}`` for one the event-driven evaluator runs (:func:`early_decisions`),
+    ``{}`` for any other; with ``per_sample``, each with its ``per_sample`` part."""
+    if spec.output == STEPPED_SPIKES:
+        return {"stepped": stepped_decisions(model, x, y, spec, silent_from, per_sample)}
+    if getattr(model, "event_driven", False):
+        return {"early": early_decisions(model, dataset, per_sample=per_sample)}
+    return {}
+
+
 def measure(
     model: torch.nn.Module,
     recipe: dict,
@@ -49,23 +69,19 @@ def measure(
         "lr_schedule": TrainingConfig.from_table(recipe["training"]).lr_schedule,
     }
     start = time.perf_counter()
-    if spec.output == STEPPED_SPIKES:
-        silent_from = spike_threshold(attrs)
-        stepped = stepped_decisions(model, x, y, spec, silent_from, per_sample=True)
-        record["per_sample"] = stepped.pop("per_sample")
-        record["stepped"] = stepped
-        timing["stepped_decisions"] = time.perf_counter() - start
+    silent_from = spike_threshold(attrs)
+    if spec.spiking or spec.output == STEPPED_SPIKES:
+        for key, found in decision_record(model, dataset, spec, silent_from, x, y, True).items():
+            record["per_sample"] = found.pop("per_sample")
+            record[key] = found
+        timing[f"{'stepped' if 'stepped' in record else 'early'}_decisions"] = (
+            time.perf_counter() - start
+        )
         start = time.perf_counter()
+    if spec.output == STEPPED_SPIKES:
         figures = metrics.stepped_figures(model, x, lambda b: encode(b, spec, silent_from))
     elif spec.spiking:
-        early = None
-        if getattr(model, "event_driven", False):
-            early = early_decisions(model, dataset, per_sample=True)
-            record["per_sample"] = early.pop("per_sample")
-            record["early"] = early
-        timing["early_decisions"] = time.perf_counter() - start
-        start = time.perf_counter()
-        figures = metrics.spiking_figures(model, x, early)
+        figures = metrics.spiking_figures(model, x, record.get("early"))
     else:
         figures = metrics.conventional_figures(model, x, suite.board_power_w)
     timing["latency_and_counts"] = time.perf_counter() - start

@@ -174,20 +174,14 @@ def train(
         "threads": threads,
     }
     with _stdout_kept_for(as_json):  # the decisions run the model again
-        if getattr(result.model, "event_driven", False):  # how early the spiking network decides
-            from simlidar.bench.early import early_decisions
+        import torch
 
-            record["early"] = early_decisions(result.model, dataset)
-        elif result.spec.output == "stepped_spikes":
-            import torch
+        from simlidar.bench.measure import decision_record
+        from simlidar.dataset.loaders import load_split
 
-            from simlidar.bench.stepped import stepped_decisions
-            from simlidar.dataset.loaders import load_split
-
-            x, y = load_split(dataset, "test")
-            record["stepped"] = stepped_decisions(
-                result.model, torch.from_numpy(x)[:, None], y, result.spec, result.silent_from
-            )
+        x, y = load_split(dataset, "test")
+        x = torch.from_numpy(x)[:, None]
+        record |= decision_record(result.model, dataset, result.spec, result.silent_from, x, y)
     if not as_json:  # the result first: a checkpoint that cannot be written loses nothing else
         click.echo(
             f"{recipe['name']}: test accuracy {result.test_accuracy:.4f}, {_chosen(result)}, "
