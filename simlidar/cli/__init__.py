@@ -11,12 +11,17 @@ import warnings
 import click
 
 from simlidar import __version__
-from simlidar.cli.convert import convert
-from simlidar.cli.generate import generate, profiles, scenes, sensors, sweep
-from simlidar.cli.options import Group
-from simlidar.cli.release import card, fetch, info, pack, preview, verify
-from simlidar.cli.report import report
-from simlidar.cli.training import bench, train
+from simlidar.cli.options import LazyGroup
+
+# every command: its name -> the module of simlidar.cli that defines it under that name,
+# imported only when the command runs (or its help is shown)
+COMMANDS = {
+    **dict.fromkeys(("generate", "sweep", "profiles", "sensors", "scenes"), "generate"),
+    **dict.fromkeys(("info", "preview", "card", "verify", "pack", "fetch"), "release"),
+    **dict.fromkeys(("train", "bench"), "training"),
+    "report": "report",
+    "convert": "convert",
+}
 
 
 def _version(ctx: click.Context, _param, value: bool) -> None:
@@ -31,7 +36,7 @@ def _version(ctx: click.Context, _param, value: bool) -> None:
     ctx.exit()
 
 
-@click.group(cls=Group)
+@click.group(cls=LazyGroup, lazy=COMMANDS)
 @click.option(
     "--version",
     is_flag=True,
@@ -49,8 +54,3 @@ def main(ctx: click.Context, debug: bool) -> None:
         warnings.showwarning = lambda message, *args, **kwargs: click.echo(
             f"Warning: {message}", err=True
         )
-
-
-for command in (generate, sweep, profiles, sensors, scenes, info, preview, card, verify, pack,
-                fetch, train, bench, report, convert):  # fmt: skip
-    main.add_command(command)

@@ -55,6 +55,49 @@ class Group(click.Group):
         sys.exit(code if isinstance(code, int) else 0)
 
 
+class LazyGroup(Group):
+    """A :class:`Group` whose commands are imported when one is asked for (click's lazy
+    loading: ``list_commands`` and ``get_command``), so that ``simlidar generate`` does not
+    import the training commands' modules and ``simlidar train`` not the generator's.
+
+    lazy : command name -> module of ``simlidar.cli`` that defines it under that name
+    """
+
+    def __init__(self, *args, lazy: dict[str, str], **kwargs):
+        self._commands: dict[str, click.Command] = {}
+        self.lazy = dict(lazy)
+        super().__init__(*args, **kwargs)
+
+    @property
+    def commands(self) -> dict[str, click.Command]:
+        """Every command, each module imported (for introspection: the help and the CLI
+        resolve one command at a time)."""
+        for name in self.lazy:
+            self._load(name)
+        return self._commands
+
+    @commands.setter
+    def commands(self, value) -> None:
+        self._commands = dict(value)
+
+    def add_command(self, cmd: click.Command, name: str | None = None) -> None:
+        self._commands[name or cmd.name] = cmd
+
+    def list_commands(self, ctx) -> list[str]:
+        return sorted({*self._commands, *self.lazy})
+
+    def get_command(self, ctx, cmd_name: str) -> click.Command | None:
+        return self._load(cmd_name) if cmd_name in self.lazy else self._commands.get(cmd_name)
+
+    def _load(self, name: str) -> click.Command:
+        if name not in self._commands:
+            import importlib
+
+            module = importlib.import_module(f"simlidar.cli.{self.lazy[name]}")
+            self._commands[name] = getattr(module, name)
+        return self._commands[name]
+
+
 _INTEGER = re.compile(r"[+-]?[0-9]+")
 _DECIMAL = re.compile(
     r"[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|inf|infinity|nan)", re.IGNORECASE
