@@ -222,6 +222,8 @@ def test_sweep_decisions_reads_each_decision_on_the_sensors_clock(tmp_path, cli)
     assert sweep.bound_for(bound, 2, 16)["accuracy_mean"] == 0.85
     assert sweep.bound_for(bound, 5, 16) is None  # no row of its own
     assert goals[0]["closest"]["gap"] == pytest.approx(84.0 - low)
+    fewer = sweep.targets({"physical:0.2": [{**row, "every_column": True, "seeds": [0, 1]}]})
+    assert fewer[0]["met_by_columns"] == [] and fewer[0]["closest"] is None  # 5 seeds a point
 
 
 @pytest.mark.parametrize(
