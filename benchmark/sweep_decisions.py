@@ -109,7 +109,11 @@ def bound_rows(bound_json: Path, scan_name: str) -> dict:
     if not bound_json.is_file():
         return {}
     for b in json.loads(bound_json.read_text())["bounds"]:
-        if b["dataset"] == scan_name and b["encoding"]["direction"] == "near_first":
+        encoding = b["encoding"]
+        if b["dataset"] == scan_name and (encoding["direction"], encoding.get("clock")) == (
+            "near_first",
+            "sensor",
+        ):
             every = [r for r in b["rows"] if r["k"] is None]
             return {r["columns"]: r for r in b.get("column_rows", [])} | {"all": every[0]}
     return {}
