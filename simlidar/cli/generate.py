@@ -109,6 +109,9 @@ def catalog_for(scenes, classes: int):
 @setting_option(GeneratorConfig, "width")
 @sensor_option
 @setting_option(GeneratorConfig, "timing")
+@setting_option(
+    GeneratorConfig, "fog_visibility_m", "--fog", "fog_visibility_m", metavar="VISIBILITY_M"
+)
 @scenes_option
 @click.option(
     "--batch-size",
@@ -149,6 +152,7 @@ def generate(
     width,
     sensor,
     timing,
+    fog_visibility_m,
     scenes,
     batch_size,
     workers,
@@ -190,6 +194,7 @@ def generate(
         width=width,
         sensor=chosen_sensor,
         timing=timing,
+        fog_visibility_m=fog_visibility_m,
     )
     start = time.perf_counter()
     written = generate_datasets(

@@ -143,6 +143,7 @@ def regenerate_command(
         "profile",
         "sensor",
         "timing",
+        "fog_visibility_m",
     }
     other = {k for k, v in config.to_dict().items() if k not in cli_fields}
     shipped = config.profile is None or (
@@ -176,6 +177,8 @@ def regenerate_command(
         parts.append(f"--sensor {sensor.name}")
     if config.timing != "flash":
         parts.append(f"--timing {config.timing}")
+    if config.extinction_per_m:
+        parts.append(f"--fog {config.fog_visibility_m!r}")
     over = config.overrides
     if "shift_max" in over:
         parts.append(f"--shift {config.shift_max!r}")
@@ -259,17 +262,24 @@ def _missing_meaning(config: GeneratorConfig) -> str:
     return text
 
 
-def _receiver_lines(attrs) -> str:
+def _receiver_lines(attrs, config: GeneratorConfig) -> str:
     """The Generation process paragraph on the receiver (none without one)."""
     if "receiver" not in attrs:
         return ""
     receiver, surfaces = attrs["receiver"], attrs["materials"]["surfaces"]
+    air = "(no atmosphere)"
+    if config.extinction_per_m:
+        air = (
+            f"(fog of visibility {config.fog_visibility_m:g} m: two-way extinction "
+            f"exp(-2 alpha R), alpha = ln(20) / V = {config.extinction_per_m:.4g} per m, "
+            "Koschmieder's law; the fog's own backscatter is not modelled)"
+        )
     return (
         f"Receiver: a hit returns only when the {receiver['model']} receiver detects it "
         f"(`sensors/receivers/{receiver['name']}.toml`, values from {receiver['manual']} and "
         f"the sources it cites; sha256 `{attrs['receiver_sha256']}`): received power by the "
         "LiDAR range equation from the range, the surface's reflectance and the incidence angle "
-        f"(no atmosphere), at least the threshold {receiver['threshold_w']:g} W; a return "
+        f"{air}, at least the threshold {receiver['threshold_w']:g} W; a return "
         f"moves by Gaussian range noise of {receiver['accuracy_m']:g} m x sqrt(threshold / "
         "power) before the range is quantised. Each catalog surface of a sample is one "
         "material drawn from the materials file (sha256 "
@@ -363,7 +373,7 @@ def generated_card(path: str | Path) -> str:
             ]
         )
         + "\n",
-        _receiver_lines(attrs),
+        _receiver_lines(attrs, config),
         f"Noise: `delays = min(clean_delays + a * u, 1)` with `u ~ U(0, 1)` per pulse and "
         f"a = {attrs['noise']}{_noise_details(config)}. Seed {attrs['seed']}: every sample has "
         "its own random stream "

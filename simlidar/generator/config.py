@@ -1,6 +1,7 @@
 """The generator's configuration: one frozen dataclass, stored as JSON in every split file."""
 
 import json
+import math
 from dataclasses import asdict, dataclass, fields, replace
 
 from simlidar.content import key_error
@@ -75,6 +76,17 @@ class GeneratorConfig:
         None, "The dataset profile (simlidar.generator.profiles) whose pulse rule pixels follow."
     )
 
+    # stored only when finite, so that clear-air datasets keep their bytes (as timing above)
+    fog_visibility_m: float = setting(
+        math.inf,
+        "Fog, by its meteorological visibility in metres: every pulse loses power to two-way "
+        "Beer-Lambert extinction exp(-2 alpha R), alpha = ln(20) / V (Koschmieder's law, as "
+        "Hahner et al. 2021), so weaker returns drop below the receiver's threshold; a profile "
+        "with a receiver only (sensor). The fog's own backscatter (near false returns) is not "
+        "modelled yet.",
+        Range(0, None, "metres", low_open=True, note="(inf: clear air)"),
+    )
+
     def __post_init__(self) -> None:
         for name in ("train_size", "test_size"):  # before the rules: a better message
             value = getattr(self, name)
@@ -98,6 +110,12 @@ class GeneratorConfig:
             )
         if self.profile is not None and not isinstance(self.profile, Profile):
             raise ConfigError(f"profile={self.profile!r}: expected a Profile or None")
+        if math.isfinite(self.fog_visibility_m) and self.receiver is None:
+            raise ConfigError(
+                f"fog_visibility_m={self.fog_visibility_m!r} (--fog): expected a profile with a "
+                f"receiver (--profile sensor), not {self.profile_name!r}: without one every hit "
+                "returns, and fog would change nothing"
+            )
 
     @classmethod
     def from_profile(
@@ -153,6 +171,15 @@ class GeneratorConfig:
         return scan_window_ns(self.sensor, self.width, self.fov_deg)
 
     @property
+    def extinction_per_m(self) -> float:
+        """The fog's extinction coefficient alpha (1/m; 0 in clear air)."""
+        if not math.isfinite(self.fog_visibility_m):
+            return 0.0
+        from simlidar.sensor.receiver import koschmieder_extinction_per_m
+
+        return koschmieder_extinction_per_m(self.fog_visibility_m)
+
+    @property
     def split_sizes(self) -> dict[str, int]:
         return {"train": self.train_size, "test": self.test_size}
 
@@ -170,6 +197,8 @@ class GeneratorConfig:
             values["profile"] = self.profile.to_dict()  # optional keys only where set
         if values["timing"] == "flash":
             del values["timing"]  # absent means flash (same reason)
+        if values["fog_visibility_m"] == math.inf:
+            del values["fog_visibility_m"]  # absent means clear air (same reason)
         return values
 
     def to_json(self) -> str:

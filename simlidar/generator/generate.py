@@ -7,6 +7,7 @@ built under a hidden temporary name beside its final one and renamed into place 
 on any failure the temporary folders are removed and nothing appears under a final name.
 """
 
+import math
 import multiprocessing
 import os
 from collections import deque
@@ -147,13 +148,15 @@ def check_disk_space(config: GeneratorConfig, datasets: int, out: str | Path) ->
 
 
 def generated_name(config: GeneratorConfig) -> str:
-    """``simlidar-<classes>c-noise<level>-<profile>[-<sensor>][-scan][-var<v>][-shift<s>]-v<version>``,
+    """``simlidar-<classes>c-noise<level>-<profile>[-<sensor>][-scan][-fog<V>][-var<v>][-shift<s>]-v<version>``,
     numbers as Python's repr (0.2, 0.33); ``-<sensor>`` names a sensor other than the VLP-16,
-    ``-scan`` scan timing, ``-var`` and ``-shift`` values that differ from the profile's
-    own."""
+    ``-scan`` scan timing, ``-fog`` a fog's visibility in metres, ``-var`` and ``-shift``
+    values that differ from the profile's own."""
     over = config.overrides
     sensor = f"-{config.sensor.name}" if config.sensor.name != "vlp16" else ""
     sensor += "-scan" if config.timing == "scan" else ""
+    if math.isfinite(config.fog_visibility_m):
+        sensor += f"-fog{float(config.fog_visibility_m)!r}"
     variation = f"-var{float(over['variation'])!r}" if "variation" in over else ""
     shift = f"-shift{float(over['shift_max'])!r}" if "shift_max" in over else ""
     return (

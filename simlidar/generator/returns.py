@@ -8,7 +8,8 @@ returns only if the receiver detects it (:mod:`simlidar.sensor.receiver`, every 
    file's ``[surfaces]`` list, with a reflectance drawn uniformly in that material's
    ``reflectance_range``;
 2. per pixel, the received power of the LiDAR range equation, from the hit's range, the
-   surface's reflectance and the incidence angle (no atmosphere: extinction 0);
+   surface's reflectance and the incidence angle, and the fog's two-way extinction where the
+   dataset has one (``--fog``; clear air: extinction 0);
 3. a power below the receiver's threshold is no return (a drop-out); a detected return moves
    by Gaussian range noise of sigma ``range_noise_m(power)`` and is quantised to the sensor's
    resolution as every return is (a return moved out of the sensor's range is no return);
@@ -152,6 +153,7 @@ def receive(
     range_m: np.ndarray,
     surface: np.ndarray,
     cos_incidence: np.ndarray,
+    extinction_per_m: float = 0.0,
 ) -> Returns:
     """The returns of a block of hits.
 
@@ -160,6 +162,8 @@ def receive(
     range_m : (n, H, W) float64, unquantised range of each hit within the sensor's range; NaN
         where none
     surface : (n, H, W) uint8 labels; cos_incidence : (n, H, W) |cos| of the incidence angle
+    extinction_per_m : the atmosphere's alpha (fog: ``GeneratorConfig.extinction_per_m``; 0:
+        clear air), two-way Beer-Lambert in the range equation
     """
     receiver = physics.receiver
     drawn = [draw_surfaces(g, choices) for g in streams]
@@ -174,7 +178,8 @@ def receive(
     rho = np.where(hit, reflectance, 0.0)
     safe_m = np.where(hit, range_m, 1.0)  # the equation divides by R^2
     incidence = np.arccos(np.clip(cos_incidence.astype(np.float64), 0.0, 1.0))
-    power = np.where(hit, received_power_w(receiver, safe_m, rho, incidence), 0.0)
+    power = received_power_w(receiver, safe_m, rho, incidence, extinction_per_m)
+    power = np.where(hit, power, 0.0)
     seen = hit & detected(receiver, power)
     sigma = np.where(seen, range_noise_m(receiver, np.where(seen, power, 1.0)), 0.0)
     returned_m = quantise_range(np.where(seen, safe_m + sigma * z, np.nan), sensor)

@@ -229,7 +229,10 @@ def simulate(
     if physics is not None:
         split_id = SPLIT_IDS[split]
         streams = [receiver_stream(config.seed, split_id, i) for i in index]
-        got = receive(physics, choices, sensor, streams, hit_m, surface, cos_incidence)
+        got = receive(
+            physics, choices, sensor, streams, hit_m, surface, cos_incidence,
+            config.extinction_per_m,
+        )  # fmt: skip
         range_m = got.range_m
         surface = np.where(np.isnan(range_m), 0, surface).astype(np.uint8)
         received = {"intensity": got.intensity, "reflectance": got.reflectance}

@@ -220,3 +220,57 @@ def test_verify_wants_the_receiver_fields_and_reads_old_datasets(twins, tmp_path
     result = cli("verify", copy)
     assert result.exit_code == 1 and "dataset 'intensity' missing" in result.output
     assert receiver_physics(load_profile("sensor")).receiver.name == "vlp16"
+
+
+def test_fog_takes_power_by_koschmieder_and_drops_the_weak_returns(twins, tmp_path, catalog):
+    """``--fog V``: the received power of every hit times exp(-2 alpha R), alpha = ln(20) / V
+    (worked by hand: V = 50 m, R = 10 m: exp(-2 x 0.05991 x 10) = 0.3017); the returns in fog
+    are a subset of the clear-air twin's (same scenes and draws), fewer as the fog thickens;
+    the dataset's name, config and card say so, and its card's command makes it again."""
+    from simlidar.generator.card import regenerate_command
+    from simlidar.generator.generate import generated_name
+
+    assert math.log(20) / 50 == pytest.approx(0.05991, abs=1e-5)
+    assert math.exp(-2 * math.log(20) / 50 * 10) == pytest.approx(0.3017, abs=1e-4)
+    clear, _ = _read(twins["sensor"])
+    returned = {}
+    for visibility in (200.0, 50.0):
+        config = GeneratorConfig.from_profile(
+            load_profile("sensor"), fog_visibility_m=visibility, **SIZES
+        )
+        assert generated_name(config).endswith(f"-sensor-fog{visibility!r}-v4.0.0")
+        (written,) = generate(config, [0.1], catalog, tmp_path / str(visibility), progress=False)
+        data, attrs = _read(written.path)
+        stored = json.loads(attrs["config"])
+        assert stored["fog_visibility_m"] == visibility
+        hit = clear["power_w"] > 0
+        assert np.array_equal(data["power_w"] > 0, hit)  # the same hits
+        tof_m = clear["tof_ns"].astype(float) * C_M_PER_NS / 2  # clear air's returns only
+        both = hit & np.isfinite(tof_m)
+        ratio = data["power_w"][both].astype(float) / clear["power_w"][both]
+        assert (ratio < 1).all()
+        # the range the extinction implies, against the returned range, which the receiver's
+        # range noise moved (sigma = accuracy sqrt(threshold / power); 5 sigma, and 1 cm for
+        # the 2 mm quantisation and the float32 powers)
+        implied_m = -np.log(ratio) / (2 * math.log(20) / visibility)
+        receiver = load_receiver("vlp16")
+        sigma = receiver.accuracy_m * np.sqrt(receiver.threshold_w / clear["power_w"][both])
+        assert (np.abs(implied_m - tof_m[both]) <= 5 * sigma + 0.01).all()
+        fog_returns, clear_returns = data["delays"] < 1.0, clear["delays"] < 1.0
+        assert not (fog_returns & ~clear_returns).any()  # nothing returns that clear air lost
+        returned[visibility] = fog_returns.mean()
+        card = (written.path / "README.md").read_text()
+        assert f"fog of visibility {visibility:g} m" in card
+        assert f"--fog {visibility!r}" in regenerate_command(config, attrs["catalog_sha256"])
+    assert returned[50.0] < returned[200.0] < (clear["delays"] < 1.0).mean()
+
+
+def test_fog_without_a_receiver_is_one_line_and_writes_nothing(tmp_path, cli):
+    for profile, value, words in (
+        ("physical", "50", "fog_visibility_m=50.0 (--fog): expected a profile with a receiver"),
+        ("sensor", "0", "Invalid value for '--fog': 0.0 is not in the range x>0"),
+        ("sensor", "nan", "Invalid value for '--fog'"),
+    ):
+        done = cli("generate", "--profile", profile, "--fog", value, "--out", tmp_path / "out")
+        assert done.exit_code == 2 and words in done.stderr, done.stderr
+        assert len(done.stderr.strip().splitlines()) == 1 and not (tmp_path / "out").exists()
