@@ -52,6 +52,7 @@ SCRIPT_CELLS = {
     "early-tradeoff": "benchmark/early_tradeoff.py",
     "early-objectives": "benchmark/early_objectives.py",
     "early-objectives-crops": "benchmark/early_objectives.py",
+    "sweep-decisions": "benchmark/sweep_decisions.py",
 }
 TINY = """
 name = "tiny"
