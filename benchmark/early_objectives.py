@@ -38,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from paper_table import EPOCHS as EPOCH_COUNT
 from paper_table import JOBS, NOISE, ROOT, SEEDS, check_recipes, run_cells
 
-from simlidar.script_args import choices, run
+from simlidar.script_args import choices, command_line, run
 
 RECIPE = "snn_simlidar_tuned"
 EPOCHS = 30  # as benchmark/early_tradeoff.py's published curve
@@ -301,10 +301,7 @@ def main(argv=None) -> int:
     }
     rows = summarise(found, curves)
     goals = [] if args.no_targets else [targets(rows, e) for e in curves]
-    given = argv if argv is not None else sys.argv[1:]  # --no-train writes what training would
-    command = "python benchmark/early_objectives.py" + "".join(
-        f" {a}" for a in given if a != "--no-train"
-    )
+    command = command_line("early_objectives.py", argv)
     write(args.out, rows, goals, curves, command, f"{dataset.name}` ({args.recipe}")
     return 0
 

@@ -25,7 +25,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from paper_table import EPOCHS, JOBS, PENALTIES, ROOT, SEEDS, datasets, done, run_cells
 
-from simlidar.script_args import run
+from simlidar.script_args import command_line, run
 
 
 def main(argv=None) -> int:
@@ -82,9 +82,7 @@ def main(argv=None) -> int:
                 "epochs": sorted({c["epochs"] for c in found}),
             }
         )
-    command = "python benchmark/early_tradeoff.py" + "".join(
-        f" {a}" for a in (argv if argv is not None else sys.argv[1:])
-    )
+    command = command_line("early_tradeoff.py", argv)
     lines = [
         f"Made by `{command}` on `{dataset.name}`. Accuracy on the 600 test samples "
         "(event-driven: the first output spike decides); input spikes consumed before the "

@@ -25,7 +25,6 @@ the last epoch: nothing is selected, on the test split or any other.
 import argparse
 import json
 import os
-import sys
 import time
 import tomllib
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -35,7 +34,7 @@ import numpy as np
 
 from simlidar.bench.hardware import MAX_THREADS
 from simlidar.models.training import MAX_EPOCHS, PENALTY
-from simlidar.script_args import integers, numbers, run
+from simlidar.script_args import command_line, integers, numbers, run
 
 ROOT = Path(__file__).resolve().parents[1]
 LEVELS = (0.1, 0.2, 0.33, 0.5)
@@ -312,9 +311,7 @@ def main(argv=None) -> int:
                 record["recipe"] = name
                 cells.append(record)
     table = summarise(cells, paper)
-    command = "python benchmark/paper_table.py" + "".join(
-        f" {a}" for a in (argv if argv is not None else sys.argv[1:])
-    )
+    command = command_line("paper_table.py", argv)
     text = markdown(table, command)
     (args.out / "table.md").write_text(text)
     (args.out / "table.json").write_text(json.dumps(table, indent=1))

@@ -50,7 +50,7 @@ from early_objectives import interval, low_end
 from paper_table import JOBS, ROOT, SEEDS, check_recipes, run_cells
 from scan_timing import twin_datasets
 
-from simlidar.script_args import integers, run
+from simlidar.script_args import command_line, integers, run
 
 RECIPE = "snn_simlidar_tuned"
 HIDDEN = 400  # the recipe's hidden layer; --hidden adds wider ones beside it
@@ -273,10 +273,7 @@ def main(argv=None) -> int:
                     rows.append(summarise(found, scan, c, width, bound, h))
         points[name] = rows
     goals = targets(points)
-    given = argv if argv is not None else sys.argv[1:]
-    command = "python benchmark/sweep_decisions.py" + "".join(
-        f" {a}" for a in given if a != "--no-train"
-    )
+    command = command_line("sweep_decisions.py", argv)
     bounds = {name: bound_rows(args.bound, t["scan"].name) for name, t in pairs.items()}
     write(args.out, points, goals, bounds, command)
     return 0

@@ -74,6 +74,14 @@ def in_folder(text: str) -> Path:
     return path
 
 
+def command_line(script: str, argv: list[str] | None) -> str:
+    """The command that made a script's results, as written into them: ``python
+    benchmark/<script>`` and its arguments (``argv``, or the process's), less ``--no-train``,
+    which writes what training would."""
+    given = argv if argv is not None else sys.argv[1:]
+    return f"python benchmark/{script}" + "".join(f" {a}" for a in given if a != "--no-train")
+
+
 def run(main: Callable[[], int | None]) -> None:
     """Run a script's ``main`` and exit with its code; a SimlidarError is one line on stderr
     and exit code 1."""
