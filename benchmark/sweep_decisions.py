@@ -93,10 +93,9 @@ def firing_times(scan: Path, columns: int) -> tuple[np.ndarray, np.ndarray | Non
     return ends[:, :columns].max(axis=1), after
 
 
-def sensor_times(cell: dict, scan: Path, columns: int) -> tuple[np.ndarray, int]:
+def sensor_times(cell: dict, fired: np.ndarray, after: np.ndarray | None) -> tuple[np.ndarray, int]:
     """A cell's decisions in sensor time (us; NaN undecided) and how many came after the next
-    column fired (the delay lines' premise: 0)."""
-    fired, after = firing_times(scan, columns)
+    column fired (the delay lines' premise: 0); ``fired``, ``after``: :func:`firing_times`."""
     t_out = np.array([np.nan if t is None else t for t in cell["decision_time_ns"]], dtype=float)
     at = fired + t_out
     late = 0 if after is None else int(np.sum(at[np.isfinite(at)] >= after[np.isfinite(at)]))
@@ -137,8 +136,9 @@ def summarise(
     """One point: the seeds' cells of one dataset, gate and hidden width beside the bound."""
     acc = np.array([100 * c["test_accuracy"] for c in found])
     times, late = [], 0
+    firings = firing_times(scan, columns)  # the test split's emission, read once a point
     for cell in found:
-        t, n = sensor_times(cell, scan, columns)
+        t, n = sensor_times(cell, *firings)
         times.append(t)
         late += n
     times = np.concatenate(times)

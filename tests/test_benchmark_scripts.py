@@ -237,7 +237,7 @@ def test_sweep_decisions_reads_each_decision_on_the_sensors_clock(tmp_path, cli)
         {"seed": s, "test_accuracy": a, "decision_time_ns": t_out, "input_spikes": [48] * 32}
         for s, a in enumerate([0.80, 0.82, 0.81, 0.80, 0.82])
     ]
-    times, late = sweep.sensor_times(cells[0], paths["scan"], 3)
+    times, late = sweep.sensor_times(cells[0], fired, after)
     assert late == 0 and np.isnan(times[-1])
     assert times[:-1] == pytest.approx((fired[:-1] + 250.0) / 1000.0)
     bound = {3: {"accuracy_mean": 0.84, "time_us_median": 1200.0, "columns": 3}}
