@@ -112,6 +112,8 @@ def catalog_for(scenes, classes: int):
 @setting_option(
     GeneratorConfig, "fog_visibility_m", "--fog", "fog_visibility_m", metavar="VISIBILITY_M"
 )
+@setting_option(GeneratorConfig, "beam_samples", metavar="Q")
+@setting_option(GeneratorConfig, "return_mode")
 @scenes_option
 @click.option(
     "--batch-size",
@@ -153,6 +155,8 @@ def generate(
     sensor,
     timing,
     fog_visibility_m,
+    beam_samples,
+    return_mode,
     scenes,
     batch_size,
     workers,
@@ -195,6 +199,8 @@ def generate(
         sensor=chosen_sensor,
         timing=timing,
         fog_visibility_m=fog_visibility_m,
+        beam_samples=beam_samples,
+        return_mode=return_mode,
     )
     start = time.perf_counter()
     written = generate_datasets(

@@ -25,6 +25,7 @@ from simlidar.dataset.shards import find_split_files, shard_of
 from simlidar.dataset.version import (
     GENERATOR,
     PHYSICAL_VERSION,
+    RETURNS_VERSION,
     SCAN_VERSION,
     SENSOR_VERSION,
     SOURCES,
@@ -169,7 +170,7 @@ def datasets_of(path: Path, f: h5py.File) -> tuple[dict[str, h5py.Dataset], list
     soft or external link (which would read another file's data) and, under a name the
     schemas use, a group."""
     datasets, problems = {}, []
-    names = set(generated_schema("scan", receiver=True))
+    names = set(generated_schema("scan", receiver=True, returns=2))
     names |= {n for s in CONVERTED_SCHEMAS.values() for n in s}
     for name in f:
         link = f.get(name, getlink=True)
@@ -327,13 +328,14 @@ def read_split_info(path: Path) -> SplitInfo:
 
 def written_version(attrs) -> str | None:
     """The version this simlidar writes for a split like this one, when it is not its source's
-    current version: a split with a receiver is SENSOR_VERSION (4.0.0); a scan-timed split is
+    current version: a split with a receiver is RETURNS_VERSION (4.1.0) where its returns come
+    from waveforms (attribute ``return_mode``), else SENSOR_VERSION (4.0.0); a scan-timed split is
     SCAN_VERSION (3.0.0); a generated split without a profile follows the physical rule, still
     written as PHYSICAL_VERSION (1.0.0)."""
     if split_source(attrs) != GENERATOR:
         return None
     if "receiver" in attrs:
-        return SENSOR_VERSION
+        return RETURNS_VERSION if "return_mode" in attrs else SENSOR_VERSION
     if _decode(attrs.get("timing", "flash")) == "scan":
         return SCAN_VERSION
     return PHYSICAL_VERSION if "profile" not in attrs else None

@@ -13,6 +13,7 @@ import numpy as np
 
 from simlidar.dataset.version import GENERATOR, SOURCES
 from simlidar.errors import DatasetError
+from simlidar.sensor.receiver import RETURN_MODES
 from simlidar.settings import Choice, Range
 
 CHUNK_SAMPLES = 256
@@ -45,6 +46,15 @@ RECEIVER_SCHEMA: dict[str, tuple[str, object]] = {
     "intensity": ("uint8", lambda h, w: (h, w)),
     "reflectance": ("float32", lambda h, w: (h, w)),
     "power_w": ("float32", lambda h, w: (h, w)),
+}
+# Stored besides RECEIVER_SCHEMA by datasets of a beam footprint or a return mode other than
+# strongest (attribute `return_mode`) only, for the same reason: name -> (dtype, trailing shape
+# given H, W and the returns R a pulse reports, 2 in dual mode, else 1)
+RETURNS_SCHEMA: dict[str, tuple[str, object]] = {
+    "echoes": ("uint8", lambda h, w, r: (h, w)),
+    "returns_tof_ns": ("float32", lambda h, w, r: (h, w, r)),
+    "returns_intensity": ("uint8", lambda h, w, r: (h, w, r)),
+    "returns_surface": ("uint8", lambda h, w, r: (h, w, r)),
 }
 # A sweep's frames file: its name, its `format` attribute and its datasets, name -> (dtype,
 # trailing shape given the lasers H and the cycles C of a rotation; SCHEMA's form, another
@@ -79,7 +89,7 @@ POINT_DTYPE = np.dtype(
 )
 # The shuffle filter helps gzip on the noisy delays (random mantissas) and hurts it on the
 # quantised clean delays and times of flight (measured: smaller and faster without it).
-SHUFFLED = {"delays", "phase", "shift", "object_pose", "reflectance", "power_w"}
+SHUFFLED = {"delays", "phase", "shift", "object_pose", "reflectance", "power_w", "returns_tof_ns"}
 REQUIRED_ATTRS = (
     "dataset_version",
     "simlidar_version",
@@ -190,6 +200,8 @@ ATTRIBUTES = {
     "receiver_sha256": Text(),
     "materials": JsonObject(),
     "materials_sha256": Text(),
+    "return_mode": Choice(RETURN_MODES),
+    "beam_samples": Range(1, 2**31, "an integer"),
     "shard": Range(0, 2**31, "an integer"),
     "shards": Range(1, 2**31, "an integer"),
     "input_sha256": Text(),
@@ -232,24 +244,39 @@ CONVERTED_SCHEMAS: dict[str, dict[str, tuple[str, tuple]]] = {
 }
 
 
+def reported_returns(attrs) -> int:
+    """The returns a pulse of a generated split reports in its ``returns_*`` datasets, by its
+    ``return_mode`` attribute: 2 in dual mode, 1 in the others, 0 where it has none."""
+    mode = attrs.get("return_mode")
+    return 0 if mode is None else 2 if mode == "dual" else 1
+
+
 def generated_schema(
-    timing: str = "flash", receiver: bool = False
+    timing: str = "flash", receiver: bool = False, returns: int = 0
 ) -> dict[str, tuple[str, object]]:
-    """:data:`SCHEMA`, with :data:`SCAN_SCHEMA` under scan timing and :data:`RECEIVER_SCHEMA`
-    under a receiver."""
-    return (
+    """:data:`SCHEMA`, with :data:`SCAN_SCHEMA` under scan timing, :data:`RECEIVER_SCHEMA`
+    under a receiver and :data:`RETURNS_SCHEMA` where a pulse reports ``returns`` > 0 returns
+    (their trailing shapes then given H and W alone)."""
+    schema = (
         SCHEMA | (SCAN_SCHEMA if timing == "scan" else {}) | (RECEIVER_SCHEMA if receiver else {})
     )
+    if returns:
+        schema |= {
+            name: (dtype, lambda h, w, tail=tail: tail(h, w, returns))
+            for name, (dtype, tail) in RETURNS_SCHEMA.items()
+        }
+    return schema
 
 
 def generated_shapes(
-    height: int, width: int, timing: str = "flash", receiver: bool = False
+    height: int, width: int, timing: str = "flash", receiver: bool = False, returns: int = 0
 ) -> dict[str, tuple[str, tuple]]:
     """name -> (dtype, trailing shape) of a generated split of ``height`` rows (the sensor's
-    beams) and ``width`` columns, of ``timing`` "flash" or "scan", with a receiver or not."""
+    beams) and ``width`` columns, of ``timing`` "flash" or "scan", with a receiver or not, and
+    ``returns`` reported returns a pulse (0: none stored)."""
     return {
         name: (dtype, tail(height, width))
-        for name, (dtype, tail) in generated_schema(timing, receiver).items()
+        for name, (dtype, tail) in generated_schema(timing, receiver, returns).items()
     }
 
 
@@ -270,12 +297,14 @@ def expected_shapes(
     e: int = 0,
     timing: str = "flash",
     receiver: bool = False,
+    returns: int = 0,
 ) -> dict[str, tuple]:
     """name -> (dtype, full shape) of every dataset a split of ``source`` must hold
     (``timing``: a generated split's ``timing`` attribute, "flash" where it has none;
-    ``receiver``: whether it has a ``receiver`` attribute)."""
+    ``receiver``: whether it has a ``receiver`` attribute; ``returns``: its
+    :func:`reported_returns`)."""
     if source == GENERATOR:
-        shapes = generated_shapes(h, w, timing, receiver)
+        shapes = generated_shapes(h, w, timing, receiver, returns)
         return {name: (dtype, (n, *tail)) for name, (dtype, tail) in shapes.items()}
     if source not in CONVERTED_SCHEMAS:
         known = ", ".join([GENERATOR, *CONVERTED_SCHEMAS])

@@ -21,6 +21,11 @@ SCAN_VERSION = "3.0.0"
 # the receiver detects it, returns carry range noise that grows as the signal falls, and the
 # splits gain intensity, reflectance and received power (a new MAJOR: the records change).
 SENSOR_VERSION = "4.0.0"
+# Datasets of the sensor profile whose returns come from each pulse's waveform (a beam
+# footprint of several sub-rays, ``--beam-samples``, or a return mode other than strongest,
+# ``--return-mode``): the same records as 4.0.0 where both are at their defaults, and fields
+# added (a new MINOR); the 4.0.0 datasets keep their version and bytes.
+RETURNS_VERSION = "4.1.0"
 
 # Release dates are part of the published metadata (croissant.json's datePublished), so they are
 # constants too: a dataset's bytes never depend on the day it was generated.
@@ -29,6 +34,7 @@ RELEASE_DATES: dict[str, str] = {
     "2.0.0": "2026-11-23",
     "3.0.0": "2026-11-23",
     "4.0.0": "2026-11-25",
+    "4.1.0": "2026-11-26",
 }
 
 RELEASE_NOTES: dict[str, str] = {
@@ -63,15 +69,28 @@ RELEASE_NOTES: dict[str, str] = {
         "MAJOR, for flash and scan timing alike. The other profiles keep their versions and "
         "bytes."
     ),
+    "4.1.0": (
+        "Beam footprints and return modes for the `sensor` profile (issue 41): "
+        "`--beam-samples Q` casts each pulse as 1 + 3Q(Q-1) sub-rays over the receiver's "
+        "divergence with a Gaussian beam profile (HELIOS++'s beam sampling); their echoes, "
+        "Gaussian pulses of the receiver's width, sum to the pulse's waveform, whose peaks "
+        "above the threshold are its echoes; `--return-mode` reports the strongest, the last "
+        "or both (dual, the VLP-16 manual's rule). New per-pulse datasets `echoes` and "
+        "`returns_tof_ns`, `returns_intensity`, `returns_surface` (one column per reported "
+        "return), attributes `beam_samples` and `return_mode`; the per-pixel fields describe "
+        "the first reported return. Fields added, hence a new MINOR. Datasets with one ray and "
+        "the strongest return keep 4.0.0 and its bytes."
+    ),
 }
 
 
 def dataset_version(config) -> str:
     """The version a generated dataset of ``config`` (a GeneratorConfig) carries:
-    SENSOR_VERSION under a receiver, SCAN_VERSION under scan timing, PHYSICAL_VERSION for the
+    RETURNS_VERSION under a receiver whose returns come from waveforms, SENSOR_VERSION under
+    another receiver, SCAN_VERSION under scan timing, PHYSICAL_VERSION for the
     physical pulse rule (its records are those of 1.0.0), else DATASET_VERSION."""
     if config.receiver is not None:
-        return SENSOR_VERSION
+        return RETURNS_VERSION if config.full_waveform else SENSOR_VERSION
     if config.timing == "scan":
         return SCAN_VERSION
     return PHYSICAL_VERSION if config.profile is None else DATASET_VERSION

@@ -6,7 +6,7 @@ from functools import cache
 from pathlib import Path
 
 from simlidar.dataset.reader import dataset_splits
-from simlidar.dataset.schema import SCHEMA, SPLITS, generated_schema
+from simlidar.dataset.schema import SCHEMA, SPLITS, generated_schema, reported_returns
 from simlidar.dataset.shards import SHARD_SAMPLES
 from simlidar.dataset.version import RELEASE_DATES, RELEASE_NOTES
 from simlidar.errors import ConfigError, DatasetError
@@ -37,6 +37,7 @@ from simlidar.release.card import (
 )
 from simlidar.release.croissant import CONTEXT, field, file_objects
 from simlidar.release.info import dataset_info
+from simlidar.sensor.footprint import subray_count
 from simlidar.sensor.model import Sensor, load_sensor, sensor_names
 
 _DOCS = {  # one line per dataset of a split file; the full table is docs/dataset-format.md
@@ -56,6 +57,10 @@ _DOCS = {  # one line per dataset of a split file; the full table is docs/datase
     "intensity": "the receiver's reflectivity byte of each return (0 = no return)",
     "reflectance": "drawn reflectance of the surface each pulse hit (NaN = nothing hit)",
     "power_w": "received power of the hit, W, detected or not (0 = nothing hit)",
+    "echoes": "echoes of each pulse's waveform at or above the receiver's threshold",
+    "returns_tof_ns": "time of flight of each reported return, ns (NaN = none)",
+    "returns_intensity": "reflectivity byte of each reported return (0 = none)",
+    "returns_surface": "surface label of each reported return (0 = none)",
 }
 
 
@@ -76,7 +81,9 @@ def generated_front_matter(path: Path) -> dict:
     config = stored_config(splits["train"])
     features = [
         hf_feature(name, dtype, tail(height, width), attrs["class_names"])
-        for name, (dtype, tail) in generated_schema(config.timing, "receiver" in attrs).items()
+        for name, (dtype, tail) in generated_schema(
+            config.timing, "receiver" in attrs, reported_returns(attrs)
+        ).items()
     ]
     title = f"{NAME}, {attrs['classes']} classes, noise {attrs['noise']}"
     config_name = f"noise{float(attrs['noise'])!r}"
@@ -144,6 +151,8 @@ def regenerate_command(
         "sensor",
         "timing",
         "fog_visibility_m",
+        "beam_samples",
+        "return_mode",
     }
     other = {k for k, v in config.to_dict().items() if k not in cli_fields}
     shipped = config.profile is None or (
@@ -179,6 +188,10 @@ def regenerate_command(
         parts.append(f"--timing {config.timing}")
     if config.extinction_per_m:
         parts.append(f"--fog {config.fog_visibility_m!r}")
+    if config.beam_samples != 1:
+        parts.append(f"--beam-samples {config.beam_samples}")
+    if config.return_mode != "strongest":
+        parts.append(f"--return-mode {config.return_mode}")
     over = config.overrides
     if "shift_max" in over:
         parts.append(f"--shift {config.shift_max!r}")
@@ -288,6 +301,35 @@ def _receiver_lines(attrs, config: GeneratorConfig) -> str:
         + ". These draws come from a stream of the sample's own, "
         "`SeedSequence(seed, spawn_key=(split, index, 41))`, so the scenes are those of the "
         "`physical` profile with the same seed (simlidar's `docs/sensor-model.md`).\n"
+        + _beam_lines(attrs, config)
+    )
+
+
+def _beam_lines(attrs, config: GeneratorConfig) -> str:
+    """The Generation process paragraph on beam footprints and returns (none for one ray a
+    pulse and its strongest return)."""
+    if "return_mode" not in attrs:
+        return ""
+    receiver = attrs["receiver"]
+    rays = subray_count(config.beam_samples)
+    mode = {
+        "strongest": "the strongest echo",
+        "last": "the last echo",
+        "dual": "two returns, the last echo and the strongest (the second strongest where the "
+        "strongest is the last; one echo is reported twice), as the VLP-16 manual's dual mode",
+    }[config.return_mode]
+    return (
+        f"\nBeam footprint and returns: each pulse is {rays} sub-ray(s) in "
+        f"{config.beam_samples} ring(s) over the beam's divergence ("
+        f"{receiver['divergence_h_mrad']:g} x {receiver['divergence_v_mrad']:g} mrad, read as "
+        "full angles at 1/e^2), weighted by a Gaussian beam profile (HELIOS++'s beam "
+        "sampling); every sub-ray hit adds a Gaussian pulse of "
+        f"{receiver['pulse_width_ns']:g} ns full width at half maximum, scaled by its "
+        "received power, to the pulse's waveform, sampled every 0.25 ns; its peaks at or above "
+        f"the threshold are the echoes (`echoes`), and the pulse reports {mode} "
+        "(`returns_tof_ns`, `returns_intensity`, `returns_surface`, in that order). The "
+        "per-pixel datasets (`delays`, `tof_ns`, `surface`, `intensity`, ...) hold the first "
+        "reported return to arrive.\n"
     )
 
 
@@ -335,7 +377,7 @@ def generated_card(path: str | Path) -> str:
             [
                 [f"`{name}`", dtype, str(("N", *tail(height, width))).replace("'", ""), _DOCS[name]]
                 for name, (dtype, tail) in generated_schema(
-                    config.timing, "receiver" in attrs
+                    config.timing, "receiver" in attrs, reported_returns(attrs)
                 ).items()
             ],
         )

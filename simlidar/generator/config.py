@@ -7,8 +7,10 @@ from dataclasses import asdict, dataclass, fields, replace
 from simlidar.content import key_error
 from simlidar.errors import ConfigError, shown
 from simlidar.generator.profiles import PHYSICAL_RULE, Profile, checked_profile
+from simlidar.sensor.footprint import MAX_RINGS
 from simlidar.sensor.model import Sensor, default_sensor
 from simlidar.sensor.rays import scan_window_ns
+from simlidar.sensor.receiver import RETURN_MODES
 from simlidar.settings import Choice, Range, check, setting
 
 MAX_SPLIT_SIZE = 10**9  # samples per split
@@ -86,6 +88,24 @@ class GeneratorConfig:
         "modelled yet.",
         Range(0, None, "metres", low_open=True, note="(inf: clear air)"),
     )
+    # stored only when not 1 / strongest, so that the sensor profile's datasets made before
+    # them keep their bytes (as fog_visibility_m above)
+    beam_samples: int = setting(
+        1,
+        "Beam footprint: the beam sampled by this many rings of sub-rays over the receiver's "
+        "divergence, 1 + 3 Q (Q - 1) rays a pulse (HELIOS++'s beamSampleQuality; 1: one ray "
+        "along the axis, 2: 7, 3: 19), whose echoes make the pulse's waveform and returns; a "
+        "profile with a receiver only (sensor).",
+        Range(1, MAX_RINGS, "an integer", note="(1: one ray a pulse)"),
+    )
+    return_mode: str = setting(
+        "strongest",
+        "Which returns a pulse reports (VLP-16 manual sec. 9.3.2): strongest, last, or dual "
+        "(the last and the strongest, or the second strongest where the strongest is the "
+        "last); the network's delay is the first reported return; a profile with a receiver "
+        "only (sensor).",
+        Choice(RETURN_MODES),
+    )
 
     def __post_init__(self) -> None:
         for name in ("train_size", "test_size"):  # before the rules: a better message
@@ -115,6 +135,13 @@ class GeneratorConfig:
                 f"fog_visibility_m={self.fog_visibility_m!r} (--fog): expected a profile with a "
                 f"receiver (--profile sensor), not {self.profile_name!r}: without one every hit "
                 "returns, and fog would change nothing"
+            )
+        if self.full_waveform and self.receiver is None:
+            raise ConfigError(
+                f"beam_samples={self.beam_samples!r}, return_mode={self.return_mode!r} "
+                f"(--beam-samples, --return-mode): expected a profile with a receiver "
+                f"(--profile sensor), not {self.profile_name!r}: without one a pulse has no "
+                "waveform to take returns from"
             )
 
     @classmethod
@@ -180,6 +207,21 @@ class GeneratorConfig:
         return koschmieder_extinction_per_m(self.fog_visibility_m)
 
     @property
+    def full_waveform(self) -> bool:
+        """Whether returns come from each pulse's waveform (a footprint of several sub-rays or
+        a return mode other than strongest: :func:`simlidar.generator.returns.receive_beams`)
+        rather than from the single ray's hit."""
+        return self.beam_samples != 1 or self.return_mode != "strongest"
+
+    @property
+    def reported_returns(self) -> int:
+        """Returns a pulse reports in the ``returns_*`` datasets (2 in dual mode, else 1), 0
+        where they are not stored (:func:`simlidar.dataset.schema.reported_returns`)."""
+        if not (self.receiver is not None and self.full_waveform):
+            return 0
+        return 2 if self.return_mode == "dual" else 1
+
+    @property
     def split_sizes(self) -> dict[str, int]:
         return {"train": self.train_size, "test": self.test_size}
 
@@ -199,6 +241,10 @@ class GeneratorConfig:
             del values["timing"]  # absent means flash (same reason)
         if values["fog_visibility_m"] == math.inf:
             del values["fog_visibility_m"]  # absent means clear air (same reason)
+        if values["beam_samples"] == 1:
+            del values["beam_samples"]  # absent means one ray a pulse (same reason)
+        if values["return_mode"] == "strongest":
+            del values["return_mode"]  # absent means the strongest return (same reason)
         return values
 
     def to_json(self) -> str:

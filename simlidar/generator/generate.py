@@ -148,15 +148,18 @@ def check_disk_space(config: GeneratorConfig, datasets: int, out: str | Path) ->
 
 
 def generated_name(config: GeneratorConfig) -> str:
-    """``simlidar-<classes>c-noise<level>-<profile>[-<sensor>][-scan][-fog<V>][-var<v>][-shift<s>]-v<version>``,
+    """``simlidar-<classes>c-noise<level>-<profile>[-<sensor>][-scan][-fog<V>][-beam<Q>][-<mode>][-var<v>][-shift<s>]-v<version>``,
     numbers as Python's repr (0.2, 0.33); ``-<sensor>`` names a sensor other than the VLP-16,
-    ``-scan`` scan timing, ``-fog`` a fog's visibility in metres, ``-var`` and ``-shift``
-    values that differ from the profile's own."""
+    ``-scan`` scan timing, ``-fog`` a fog's visibility in metres, ``-beam`` a beam footprint's
+    rings of sub-rays, ``-last`` / ``-dual`` a return mode other than strongest, ``-var`` and
+    ``-shift`` values that differ from the profile's own."""
     over = config.overrides
     sensor = f"-{config.sensor.name}" if config.sensor.name != "vlp16" else ""
     sensor += "-scan" if config.timing == "scan" else ""
     if math.isfinite(config.fog_visibility_m):
         sensor += f"-fog{float(config.fog_visibility_m)!r}"
+    sensor += f"-beam{config.beam_samples}" if config.beam_samples != 1 else ""
+    sensor += f"-{config.return_mode}" if config.return_mode != "strongest" else ""
     variation = f"-var{float(over['variation'])!r}" if "variation" in over else ""
     shift = f"-shift{float(over['shift_max'])!r}" if "shift_max" in over else ""
     return (
@@ -202,7 +205,8 @@ def generate(
     catalog = catalog.for_sensor(config.sensor.name)  # what is stored: the recipes used
     class_plan(catalog, config.classes)  # fail before touching the disk
     if config.receiver is not None:  # and its receiver fits the sensor and the catalog
-        check_physics(receiver_physics(config.profile), config.sensor, catalog.surfaces)
+        physics = receiver_physics(config.profile)
+        check_physics(physics, config.sensor, catalog.surfaces, config.return_mode)
     out = Path(out)
     finals = [out / generated_name(c) for c in configs]
     if len(set(finals)) != len(finals):

@@ -23,7 +23,7 @@ Conventions (``docs/sensor-model.md`` explains them):
 
 import numpy as np
 
-from simlidar.dataset.schema import RECEIVER_SCHEMA, SCHEMA
+from simlidar.dataset.schema import RECEIVER_SCHEMA, RETURNS_SCHEMA, SCHEMA
 from simlidar.sensor.model import Sensor, tof_ns
 
 NO_RETURN = 1.0
@@ -116,7 +116,8 @@ def split_rows(samples, config) -> dict[str, np.ndarray]:
     ``U(0, noise)`` noise applied to the clean delays (:func:`profile_pulses`;
     ``clean_delays`` are written under the rule too, before noise), under scan timing both
     made arrival times (:func:`scan_delays`) and the emission times stored; under a receiver
-    its fields (:data:`~simlidar.dataset.schema.RECEIVER_SCHEMA`); every other field as
+    its fields (:data:`~simlidar.dataset.schema.RECEIVER_SCHEMA`), and where returns come from
+    waveforms theirs (:data:`~simlidar.dataset.schema.RETURNS_SCHEMA`); every other field as
     simulated."""
     rule = config.pulse_rule
     clean, noisy = profile_pulses(
@@ -133,4 +134,6 @@ def split_rows(samples, config) -> dict[str, np.ndarray]:
         rows["emission_ns"] = samples.emission_ns
     if config.receiver is not None:
         rows |= {name: getattr(samples, name) for name in RECEIVER_SCHEMA}
+    if config.reported_returns:
+        rows |= {name: getattr(samples, name) for name in RETURNS_SCHEMA}
     return rows | {name: getattr(samples, name) for name in SCHEMA if name not in rows}

@@ -33,7 +33,7 @@ import numpy as np
 from simlidar.content import content_dir
 from simlidar.errors import ConfigError
 from simlidar.generator.pulses import quantise_range
-from simlidar.sensor.model import Sensor
+from simlidar.sensor.model import SPEED_OF_LIGHT_M_PER_S, Sensor, tof_ns
 from simlidar.sensor.receiver import (
     Material,
     Receiver,
@@ -46,6 +46,7 @@ from simlidar.sensor.receiver import (
     receiver_to_dict,
     reflectivity_byte,
 )
+from simlidar.sensor.waveform import echoes, pulse_sigma_ns, reported
 
 # The child stream key of a sample's receiver draws (the issue's number: any constant will do,
 # as long as no other stream of a sample uses it)
@@ -96,14 +97,22 @@ def receiver_physics(profile) -> Physics:
     return Physics(receiver, materials, surfaces)
 
 
-def check_physics(physics: Physics, sensor: Sensor, surface_names) -> list[list[Material]]:
+def check_physics(
+    physics: Physics, sensor: Sensor, surface_names, return_mode: str = "strongest"
+) -> list[list[Material]]:
     """The materials each catalog surface label may be made of (label 0, none: []); a
-    ConfigError where a surface has no materials or the receiver is another sensor's."""
+    ConfigError where a surface has no materials, the receiver is another sensor's or it has
+    no such return mode."""
     if physics.receiver.name != sensor.name:
         raise ConfigError(
             f"receiver {physics.receiver.name!r} with sensor {sensor.name!r}: expected the "
             f"receiver of the sensor (sensors/receivers/{sensor.name}.toml, in a profile of "
             "its own)"
+        )
+    if return_mode not in physics.receiver.return_modes:
+        raise ConfigError(
+            f"return_mode={return_mode!r} (--return-mode): receiver {physics.receiver.name!r} "
+            f"reports {list(physics.receiver.return_modes)}; expected one of them"
         )
     missing = [s for s in surface_names[1:] if s not in physics.surfaces]
     if missing:
@@ -137,12 +146,34 @@ def draw_surfaces(g: np.random.Generator, choices: list[list[Material]]):
 
 @dataclass(frozen=True)
 class Returns:
-    """What the receiver makes of a block of hits (n samples, H x W pulses)."""
+    """What the receiver makes of a block of hits (n samples, H x W pulses). With a beam
+    footprint or a return mode other than the single ray's strongest (:func:`receive_beams`) the
+    per-pixel fields describe the pulse's first reported return (the one that arrives first)."""
 
     range_m: np.ndarray  # (n, H, W) float64, quantised; NaN: no return (missed or dropped)
     intensity: np.ndarray  # (n, H, W) uint8, the sensor's reflectivity byte; 0: no return
     reflectance: np.ndarray  # (n, H, W) float32, the hit surface's drawn value; NaN: no hit
     power_w: np.ndarray  # (n, H, W) float32, received power of the hit; 0: no hit
+    # receive_beams only, else None:
+    surface: np.ndarray | None = None  # (n, H, W) uint8, the return's surface; 0: no return
+    echoes: np.ndarray | None = None  # (n, H, W) uint8, echoes detected in the waveform
+    # (n, H, W, R) the reported returns in the mode's order (dual: last, then strongest or
+    # second strongest; the same return twice where one was detected); NaN / 0: none
+    returns_range_m: np.ndarray | None = None
+    returns_intensity: np.ndarray | None = None
+    returns_surface: np.ndarray | None = None
+
+
+def _surface_tables(streams, choices):
+    """Each sample's drawn reflectance (n, S) and retro-reflectivity (n, S) per surface label."""
+    drawn = [draw_surfaces(g, choices) for g in streams]
+    return np.stack([r for r, _ in drawn]), np.stack([t for _, t in drawn])
+
+
+def _per_label(table: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """``table`` (n, S) read at each sample's ``labels`` (n, ...) (uint8 surface labels)."""
+    flat = labels.reshape(len(table), -1).astype(np.int64)
+    return np.take_along_axis(table, flat, axis=1).reshape(labels.shape)
 
 
 def receive(
@@ -166,13 +197,10 @@ def receive(
         clear air), two-way Beer-Lambert in the range equation
     """
     receiver = physics.receiver
-    drawn = [draw_surfaces(g, choices) for g in streams]
+    table, retro_table = _surface_tables(streams, choices)
     z = np.stack([g.standard_normal(range_m.shape[1:]) for g in streams])  # (n, H, W)
-    table = np.stack([r for r, _ in drawn])  # (n, S)
-    retro_table = np.stack([t for _, t in drawn])
-    labels = surface.reshape(len(streams), -1).astype(np.int64)
-    reflectance = np.take_along_axis(table, labels, axis=1).reshape(surface.shape)
-    retro = np.take_along_axis(retro_table, labels, axis=1).reshape(surface.shape)
+    reflectance = _per_label(table, surface)
+    retro = _per_label(retro_table, surface)
     hit = ~np.isnan(range_m)
     reflectance = np.where(hit, reflectance, np.nan)
     rho = np.where(hit, reflectance, 0.0)
@@ -190,4 +218,110 @@ def receive(
         intensity=intensity.astype(np.uint8),
         reflectance=reflectance.astype(np.float32),
         power_w=power.astype(np.float32),
+    )
+
+
+def receive_beams(
+    physics: Physics,
+    choices: list[list[Material]],
+    sensor: Sensor,
+    streams: list[np.random.Generator],
+    range_m: np.ndarray,
+    surface: np.ndarray,
+    cos_incidence: np.ndarray,
+    weights: np.ndarray,
+    mode: str,
+    extinction_per_m: float = 0.0,
+) -> Returns:
+    """The returns of a block of beams sampled by S sub-rays, in a return mode
+    (docs/sensor-model.md, "Beam footprint and returns"):
+
+    1. each sub-ray's received power is the range equation's for its hit, times its weight
+       (:func:`simlidar.sensor.footprint.footprint`);
+    2. the pulse's waveform is their sum of Gaussian pulses, its echoes the waveform's peaks
+       (:func:`simlidar.sensor.waveform.echoes`), detected at the receiver's threshold;
+    3. the mode picks the reported returns among them (:func:`simlidar.sensor.waveform.reported`);
+       each reported return moves by the range noise of its own peak power (one standard normal
+       per pixel and reported return: after the draws of :func:`receive`, a second block in
+       ``dual`` mode; a return reported twice is one measurement) and is quantised;
+    4. a return's surface, reflectance and intensity are those of the sub-ray that adds most to
+       its peak.
+
+    range_m, surface, cos_incidence : (n, H, W, S) as :func:`receive`'s, per sub-ray
+    weights : (S,) the sub-rays' shares of the beam's power
+    mode : of the receiver's ``return_modes``
+    """
+    receiver = physics.receiver
+    n, rows, cols, subrays = range_m.shape
+    table, retro_table = _surface_tables(streams, choices)
+    reports = 2 if mode == "dual" else 1
+    z = np.stack([g.standard_normal((reports, rows, cols)) for g in streams])  # (n, R, H, W)
+    z = np.moveaxis(z, 1, -1)  # (n, H, W, R)
+    reflectance = np.where(np.isnan(range_m), np.nan, _per_label(table, surface))
+    retro = _per_label(retro_table, surface)
+    hit = ~np.isnan(range_m)
+    rho = np.where(hit, reflectance, 0.0)
+    safe_m = np.where(hit, range_m, 1.0)
+    incidence = np.arccos(np.clip(cos_incidence.astype(np.float64), 0.0, 1.0))
+    power = received_power_w(receiver, safe_m, rho, incidence, extinction_per_m) * weights
+    power = np.where(hit, power, 0.0).reshape(-1, subrays)
+    times = np.where(hit, tof_ns(safe_m), np.nan).reshape(-1, subrays)
+    sigma_ns = pulse_sigma_ns(receiver.pulse_width_ns)
+    echo = echoes(times, power, sigma_ns)
+    pick = reported(echo, receiver.threshold_w, mode, receiver.dual_when_strongest_is_last)
+    pulses = np.arange(len(pick))[:, None]
+    found = pick >= 0
+    at = np.where(found, pick, 0)
+    if echo.time_ns.shape[1] == 0:  # not one echo in the block
+        peak_ns = np.full(pick.shape, np.nan)
+        peak_w = np.zeros(pick.shape)
+    else:
+        peak_ns = np.where(found, echo.time_ns[pulses, at], np.nan)
+        peak_w = np.where(found, echo.power_w[pulses, at], 0.0)
+    # the sub-ray that adds most to each reported peak
+    share = power[:, None, :] * np.exp(
+        -((peak_ns[:, :, None] - np.nan_to_num(times, nan=np.inf)[:, None, :]) ** 2)
+        / (2.0 * sigma_ns**2)
+    )
+    main = np.argmax(np.nan_to_num(share, nan=-1.0), axis=2)  # (P, R)
+    flat = (n * rows * cols, subrays)
+    main_rho = np.take_along_axis(rho.reshape(flat), main, axis=1)
+    main_retro = np.take_along_axis(retro.reshape(flat), main, axis=1)
+    main_surface = np.take_along_axis(surface.reshape(flat), main, axis=1)
+    same = (pick[:, -1] == pick[:, 0])[:, None]  # dual: one return reported twice
+    noise = z.reshape(-1, reports)
+    noise = np.where(same, noise[:, :1], noise)
+    sigma_m = np.where(found, range_noise_m(receiver, np.where(found, peak_w, 1.0)), 0.0)
+    centre_m = peak_ns * 1e-9 * SPEED_OF_LIGHT_M_PER_S / 2.0
+    returned_m = quantise_range(np.where(found, centre_m + sigma_m * noise, np.nan), sensor)
+    returned = ~np.isnan(returned_m)
+    intensity = np.where(returned, reflectivity_byte(receiver, main_rho, main_retro), 0)
+    labels = np.where(returned, main_surface, 0)
+    first = np.argmin(np.where(returned, returned_m, np.inf), axis=1)[:, None]
+    primary = {
+        "range_m": np.take_along_axis(returned_m, first, axis=1)[:, 0],
+        "intensity": np.take_along_axis(intensity, first, axis=1)[:, 0],
+        "surface": np.take_along_axis(labels, first, axis=1)[:, 0],
+        "power_w": np.take_along_axis(peak_w, first, axis=1)[:, 0],
+        "reflectance": np.take_along_axis(np.where(found, main_rho, np.nan), first, axis=1)[:, 0],
+    }
+    # no return: the power of the pulse's strongest echo (0: no hit), the central ray's surface
+    silent = ~returned.any(axis=1)
+    peaks_w = np.where(np.isnan(echo.power_w), 0.0, echo.power_w)
+    strongest_w = peaks_w.max(axis=1, initial=0.0)
+    primary["power_w"] = np.where(silent, strongest_w, primary["power_w"])
+    central = reflectance.reshape(flat)[:, 0]
+    primary["reflectance"] = np.where(silent, central, primary["reflectance"])
+    detected_echoes = (echo.power_w >= receiver.threshold_w).sum(axis=1)
+    shape = (n, rows, cols)
+    return Returns(
+        range_m=primary["range_m"].reshape(shape),
+        intensity=primary["intensity"].reshape(shape).astype(np.uint8),
+        reflectance=primary["reflectance"].reshape(shape).astype(np.float32),
+        power_w=primary["power_w"].reshape(shape).astype(np.float32),
+        surface=primary["surface"].reshape(shape).astype(np.uint8),
+        echoes=np.minimum(detected_echoes, 255).reshape(shape).astype(np.uint8),
+        returns_range_m=returned_m.reshape(shape + (reports,)),
+        returns_intensity=intensity.reshape(shape + (reports,)).astype(np.uint8),
+        returns_surface=labels.reshape(shape + (reports,)).astype(np.uint8),
     )

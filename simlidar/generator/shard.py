@@ -74,7 +74,9 @@ def write_shard(
     are removed."""
     first = configs[0]
     receiver = first.receiver is not None
-    shapes = generated_shapes(first.sensor.beams, first.width, first.timing, receiver)
+    shapes = generated_shapes(
+        first.sensor.beams, first.width, first.timing, receiver, first.reported_returns
+    )
     token = secrets.token_hex(4)  # two runs of one shard (a retried task) never share a file
     writers: list[SplitWriter] = []
     try:
@@ -150,4 +152,7 @@ def generated_split_attrs(config: GeneratorConfig, catalog: Catalog, split: str)
         attrs["receiver_sha256"] = fingerprint(receiver)
         attrs["materials"] = json.dumps(materials, sort_keys=True)
         attrs["materials_sha256"] = fingerprint(materials)
+    if config.full_waveform:  # absent: one ray a pulse, its strongest return (4.0.0's bytes)
+        attrs["beam_samples"] = config.beam_samples
+        attrs["return_mode"] = config.return_mode
     return attrs

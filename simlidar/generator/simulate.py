@@ -16,10 +16,18 @@ import numpy as np
 from simlidar.errors import ConfigError, SimlidarError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.pulses import delays_from_range, quantise_range, shift_delays
-from simlidar.generator.returns import check_physics, receive, receiver_physics, receiver_stream
+from simlidar.generator.returns import (
+    check_physics,
+    receive,
+    receive_beams,
+    receiver_physics,
+    receiver_stream,
+)
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
-from simlidar.sensor.raycast import MAX_BATCH, cast
+from simlidar.sensor.footprint import subray_count, subray_directions
+from simlidar.sensor.model import tof_ns
+from simlidar.sensor.raycast import MAX_BATCH, Hits, cast
 from simlidar.sensor.rays import column_centres_deg, emission_times_ns, window_rays
 
 SPLIT_IDS = {"train": 0, "test": 1, "sweep": 2}  # random stream keys (sweep: full frames)
@@ -96,6 +104,28 @@ class Samples:
     intensity: np.ndarray | None = None  # (n, H, W) uint8, reflectivity byte, 0: no return
     reflectance: np.ndarray | None = None  # (n, H, W) float32, NaN: no hit
     power_w: np.ndarray | None = None  # (n, H, W) float32, 0: no hit
+    # where returns come from waveforms (GeneratorConfig.full_waveform) only, else None:
+    echoes: np.ndarray | None = None  # (n, H, W) uint8, echoes detected in the waveform
+    returns_tof_ns: np.ndarray | None = None  # (n, H, W, R) float32, NaN: none
+    returns_intensity: np.ndarray | None = None  # (n, H, W, R) uint8, 0: none
+    returns_surface: np.ndarray | None = None  # (n, H, W, R) uint8, 0: none
+
+
+def split_beams(hits: Hits, width: int) -> Hits:
+    """Hits of B windows' sub-rays cast as (B, H, W x S) -> the same as (B, H, W, S)."""
+
+    def beams(a):
+        return None if a is None else a.reshape(a.shape[0], a.shape[1], width, -1)
+
+    return Hits(*(beams(getattr(hits, f)) for f in ("range_m", "surface", "on_object",
+                                                    "cos_incidence")))  # fmt: skip
+
+
+def axis_hits(hits: Hits, width: int) -> Hits:
+    """The hits of each beam's axis (sub-ray 0) among its sub-rays' (:func:`split_beams`)."""
+    beams = split_beams(hits, width)
+    return Hits(*(None if a is None else a[..., 0].copy() for a in (
+        beams.range_m, beams.surface, beams.on_object, beams.cos_incidence)))  # fmt: skip
 
 
 def sample_stream(seed: int, split: str, index: int) -> np.random.Generator:
@@ -145,7 +175,8 @@ def simulate(
     plan = class_plan(catalog, config.classes)
     physics = receiver_physics(config.profile) if config.receiver is not None else None
     if physics is not None:
-        choices = check_physics(physics, sensor, catalog.surfaces)
+        choices = check_physics(physics, sensor, catalog.surfaces, config.return_mode)
+    beams = physics is not None and config.full_waveform  # returns from each pulse's waveform
     index = np.arange(start, stop)
     n = len(index)
     labels = index % plan.classes
@@ -166,14 +197,27 @@ def simulate(
     shift = np.zeros(n)
     emission = np.zeros((n, sensor.beams, width))
     if physics is not None:  # the hits within range, unquantised, and their incidence
-        hit_m = np.full((n, sensor.beams, width), np.nan)
-        cos_incidence = np.zeros((n, sensor.beams, width), np.float32)
+        subrays = subray_count(config.beam_samples) if beams else 1
+        shape = (n, sensor.beams, width) + ((subrays,) if beams else ())
+        hit_m = np.full(shape, np.nan)
+        cos_incidence = np.zeros(shape, np.float32)
+        hit_surface = np.zeros(shape, np.uint8)
     more = {} if physics is None else {"incidence": True}  # other backends take no such key
     pending = np.arange(n)
     while len(pending):
         attempts[pending] += 1
         u = np.stack([streams[r].random(columns) for r in pending])
         origins, directions = window_rays(sensor, width, config.fov_deg, u[:, 0])
+        if beams:  # every sub-ray, cast with the others; sub-ray 0 is the beam's axis
+            directions, weights = subray_directions(
+                directions,
+                physics.receiver.divergence_h_mrad,
+                physics.receiver.divergence_v_mrad,
+                config.beam_samples,
+            )
+            origins = np.broadcast_to(origins[..., None, :], directions.shape)
+            origins, directions = (a.reshape(len(pending), sensor.beams, -1, 3)
+                                   for a in (origins, directions))  # fmt: skip
         hits, object_pose = backend(
             catalog,
             layout[pending],
@@ -186,6 +230,9 @@ def simulate(
             sensor.max_range_m,
             **more,
         )
+        if beams:  # the scene is judged by the axes alone, as with one ray a pulse
+            beam_hits = hits
+            hits = axis_hits(hits, width)
         r = quantise_range(hits.range_m, sensor)
         on_object = (hits.on_object & ~np.isnan(r)).sum(axis=(1, 2))
         ok = (obj[pending] == 0) | (on_object >= config.min_object_hits)
@@ -202,7 +249,13 @@ def simulate(
         done = pending[ok]
         range_m[done] = r[ok]
         surface[done] = np.where(np.isnan(r[ok]), 0, hits.surface[ok])
-        if physics is not None:
+        if beams:
+            got = split_beams(beam_hits, width)
+            inside = ~np.isnan(quantise_range(got.range_m[ok], sensor))
+            hit_m[done] = np.where(inside, got.range_m[ok], np.nan)
+            cos_incidence[done] = got.cos_incidence[ok]
+            hit_surface[done] = np.where(inside, got.surface[ok], 0)
+        elif physics is not None:
             hit_m[done] = np.where(np.isnan(r[ok]), np.nan, hits.range_m[ok])
             cos_incidence[done] = hits.cos_incidence[ok]
         pose[done] = object_pose[ok]
@@ -229,13 +282,26 @@ def simulate(
     if physics is not None:
         split_id = SPLIT_IDS[split]
         streams = [receiver_stream(config.seed, split_id, i) for i in index]
-        got = receive(
-            physics, choices, sensor, streams, hit_m, surface, cos_incidence,
-            config.extinction_per_m,
-        )  # fmt: skip
+        if beams:
+            got = receive_beams(
+                physics, choices, sensor, streams, hit_m, hit_surface, cos_incidence,
+                weights, config.return_mode, config.extinction_per_m,
+            )  # fmt: skip
+            surface = got.surface
+            received = {
+                "echoes": got.echoes,
+                "returns_tof_ns": tof_ns(got.returns_range_m).astype(np.float32),
+                "returns_intensity": got.returns_intensity,
+                "returns_surface": got.returns_surface,
+            }
+        else:
+            got = receive(
+                physics, choices, sensor, streams, hit_m, surface, cos_incidence,
+                config.extinction_per_m,
+            )  # fmt: skip
+            surface = np.where(np.isnan(got.range_m), 0, surface).astype(np.uint8)
         range_m = got.range_m
-        surface = np.where(np.isnan(range_m), 0, surface).astype(np.uint8)
-        received = {"intensity": got.intensity, "reflectance": got.reflectance}
+        received |= {"intensity": got.intensity, "reflectance": got.reflectance}
         received["power_w"] = got.power_w
     tof, clean = delays_from_range(range_m, sensor)
     if config.shift_max > 0:

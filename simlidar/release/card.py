@@ -33,8 +33,9 @@ def hf_feature(name: str, dtype: str, shape: tuple, class_names) -> dict:
     if name == "labels":
         names = {str(k): n for k, n in enumerate(class_names)}
         return {"name": name, "dtype": {"class_label": {"names": names}}}
-    if len(shape) == 2:
-        return {"name": name, "array2_d": {"shape": list(shape), "dtype": dtype}}
+    if len(shape) in (2, 3):  # Hugging Face's Array2D, Array3D
+        kind = f"array{len(shape)}_d"
+        return {"name": name, kind: {"shape": list(shape), "dtype": dtype}}
     if shape:
         return {"name": name, "sequence": dtype, "length": shape[0]}
     return {"name": name, "dtype": dtype}

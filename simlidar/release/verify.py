@@ -18,6 +18,7 @@ from simlidar.dataset.schema import (
     REQUIRED_ATTRS,
     SPLITS,
     expected_shapes,
+    reported_returns,
     split_source,
 )
 from simlidar.dataset.shards import find_split_files, shard_of, split_of
@@ -64,7 +65,8 @@ def _check_split(
         try:
             timing = attrs.get("timing", "flash")
             receiver = "receiver" in attrs
-            shapes = expected_shapes(source, size, height, width, events, timing, receiver)
+            returns = reported_returns(attrs)
+            shapes = expected_shapes(source, size, height, width, events, timing, receiver, returns)
         except DatasetError as exc:  # an unknown source
             return problems + [f"{path}: {exc}"], None
         for name, (dtype, shape) in shapes.items():

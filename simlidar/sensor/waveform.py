@@ -1,0 +1,132 @@
+"""A pulse's received waveform, its echoes and the returns a sensor reports (issue 41).
+
+The waveform is HELIOS++'s full-waveform model (Winiwarter et al. 2022; its
+``FullWaveformPulseRunnable``): every sub-ray echo (:mod:`simlidar.sensor.footprint`) adds the
+emitted pulse's shape, scaled by its received power, at its time of flight, and the sum is
+sampled in bins. The pulse is a Gaussian whose full width at half maximum is the receiver's
+``pulse_width_ns`` (the issue's "full waveform from a Gaussian pulse"; HELIOS++ itself uses
+an asymmetric pulse), so its peak value is the power of the sub-rays under it::
+
+    P(t) = sum_s p_s exp(-(t - t_s)^2 / (2 sigma^2)),   sigma = FWHM / (2 sqrt(2 ln 2))
+
+sampled every ``BIN_NS`` (HELIOS++'s default ``binSize_ns`` = 0.25, ``FWFSettings.h``; the
+VLP-16's digitiser rate is not published). Echoes are the waveform's local maxima (HELIOS++
+detects peaks the same way); each is placed by a Gaussian fit through its bin and the two
+beside it (a parabola through the log of the three values: exact for an echo of one surface),
+and it is detected when its fitted peak power reaches the receiver's threshold. Echoes closer
+than about the pulse's width merge into one peak between them: the mixed pixels of real
+sensors. The returns a sensor reports are chosen among the detected echoes by its return mode
+(VLP-16 manual sec. 9.3.2 p. 57): ``strongest``, ``last``, or ``dual``: the last and the
+strongest, and "if the strongest return is also the last return, then the second-strongest
+return is provided".
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+BIN_NS = 0.25  # HELIOS++ FWFSettings.h binSize_ns (default)
+REACH_SIGMAS = 4.0  # each pulse's waveform is sampled this many sigmas beyond its echoes
+CHUNK_VALUES = 1 << 22  # waveform samples x sub-rays evaluated at once (memory: ~32 MB)
+
+
+def pulse_sigma_ns(pulse_width_ns: float) -> float:
+    """The Gaussian pulse's sigma from its full width at half maximum."""
+    return pulse_width_ns / (2.0 * math.sqrt(2.0 * math.log(2.0)))
+
+
+def waveform(times_ns, powers_w, sigma_ns: float, t_ns) -> np.ndarray:
+    """P(t) of one pulse's sub-ray echoes (``times_ns``, ``powers_w``: (S,), NaN time: no hit)
+    at the times ``t_ns`` (any shape): the formula above, for pictures and checks."""
+    times = np.asarray(times_ns, dtype=np.float64)
+    hit = ~np.isnan(times)
+    t = np.asarray(t_ns, dtype=np.float64)[..., None]
+    shape = np.exp(-((t - times[hit]) ** 2) / (2.0 * sigma_ns**2))
+    return (shape * np.asarray(powers_w, dtype=np.float64)[hit]).sum(axis=-1)
+
+
+@dataclass(frozen=True)
+class Echoes:
+    """The waveform peaks of P pulses, in order of time, NaN-padded to the most any pulse has."""
+
+    time_ns: np.ndarray  # (P, E) float64, the fitted peak time
+    power_w: np.ndarray  # (P, E) float64, the fitted peak power; NaN: no echo
+    count: np.ndarray  # (P,) int64, peaks a pulse has (detected or not)
+
+
+def echoes(times_ns: np.ndarray, powers_w: np.ndarray, sigma_ns: float, bin_ns=BIN_NS) -> Echoes:
+    """Every local maximum of each pulse's sampled waveform, with its Gaussian fit.
+
+    times_ns, powers_w : (P, S) sub-ray times of flight (NaN: no hit) and received powers
+    """
+    times = np.asarray(times_ns, dtype=np.float64)
+    powers = np.where(np.isnan(times), 0.0, np.asarray(powers_w, dtype=np.float64))
+    pulses = len(times)
+    hit = ~np.isnan(times).all(axis=1)
+    reach = REACH_SIGMAS * sigma_ns
+    seen = np.where(hit[:, None], times, 0.0)  # a pulse without hits: zeros, no NaN warning
+    first = np.where(hit, np.floor((np.nanmin(seen, axis=1) - reach) / bin_ns), 0)
+    last = np.where(hit, np.ceil((np.nanmax(seen, axis=1) + reach) / bin_ns), -1)
+    bins = (last - first + 1).astype(np.int64)  # 0 for a pulse without hits
+    pulse = np.repeat(np.arange(pulses), bins)
+    start = np.cumsum(bins) - bins
+    t = (first[pulse] + np.arange(len(pulse)) - start[pulse]) * bin_ns
+    values = np.empty(len(pulse))
+    rows = max(1, CHUNK_VALUES // max(1, times.shape[1]))
+    for lo in range(0, len(pulse), rows):
+        p, tt = pulse[lo : lo + rows], t[lo : lo + rows]
+        gap = tt[:, None] - np.nan_to_num(times[p], nan=0.0)
+        values[lo : lo + rows] = (powers[p] * np.exp(-(gap**2) / (2.0 * sigma_ns**2))).sum(axis=1)
+    # a peak: above the bin before and not below the one after, both of the same pulse
+    inner = np.zeros(len(pulse), bool)
+    inner[1:-1] = (pulse[:-2] == pulse[1:-1]) & (pulse[2:] == pulse[1:-1])
+    peak = np.zeros(len(pulse), bool)
+    peak[1:-1] = inner[1:-1] & (values[1:-1] > values[:-2]) & (values[1:-1] >= values[2:])
+    peak &= values > 0.0
+    at = np.flatnonzero(peak)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        low, mid, high = (np.log(values[at + i]) for i in (-1, 0, 1))
+        curve = low - 2.0 * mid + high  # < 0 at a strict peak
+        shift = np.where(curve < 0.0, 0.5 * (low - high) / curve, 0.0)
+        top = np.where(curve < 0.0, mid - 0.25 * (low - high) * shift, mid)
+    owner = pulse[at]
+    count = np.bincount(owner, minlength=pulses)
+    most = int(count.max()) if pulses else 0
+    rank = np.arange(len(at)) - (np.cumsum(count) - count)[owner]
+    time = np.full((pulses, most), np.nan)
+    power = np.full((pulses, most), np.nan)
+    time[owner, rank] = t[at] + shift * bin_ns
+    power[owner, rank] = np.exp(top)
+    return Echoes(time, power, count)
+
+
+def reported(echo: Echoes, threshold_w: float, mode: str, dual_rule: str = "second_strongest"):
+    """The returns a sensor reports of each pulse's echoes: the index (P, R) of each reported
+    echo in ``echo`` (-1: none), R = 2 for ``dual`` (the manual's block order: the last return,
+    then the strongest, or the second strongest where the strongest is the last; a pulse with
+    one detected echo reports it in both, as the manual says the blocks are then identical),
+    else 1. ``dual_rule``: the receiver's ``dual_when_strongest_is_last`` (``first``: the
+    first echo then)."""
+    power = np.where(echo.power_w >= threshold_w, echo.power_w, -np.inf)  # NaN compares False
+    found = np.isfinite(power)
+    pulses, most = power.shape
+    none = np.full(pulses, -1)
+    if most == 0:
+        return np.full((pulses, 2 if mode == "dual" else 1), -1)
+    any_found = found.any(axis=1)
+    strongest = np.where(any_found, np.argmax(power, axis=1), none)
+    last = np.where(any_found, most - 1 - np.argmax(found[:, ::-1], axis=1), none)
+    if mode == "strongest":
+        return strongest[:, None]
+    if mode == "last":
+        return last[:, None]
+    if mode != "dual":
+        raise ValueError(f"mode={mode!r}: expected strongest, last or dual")
+    if dual_rule == "second_strongest":
+        others = np.where(np.arange(most)[None, :] == last[:, None], -np.inf, power)
+        other = np.where(np.isfinite(others).any(axis=1), np.argmax(others, axis=1), last)
+    else:
+        other = np.where(any_found, np.argmax(found, axis=1), none)
+    second = np.where(strongest == last, other, strongest)
+    return np.stack([last, second], axis=1)

@@ -1,0 +1,134 @@
+"""Beam footprints and return modes in generated datasets (issue 41): one ray a pulse through
+the waveform gives the 4.0.0 records exactly, a footprint keeps the scenes and adds echoes,
+the dual mode stores the manual's two returns, the same seed gives the same bytes whatever the
+batches and workers, and a wrong option is one line."""
+
+import dataclasses
+import hashlib
+
+import h5py
+import numpy as np
+import pytest
+
+from simlidar.errors import ConfigError
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.generate import generate
+from simlidar.generator.profiles import load_profile
+from simlidar.generator.returns import check_physics, receiver_physics
+from simlidar.sensor.model import load_sensor
+
+SIZES = dict(train_size=64, test_size=32)
+PIXELS = ("delays", "clean_delays", "tof_ns", "surface", "intensity", "reflectance", "power_w")
+SCENE = ("labels", "layout", "object", "object_pose", "object_hits", "attempts", "phase")
+
+
+def _generate(out, catalog, **options):
+    run = {k: options.pop(k) for k in ("batch_size", "workers") if k in options}
+    config = GeneratorConfig.from_profile(load_profile("sensor"), **SIZES, **options)
+    (written,) = generate(config, [0.1], catalog, out, progress=False, preview=False, **run)
+    return written.path
+
+
+def _read(path, split="train"):
+    with h5py.File(path / f"{split}.h5") as f:
+        return {name: f[name][:] for name in f}, dict(f.attrs)
+
+
+@pytest.fixture(scope="module")
+def made(tmp_path_factory, catalog):
+    out = tmp_path_factory.mktemp("beams")
+    return {
+        "one ray": _generate(out / "a", catalog),
+        "one ray, dual": _generate(out / "b", catalog, return_mode="dual"),
+        "one ray, last": _generate(out / "c", catalog, return_mode="last"),
+        "footprint, dual": _generate(out / "d", catalog, beam_samples=2, return_mode="dual"),
+    }
+
+
+def test_one_ray_through_the_waveform_gives_the_single_rays_records(made):
+    """A lone Gaussian's fitted peak is the ray's own time and power, so every per-pixel field
+    of the last and dual modes is 4.0.0's, bit for bit."""
+    base, attrs = _read(made["one ray"])
+    assert made["one ray"].name == "simlidar-32c-noise0.1-sensor-v4.0.0"
+    assert "return_mode" not in attrs and "echoes" not in base
+    for name in ("one ray, dual", "one ray, last"):
+        data, attrs = _read(made[name])
+        assert made[name].name.endswith(f"-sensor-{attrs['return_mode']}-v4.1.0")
+        for field in PIXELS + SCENE:
+            assert np.array_equal(data[field], base[field], equal_nan=True), (name, field)
+        assert set(np.unique(data["echoes"])) <= {0, 1}  # one ray: at most one echo
+        assert np.array_equal(data["echoes"] == 1, ~np.isnan(base["tof_ns"]))
+    dual, _ = _read(made["one ray, dual"])
+    assert dual["returns_tof_ns"].shape == base["tof_ns"].shape + (2,)
+    for field in ("returns_tof_ns", "returns_intensity", "returns_surface"):
+        # one echo is reported twice (the manual: the block pairs are then identical)
+        assert np.array_equal(dual[field][..., 0], dual[field][..., 1], equal_nan=True)
+    assert np.array_equal(dual["returns_tof_ns"][..., 0], base["tof_ns"], equal_nan=True)
+
+
+def test_a_footprint_keeps_the_scenes_and_reports_the_first_return(made):
+    """The scene is judged by each beam's axis, as with one ray, so the samples are the same;
+    the per-pixel fields hold the first of the reported returns."""
+    base, _ = _read(made["one ray"])
+    data, attrs = _read(made["footprint, dual"])
+    assert attrs["beam_samples"] == 2 and attrs["return_mode"] == "dual"
+    assert made["footprint, dual"].name == "simlidar-32c-noise0.1-sensor-beam2-dual-v4.1.0"
+    for field in SCENE:
+        assert np.array_equal(data[field], base[field], equal_nan=True), field
+    returns = data["returns_tof_ns"]
+    seen = ~np.isnan(returns).all(axis=-1)
+    assert np.array_equal(seen, ~np.isnan(data["tof_ns"]))
+    assert np.array_equal(data["tof_ns"][seen], np.nanmin(returns[seen], axis=-1))
+    assert (data["echoes"][seen] >= 1).all()
+    two = data["echoes"] >= 2  # a beam across an edge: two distinct returns where two echoes
+    assert two.any()
+    assert (returns[two][:, 0] != returns[two][:, 1]).all()
+    assert (returns[two][:, 0] > returns[two][:, 1]).all()  # the last first, as the manual
+    assert (data["returns_intensity"][~np.isnan(returns)] > 0).all()
+    same = ~np.isnan(data["tof_ns"]) & ~two
+    agree = np.isclose(data["tof_ns"][same], base["tof_ns"][same], atol=1.0)  # within 15 cm
+    assert agree.mean() > 0.95
+
+
+def _digest(path):
+    files = ("train.h5", "test.h5", "README.md")
+    return hashlib.sha256(b"".join((path / n).read_bytes() for n in files)).hexdigest()
+
+
+def test_the_same_seed_gives_the_same_bytes_whatever_the_batches_and_workers(
+    made, tmp_path, catalog
+):
+    again = _generate(tmp_path / "a", catalog, beam_samples=2, return_mode="dual", batch_size=5)
+    pool = _generate(tmp_path / "b", catalog, beam_samples=2, return_mode="dual", workers=2)
+    assert _digest(again) == _digest(pool) == _digest(made["footprint, dual"])
+
+
+def test_the_card_and_verify_know_the_returns(made, tmp_path, cli):
+    path = made["footprint, dual"]
+    card = (path / "README.md").read_text()
+    assert "--profile sensor" in card and "--beam-samples 2 --return-mode dual" in card
+    assert "7 sub-ray(s) in 2 ring(s)" in card and "`returns_tof_ns` | float32" in card
+    assert cli("verify", path).exit_code == 0
+    copy = tmp_path / "d"
+    copy.mkdir()
+    for item in path.iterdir():
+        (copy / item.name).write_bytes(item.read_bytes())
+    with h5py.File(copy / "test.h5", "a") as f:
+        del f["returns_tof_ns"]
+    result = cli("verify", copy)
+    assert result.exit_code == 1 and "dataset 'returns_tof_ns' missing" in result.output
+
+
+@pytest.mark.parametrize("option", [("--beam-samples", "3"), ("--return-mode", "dual")])
+def test_returns_without_a_receiver_are_one_line_and_write_nothing(tmp_path, cli, option):
+    result = cli("generate", "--profile", "physical", *option, "--out", tmp_path / "o")
+    assert result.exit_code == 2 and "expected a profile with a receiver" in result.output
+    assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
+
+
+def test_a_mode_the_receiver_lacks_is_refused(catalog):
+    physics = receiver_physics(load_profile("sensor"))
+    strongest_only = dataclasses.replace(physics.receiver, return_modes=("strongest",))
+    physics = dataclasses.replace(physics, receiver=strongest_only)
+    with pytest.raises(ConfigError, match=r"return_mode='dual' \(--return-mode\): receiver"):
+        check_physics(physics, load_sensor("vlp16"), catalog.surfaces, "dual")
