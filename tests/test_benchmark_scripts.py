@@ -1,5 +1,7 @@
 """The speed scripts under benchmark/ run (their figures are for people, not for asserts)."""
 
+import json
+import math
 import re
 import subprocess
 import sys
@@ -368,3 +370,18 @@ def test_benchmark_scripts_refuse_a_bad_argument_in_one_line_writing_nothing(
     (line,) = [x for x in done.stderr.splitlines() if "error: " in x]
     assert words in line, line
     assert not any(tmp_path.iterdir())
+
+
+def test_fog_check_keeps_points_lost_within_half_of_the_chamber_fit():
+    """Issue 41's fog check: the VLP-16 receiver's maximum range in fog (reflectance 0.1 and
+    0.8, alpha 0.05 to 0.2 per m) within 0.5 to 1.5 times the range Seeing Through Fog's model,
+    fitted to fog-chamber measurements of an HDL-64E S3D, gives (measured: 0.61 to 1.28); the
+    fit by hand at alpha 0.1, reflectance 0.8: ln(1.25 / 0.04) / 0.2 = 17.2 m."""
+    fog = _script("fog_check")
+    assert fog.stf_range_m(0.8, 0.1) == pytest.approx(math.log(1.25 / 0.04) / 0.2)
+    rows = fog.ranges()
+    assert len(rows) == 8 and all(0.5 <= r["ratio"] <= 1.5 for r in rows)
+    committed = json.loads((ROOT / "benchmark/results/fog/fog.json").read_text())
+    assert [round(r["ratio"], 6) for r in committed["ranges"]] == [
+        round(r["ratio"], 6) for r in rows
+    ]

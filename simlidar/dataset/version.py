@@ -22,9 +22,9 @@ SCAN_VERSION = "3.0.0"
 # splits gain intensity, reflectance and received power (a new MAJOR: the records change).
 SENSOR_VERSION = "4.0.0"
 # Datasets of the sensor profile whose returns come from each pulse's waveform (a beam
-# footprint of several sub-rays, ``--beam-samples``, or a return mode other than strongest,
-# ``--return-mode``): the same records as 4.0.0 where both are at their defaults, and fields
-# added (a new MINOR); the 4.0.0 datasets keep their version and bytes.
+# footprint of several sub-rays, ``--beam-samples``, a return mode other than strongest,
+# ``--return-mode``, or fog, ``--fog``, whose backscatter joins the waveform): fields added
+# (a new MINOR); the clear-air 4.0.0 datasets keep their version and bytes.
 RETURNS_VERSION = "4.1.0"
 
 # Release dates are part of the published metadata (croissant.json's datePublished), so they are
@@ -78,8 +78,11 @@ RELEASE_NOTES: dict[str, str] = {
         "or both (dual, the VLP-16 manual's rule). New per-pulse datasets `echoes` and "
         "`returns_tof_ns`, `returns_intensity`, `returns_surface` (one column per reported "
         "return), attributes `beam_samples` and `return_mode`; the per-pixel fields describe "
-        "the first reported return. Fields added, hence a new MINOR. Datasets with one ray and "
-        "the strongest return keep 4.0.0 and its bytes."
+        "the first reported return. Fog (`--fog V`) now also takes this path: the fog's "
+        "backscatter (Hahner et al. 2021's soft target, beta = 0.046 / V) joins each pulse's "
+        "waveform, and an echo the fog makes is a return of surface 0. Fields added, hence a "
+        "new MINOR. Clear-air datasets with one ray and the strongest return keep 4.0.0 and "
+        "its bytes."
     ),
 }
 

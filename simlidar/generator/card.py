@@ -39,6 +39,7 @@ from simlidar.release.croissant import CONTEXT, field, file_objects
 from simlidar.release.info import dataset_info
 from simlidar.sensor.footprint import subray_count
 from simlidar.sensor.model import Sensor, load_sensor, sensor_names
+from simlidar.sensor.weather import CROSSOVER_M
 
 _DOCS = {  # one line per dataset of a split file; the full table is docs/dataset-format.md
     "delays": "normalised delays with noise: the network input (1.0 = no return)",
@@ -285,7 +286,10 @@ def _receiver_lines(attrs, config: GeneratorConfig) -> str:
         air = (
             f"(fog of visibility {config.fog_visibility_m:g} m: two-way extinction "
             f"exp(-2 alpha R), alpha = ln(20) / V = {config.extinction_per_m:.4g} per m, "
-            "Koschmieder's law; the fog's own backscatter is not modelled)"
+            "Koschmieder's law; the fog's own backscatter, beta = 0.046 / V per m and sr "
+            "(Hahner et al. 2021), joins each pulse's waveform, seen by the receiver from "
+            f"{CROSSOVER_M[0]:.2f} m, wholly from {CROSSOVER_M[1]:.2f} m (an assumed biaxial "
+            "geometry))"
         )
     return (
         f"Receiver: a hit returns only when the {receiver['model']} receiver detects it "

@@ -83,9 +83,10 @@ class GeneratorConfig:
         math.inf,
         "Fog, by its meteorological visibility in metres: every pulse loses power to two-way "
         "Beer-Lambert extinction exp(-2 alpha R), alpha = ln(20) / V (Koschmieder's law, as "
-        "Hahner et al. 2021), so weaker returns drop below the receiver's threshold; a profile "
-        "with a receiver only (sensor). The fog's own backscatter (near false returns) is not "
-        "modelled yet.",
+        "Hahner et al. 2021), so weaker returns drop below the receiver's threshold, and the "
+        "fog's own backscatter (beta = 0.046 / V per m and sr, Hahner et al.) joins each "
+        "pulse's waveform, so near false returns appear; a profile with a receiver only "
+        "(sensor).",
         Range(0, None, "metres", low_open=True, note="(inf: clear air)"),
     )
     # stored only when not 1 / strongest, so that the sensor profile's datasets made before
@@ -208,10 +209,15 @@ class GeneratorConfig:
 
     @property
     def full_waveform(self) -> bool:
-        """Whether returns come from each pulse's waveform (a footprint of several sub-rays or
-        a return mode other than strongest: :func:`simlidar.generator.returns.receive_beams`)
-        rather than from the single ray's hit."""
-        return self.beam_samples != 1 or self.return_mode != "strongest"
+        """Whether returns come from each pulse's waveform (a footprint of several sub-rays, a
+        return mode other than strongest, or fog, whose backscatter is a waveform:
+        :func:`simlidar.generator.returns.receive_beams`) rather than from the single ray's
+        hit."""
+        return (
+            self.beam_samples != 1
+            or self.return_mode != "strongest"
+            or math.isfinite(self.fog_visibility_m)
+        )
 
     @property
     def reported_returns(self) -> int:

@@ -25,6 +25,7 @@ split and index) sees.
 
 import hashlib
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -46,7 +47,8 @@ from simlidar.sensor.receiver import (
     receiver_to_dict,
     reflectivity_byte,
 )
-from simlidar.sensor.waveform import echoes, pulse_sigma_ns, reported
+from simlidar.sensor.waveform import BIN_NS, echoes, pulse_sigma_ns, reported
+from simlidar.sensor.weather import C_M_PER_NS, fog_table
 
 # The child stream key of a sample's receiver draws (the issue's number: any constant will do,
 # as long as no other stream of a sample uses it)
@@ -232,6 +234,7 @@ def receive_beams(
     weights: np.ndarray,
     mode: str,
     extinction_per_m: float = 0.0,
+    visibility_m: float = math.inf,
 ) -> Returns:
     """The returns of a block of beams sampled by S sub-rays, in a return mode
     (docs/sensor-model.md, "Beam footprint and returns"):
@@ -250,6 +253,10 @@ def receive_beams(
     range_m, surface, cos_incidence : (n, H, W, S) as :func:`receive`'s, per sub-ray
     weights : (S,) the sub-rays' shares of the beam's power
     mode : of the receiver's ``return_modes``
+    visibility_m : a fog's visibility (its ``extinction_per_m`` the Koschmieder alpha): the
+        fog's backscatter joins the waveform (:mod:`simlidar.sensor.weather`), and an echo
+        the fog makes is a return of surface 0, NaN reflectance and the reflectivity byte of
+        its apparent reflectance (the range equation read backwards at normal incidence)
     """
     receiver = physics.receiver
     n, rows, cols, subrays = range_m.shape
@@ -267,7 +274,18 @@ def receive_beams(
     power = np.where(hit, power, 0.0).reshape(-1, subrays)
     times = np.where(hit, tof_ns(safe_m), np.nan).reshape(-1, subrays)
     sigma_ns = pulse_sigma_ns(receiver.pulse_width_ns)
-    echo = echoes(times, power, sigma_ns)
+    fog = None
+    if math.isfinite(visibility_m):
+        fog = fog_table(
+            receiver.peak_power_w, receiver.aperture_area_m2, receiver.optics_efficiency,
+            receiver.threshold_w, visibility_m, extinction_per_m, sigma_ns, BIN_NS,
+            sensor.max_range_m,
+        )  # fmt: skip
+    if fog is None:
+        echo = echoes(times, power, sigma_ns)
+    else:
+        axis_m = np.where(hit, range_m, np.nan).reshape(-1, subrays)[:, 0]
+        echo = echoes(times, power, sigma_ns, BIN_NS, fog, fog.column(axis_m))
     pick = reported(echo, receiver.threshold_w, mode, receiver.dual_when_strongest_is_last)
     pulses = np.arange(len(pick))[:, None]
     found = pick >= 0
@@ -288,6 +306,17 @@ def receive_beams(
     main_rho = np.take_along_axis(rho.reshape(flat), main, axis=1)
     main_retro = np.take_along_axis(retro.reshape(flat), main, axis=1)
     main_surface = np.take_along_axis(surface.reshape(flat), main, axis=1)
+    # an echo the surfaces make less than half of is the fog's
+    fogged = found & (np.nan_to_num(share, nan=0.0).sum(axis=2) < 0.5 * peak_w)
+    apparent = (
+        peak_w
+        * math.pi
+        * np.nan_to_num(peak_ns * C_M_PER_NS / 2.0) ** 2
+        / (receiver.peak_power_w * receiver.aperture_area_m2 * receiver.optics_efficiency)
+    )
+    main_rho = np.where(fogged, apparent, main_rho)
+    main_retro = np.where(fogged, False, main_retro)
+    main_surface = np.where(fogged, 0, main_surface)
     same = (pick[:, -1] == pick[:, 0])[:, None]  # dual: one return reported twice
     noise = z.reshape(-1, reports)
     noise = np.where(same, noise[:, :1], noise)
@@ -303,7 +332,9 @@ def receive_beams(
         "intensity": np.take_along_axis(intensity, first, axis=1)[:, 0],
         "surface": np.take_along_axis(labels, first, axis=1)[:, 0],
         "power_w": np.take_along_axis(peak_w, first, axis=1)[:, 0],
-        "reflectance": np.take_along_axis(np.where(found, main_rho, np.nan), first, axis=1)[:, 0],
+        "reflectance": np.take_along_axis(
+            np.where(found & ~fogged, main_rho, np.nan), first, axis=1
+        )[:, 0],
     }
     # no return: the power of the pulse's strongest echo (0: no hit), the central ray's surface
     silent = ~returned.any(axis=1)

@@ -285,7 +285,7 @@ def simulate(
         if beams:
             got = receive_beams(
                 physics, choices, sensor, streams, hit_m, hit_surface, cos_incidence,
-                weights, config.return_mode, config.extinction_per_m,
+                weights, config.return_mode, config.extinction_per_m, config.fog_visibility_m,
             )  # fmt: skip
             surface = got.surface
             received = {

@@ -55,10 +55,45 @@ class Echoes:
     count: np.ndarray  # (P,) int64, peaks a pulse has (detected or not)
 
 
-def echoes(times_ns: np.ndarray, powers_w: np.ndarray, sigma_ns: float, bin_ns=BIN_NS) -> Echoes:
+def fit_peaks(values: np.ndarray, at: np.ndarray):
+    """Three-point Gaussian fits at the peak bins ``at`` of ``values``: (offset in bins, peak
+    power)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        low, mid, high = (np.log(values[at + i]) for i in (-1, 0, 1))
+        curve = low - 2.0 * mid + high  # < 0 at a strict peak
+        shift = np.where(curve < 0.0, 0.5 * (low - high) / curve, 0.0)
+        top = np.where(curve < 0.0, mid - 0.25 * (low - high) * shift, mid)
+    return shift, np.exp(top)
+
+
+def peak_bins(values: np.ndarray, stretch: np.ndarray) -> np.ndarray:
+    """The bins of ``values`` above the bin before and not below the one after, both of the
+    same ``stretch``."""
+    peak = np.zeros(len(values), bool)
+    peak[1:-1] = (
+        (stretch[:-2] == stretch[1:-1])
+        & (stretch[2:] == stretch[1:-1])
+        & (values[1:-1] > values[:-2])
+        & (values[1:-1] >= values[2:])
+    )
+    return np.flatnonzero(peak & (values > 0.0))
+
+
+def echoes(
+    times_ns: np.ndarray,
+    powers_w: np.ndarray,
+    sigma_ns: float,
+    bin_ns=BIN_NS,
+    fog=None,
+    fog_columns: np.ndarray | None = None,
+) -> Echoes:
     """Every local maximum of each pulse's sampled waveform, with its Gaussian fit.
 
     times_ns, powers_w : (P, S) sub-ray times of flight (NaN: no hit) and received powers
+    fog : a :class:`simlidar.sensor.weather.FogTable` (on bins of ``bin_ns``) whose column
+        ``fog_columns[p]`` (-1: no fog) adds to pulse p's waveform. Where the pulse's
+        surfaces add nothing (beyond 4 sigma of every hit) the waveform is that column alone,
+        whose peaks are found once for every pulse that shares it.
     """
     times = np.asarray(times_ns, dtype=np.float64)
     powers = np.where(np.isnan(times), 0.0, np.asarray(powers_w, dtype=np.float64))
@@ -71,33 +106,42 @@ def echoes(times_ns: np.ndarray, powers_w: np.ndarray, sigma_ns: float, bin_ns=B
     bins = (last - first + 1).astype(np.int64)  # 0 for a pulse without hits
     pulse = np.repeat(np.arange(pulses), bins)
     start = np.cumsum(bins) - bins
-    t = (first[pulse] + np.arange(len(pulse)) - start[pulse]) * bin_ns
+    k = (first[pulse] + np.arange(len(pulse)) - start[pulse]).astype(np.int64)
+    t = k * bin_ns
     values = np.empty(len(pulse))
     rows = max(1, CHUNK_VALUES // max(1, times.shape[1]))
     for lo in range(0, len(pulse), rows):
         p, tt = pulse[lo : lo + rows], t[lo : lo + rows]
         gap = tt[:, None] - np.nan_to_num(times[p], nan=0.0)
         values[lo : lo + rows] = (powers[p] * np.exp(-(gap**2) / (2.0 * sigma_ns**2))).sum(axis=1)
-    # a peak: above the bin before and not below the one after, both of the same pulse
-    inner = np.zeros(len(pulse), bool)
-    inner[1:-1] = (pulse[:-2] == pulse[1:-1]) & (pulse[2:] == pulse[1:-1])
-    peak = np.zeros(len(pulse), bool)
-    peak[1:-1] = inner[1:-1] & (values[1:-1] > values[:-2]) & (values[1:-1] >= values[2:])
-    peak &= values > 0.0
-    at = np.flatnonzero(peak)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        low, mid, high = (np.log(values[at + i]) for i in (-1, 0, 1))
-        curve = low - 2.0 * mid + high  # < 0 at a strict peak
-        shift = np.where(curve < 0.0, 0.5 * (low - high) / curve, 0.0)
-        top = np.where(curve < 0.0, mid - 0.25 * (low - high) * shift, mid)
-    owner = pulse[at]
+    if fog is not None:  # the fog under the surfaces' echoes
+        row, column = k - fog.first_bin, fog_columns[pulse]
+        inside = (row >= 0) & (row < len(fog.watts)) & (column >= 0)
+        values[inside] += fog.watts[row[inside], column[inside]]
+    at = peak_bins(values, pulse)
+    shift, top = fit_peaks(values, at)
+    owner, peak_t, peak_w = pulse[at], t[at] + shift * bin_ns, top
+    if fog is not None:  # and the fog alone, away from them: its column's own peaks
+        col, k_fog, t_fog, w_fog = fog.peaks
+        per_column = np.bincount(col, minlength=fog.watts.shape[1])
+        mine = fog_columns
+        counts = np.where(mine >= 0, per_column[np.maximum(mine, 0)], 0)
+        who = np.repeat(np.arange(pulses), counts)
+        offset = (np.cumsum(per_column) - per_column)[mine[who]]
+        index = offset + np.arange(len(who)) - (np.cumsum(counts) - counts)[who]
+        away = (k_fog[index] < first[who]) | (k_fog[index] > last[who])
+        owner = np.r_[owner, who[away]]
+        peak_t = np.r_[peak_t, t_fog[index][away]]
+        peak_w = np.r_[peak_w, w_fog[index][away]]
+        order = np.lexsort((peak_t, owner))
+        owner, peak_t, peak_w = owner[order], peak_t[order], peak_w[order]
     count = np.bincount(owner, minlength=pulses)
     most = int(count.max()) if pulses else 0
-    rank = np.arange(len(at)) - (np.cumsum(count) - count)[owner]
+    rank = np.arange(len(owner)) - (np.cumsum(count) - count)[owner]
     time = np.full((pulses, most), np.nan)
     power = np.full((pulses, most), np.nan)
-    time[owner, rank] = t[at] + shift * bin_ns
-    power[owner, rank] = np.exp(top)
+    time[owner, rank] = peak_t
+    power[owner, rank] = peak_w
     return Echoes(time, power, count)
 
 

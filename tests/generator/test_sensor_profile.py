@@ -224,9 +224,12 @@ def test_verify_wants_the_receiver_fields_and_reads_old_datasets(twins, tmp_path
 
 def test_fog_takes_power_by_koschmieder_and_drops_the_weak_returns(twins, tmp_path, catalog):
     """``--fog V``: the received power of every hit times exp(-2 alpha R), alpha = ln(20) / V
-    (worked by hand: V = 50 m, R = 10 m: exp(-2 x 0.05991 x 10) = 0.3017); the returns in fog
-    are a subset of the clear-air twin's (same scenes and draws), fewer as the fog thickens;
-    the dataset's name, config and card say so, and its card's command makes it again."""
+    (worked by hand: V = 50 m, R = 10 m: exp(-2 x 0.05991 x 10) = 0.3017), and the fog's own
+    backscatter in the waveform (tests/sensor/test_weather.py); the returns in fog are a
+    subset of the clear-air twin's (same scenes and draws: with the generator's crossover the
+    fog's echo never reaches the threshold, benchmark/results/fog), fewer as the fog thickens,
+    and a returned surface's peak is at least its extinguished power (the fog adds to it); the
+    dataset's name, config and card say so, and its card's command makes it again."""
     from simlidar.generator.card import regenerate_command
     from simlidar.generator.generate import generated_name
 
@@ -238,26 +241,17 @@ def test_fog_takes_power_by_koschmieder_and_drops_the_weak_returns(twins, tmp_pa
         config = GeneratorConfig.from_profile(
             load_profile("sensor"), fog_visibility_m=visibility, **SIZES
         )
-        assert generated_name(config).endswith(f"-sensor-fog{visibility!r}-v4.0.0")
+        assert generated_name(config).endswith(f"-sensor-fog{visibility!r}-v4.1.0")
         (written,) = generate(config, [0.1], catalog, tmp_path / str(visibility), progress=False)
         data, attrs = _read(written.path)
         stored = json.loads(attrs["config"])
-        assert stored["fog_visibility_m"] == visibility
-        hit = clear["power_w"] > 0
-        assert np.array_equal(data["power_w"] > 0, hit)  # the same hits
-        tof_m = clear["tof_ns"].astype(float) * C_M_PER_NS / 2  # clear air's returns only
-        both = hit & np.isfinite(tof_m)
-        ratio = data["power_w"][both].astype(float) / clear["power_w"][both]
-        assert (ratio < 1).all()
-        # the range the extinction implies, against the returned range, which the receiver's
-        # range noise moved (sigma = accuracy sqrt(threshold / power); 5 sigma, and 1 cm for
-        # the 2 mm quantisation and the float32 powers)
-        implied_m = -np.log(ratio) / (2 * math.log(20) / visibility)
-        receiver = load_receiver("vlp16")
-        sigma = receiver.accuracy_m * np.sqrt(receiver.threshold_w / clear["power_w"][both])
-        assert (np.abs(implied_m - tof_m[both]) <= 5 * sigma + 0.01).all()
+        assert stored["fog_visibility_m"] == visibility and attrs["return_mode"] == "strongest"
         fog_returns, clear_returns = data["delays"] < 1.0, clear["delays"] < 1.0
         assert not (fog_returns & ~clear_returns).any()  # nothing returns that clear air lost
+        assert (data["surface"][fog_returns] > 0).all()  # no return of the fog's own
+        tof_m = clear["tof_ns"].astype(float) * C_M_PER_NS / 2
+        extinguished = clear["power_w"] * np.exp(-2 * math.log(20) / visibility * tof_m)
+        assert (data["power_w"][fog_returns] >= 0.999 * extinguished[fog_returns]).all()
         returned[visibility] = fog_returns.mean()
         card = (written.path / "README.md").read_text()
         assert f"fog of visibility {visibility:g} m" in card

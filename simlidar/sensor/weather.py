@@ -1,0 +1,149 @@
+"""Fog's own echo: the soft-target backscatter of a pulse's path (issue 41, item 4).
+
+Fog takes power from every pulse (two-way Beer-Lambert extinction, alpha from the visibility by
+Koschmieder's law: :func:`simlidar.sensor.receiver.koschmieder_extinction_per_m`) and sends some
+back from every metre of the path: the soft target of Hahner et al. (ICCV 2021; their code
+``MartinHahner/LiDAR_fog_sim``, ``theory.py``: ``P_R_fog_soft``). For a pulse of power shape
+``P_0 g(t)`` the fog between the sensor and the first hard surface at R_h adds to the received
+waveform::
+
+    P_fog(t) = P_0 A_r eta beta  int_0^R_h  g(t - 2R'/c) xi(R') exp(-2 alpha R') / R'^2  dR'
+
+(Hahner et al.'s integral over the pulse, ``C_A P_0 beta int sin^2(...) exp(-2 alpha (R - ct/2))
+/ (R - ct/2)^2 xi(R - ct/2) dt`` with ``C_A = c eta A_r / 2``, in range instead of time; here
+the pulse is the receiver's Gaussian, :mod:`simlidar.sensor.waveform`). ``beta`` is the fog's
+backscatter coefficient, ``0.046 / MOR`` per metre and steradian (Hahner et al.'s
+``ParameterSet.beta = 0.046 / self.mor``), and ``xi`` the crossover function of a biaxial
+sensor: 0 before the receiver's field of view meets the beam (``r_1``), 1 once it covers it
+(``r_2``), linear between (Hahner et al.'s default ``linear_xsi``). No Velodyne figure for r_1
+and r_2 was found; they are made here from the biaxial geometry Hahner et al.'s parameter set
+gives (``D = 0.1`` m between transmitter and receiver, aperture radii 0.01 m, opening angles
+2 and 3.5 degrees) by the formulas beside it (their ``R_1``, ``R_2``: "see Figure 2 and
+Equation (11) in [1]"), 1.67 m and 7.64 m: an assumption, said so in docs/sensor-model.md.
+(Their sliders' defaults, 0.9 and 1.0 m, put the fog's echo at 1.2 m and make it the strongest
+echo of 77 % of pulses at 200 m visibility, which no fog-chamber report describes.) A sub-ray
+of a beam's footprint sees the fog up to its own hard hit, with its share of the power.
+
+Evaluated on the waveform's bins (:data:`simlidar.sensor.waveform.BIN_NS`), the path cut into
+slabs of ``SLAB_M`` (a fifth of the 4 ns pulse's range sigma), as a table of the fog waveform of
+a beam blocked at each slab; only as far as the fog could reach ``FLOOR`` of the detection
+threshold unblocked (beyond, it is too faint to make or move an echo).
+"""
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from simlidar.sensor.model import SPEED_OF_LIGHT_M_PER_S
+from simlidar.sensor.waveform import fit_peaks, peak_bins
+
+BACKSCATTER_TIMES_MOR = 0.046  # 1/sr: beta = 0.046 / MOR (Hahner et al. 2021, ParameterSet)
+# Hahner et al. 2021's biaxial geometry (ParameterSet: D, ROH_T, ROH_R, GAMMA_T_DEG,
+# GAMMA_R_DEG), an assumption for the VLP-16
+SEPARATION_M, APERTURE_T_M, APERTURE_R_M = 0.1, 0.01, 0.01
+OPENING_T_DEG, OPENING_R_DEG = 2.0, 3.5
+
+
+def _crossover_ranges() -> tuple[float, float]:
+    """r_1, r_2 of the biaxial geometry above (Hahner et al.'s R_1, R_2 formulas)."""
+    tan_t = math.tan(math.radians(OPENING_T_DEG) / 2.0)
+    tan_r = math.tan(math.radians(OPENING_R_DEG) / 2.0)
+    r_1 = (SEPARATION_M - APERTURE_T_M - APERTURE_R_M) / (tan_t + tan_r)
+    r_2 = (SEPARATION_M - APERTURE_R_M + APERTURE_T_M) / (tan_r - tan_t)
+    return r_1, r_2
+
+
+CROSSOVER_M = _crossover_ranges()  # (1.666, 7.635) m
+SLAB_M = 0.05  # integration step along the path
+FLOOR = 0.01  # the fog is tabulated while its unblocked waveform can reach this x threshold
+C_M_PER_NS = SPEED_OF_LIGHT_M_PER_S * 1e-9
+
+
+def backscatter_per_m_sr(visibility_m: float) -> float:
+    """The fog's backscatter coefficient beta (1 / (m sr)) at meteorological visibility V."""
+    return BACKSCATTER_TIMES_MOR / visibility_m
+
+
+def crossover(range_m):
+    """xi(R): the share of the beam the receiver sees at range R (linear from r_1 to r_2)."""
+    low, high = CROSSOVER_M
+    return np.clip((np.asarray(range_m, dtype=float) - low) / (high - low), 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class FogTable:
+    """The fog's waveform for a beam of weight 1 blocked at each slab, on the waveform's bins.
+
+    ``watts[k, j]``: the power at bin ``first_bin + k`` (time ``(first_bin + k) * bin_ns``)
+    from the fog in front of slab ``j`` (ranges up to ``CROSSOVER_M[0] + (j + 1) * SLAB_M``); a
+    beam blocked nearer than the first slab sees none, one blocked beyond the last (or not
+    blocked) sees column -1."""
+
+    first_bin: int
+    watts: np.ndarray  # (K, J) float64
+    start_m: float  # range of the first slab's near edge (r_1)
+    bin_ns: float  # the waveform's bins
+
+    @property
+    def last_bin(self) -> int:
+        return self.first_bin + len(self.watts) - 1
+
+    @cached_property
+    def peaks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The peaks of every column's waveform alone (the fog where no surface adds to it),
+        with their three-point Gaussian fits: (column, bin, time ns, power W), column by
+        column, in time order."""
+        columns = self.watts.shape[1]
+        values = self.watts.T.ravel()  # column by column
+        stretch = np.repeat(np.arange(columns), len(self.watts))
+        at = peak_bins(values, stretch)
+        shift, top = fit_peaks(values, at)
+        column, row = np.divmod(at, len(self.watts))
+        k = row + self.first_bin
+        return column, k, (k + shift) * self.bin_ns, top
+
+    def column(self, blocked_m: np.ndarray) -> np.ndarray:
+        """The column of each range a beam is blocked at (NaN: not blocked): -1 for nearer
+        than the first slab (no fog), else the last slab in front of it."""
+        blocked = np.asarray(blocked_m, dtype=float)
+        slabs = self.watts.shape[1]
+        reach = np.where(np.isnan(blocked), self.start_m + (slabs + 1) * SLAB_M, blocked)
+        j = np.floor((reach - self.start_m) / SLAB_M).astype(np.int64) - 1
+        return np.clip(j, -1, slabs - 1)
+
+
+def fog_table(
+    peak_power_w: float,
+    aperture_area_m2: float,
+    optics_efficiency: float,
+    threshold_w: float,
+    visibility_m: float,
+    extinction_per_m: float,
+    sigma_ns: float,
+    bin_ns: float,
+    max_range_m: float,
+) -> FogTable | None:
+    """The fog's waveform table (:class:`FogTable`) for a receiver and a fog; None where even
+    unblocked it never reaches ``FLOOR`` x the threshold."""
+    beta = backscatter_per_m_sr(visibility_m)
+    constant = peak_power_w * aperture_area_m2 * optics_efficiency * beta
+    start = CROSSOVER_M[0]
+    centres = start + (np.arange(int((max_range_m - start) / SLAB_M)) + 0.5) * SLAB_M
+    density = crossover(centres) * np.exp(-2.0 * extinction_per_m * centres) / centres**2
+    slab_w = constant * density * SLAB_M  # each slab's echo, a Gaussian pulse of this peak
+    # the unblocked fog's waveform is at most the slabs within a pulse's reach summed
+    reach = int(math.ceil(4.0 * sigma_ns * C_M_PER_NS / 2.0 / SLAB_M))
+    window = np.convolve(slab_w, np.ones(2 * reach + 1), mode="same")
+    faint = window < FLOOR * threshold_w
+    if faint.all():
+        return None
+    last = int(np.nonzero(~faint)[0].max()) + 1
+    slab_w, centres = slab_w[:last], centres[:last]
+    times = 2.0 * centres / C_M_PER_NS
+    first_bin = int(math.floor((times[0] - 4.0 * sigma_ns) / bin_ns))
+    last_bin = int(math.ceil((times[-1] + 4.0 * sigma_ns) / bin_ns))
+    t = np.arange(first_bin, last_bin + 1) * bin_ns
+    pulses = np.exp(-((t[:, None] - times[None, :]) ** 2) / (2.0 * sigma_ns**2))
+    return FogTable(first_bin, np.cumsum(pulses * slab_w[None, :], axis=1), start, bin_ns)
