@@ -3,6 +3,9 @@
     python benchmark/sweep_decisions.py --data /tmp/data          # the published grid, 5 seeds
     python benchmark/sweep_decisions.py --data /tmp/data --datasets paper:0.1 --columns 10 \\
         --seeds 0                                                  # one point, a quick look
+    python benchmark/sweep_decisions.py --data /tmp/data --datasets physical:0.2 --columns 16 \\
+        --recipe scnn_simlidar_tuned --jobs 1 \\
+        --out benchmark/results/sweep-decisions-scnn               # the spiking CNN's point
 
 A VLP-16 fires its 16 lasers column after column while the head turns: the 16 columns of a
 36-degree window leave over 9.4 ms, one firing about every 593 us, and each firing's returns are
@@ -225,6 +228,11 @@ def main(argv=None) -> int:
         default=str(HIDDEN),
         help="the hidden layer's widths to train (the recipe's: 400)",
     )
+    parser.add_argument(
+        "--recipe",
+        default=RECIPE,
+        help=f"the network (a recipe of baselines/; default {RECIPE}; --hidden widens only it)",
+    )
     parser.add_argument("--seeds", type=SEEDS, default="0,1,2,3,4")
     parser.add_argument("--jobs", type=JOBS, default=2)
     parser.add_argument(
@@ -233,20 +241,25 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "benchmark/results/sweep-decisions")
     parser.add_argument("--no-train", action="store_true", help="summarise the cells there are")
     args = parser.parse_args(argv)
-    check_recipes([RECIPE])
+    if args.recipe != RECIPE and list(args.hidden) != [HIDDEN]:
+        parser.error(
+            f"--hidden {list(args.hidden)}: expected {HIDDEN} (--hidden widens {RECIPE} alone)"
+        )
+    check_recipes([args.recipe])
     cells = args.out / "cells"
     pairs = {f"{p}:{n:g}": twin_datasets(args.data, p, n) for p, n in args.datasets}
     cells.mkdir(parents=True, exist_ok=True)
 
     def cell_path(flash: Path, columns: int, hidden: int, seed: int) -> Path:
         wider = "" if hidden == HIDDEN else f"-hidden{hidden}"
+        wider += "" if args.recipe == RECIPE else f"-{args.recipe}"
         return cells / f"{flash.name}__columns{columns}{wider}__seed{seed}.json"
 
     def architecture(columns: int, hidden: int) -> dict:
         return {"input_columns": columns} | ({} if hidden == HIDDEN else {"hidden": [hidden]})
 
     todo = [
-        (RECIPE, str(twins["flash"]), s, str(cell_path(twins["flash"], c, h, s)), None, None,
+        (args.recipe, str(twins["flash"]), s, str(cell_path(twins["flash"], c, h, s)), None, None,
          architecture(c, h))
         for s in args.seeds  # seed 0 of every point first: a first look comes early
         for twins in pairs.values()
@@ -270,12 +283,14 @@ def main(argv=None) -> int:
                     if cell_path(flash, c, h, s).is_file()
                 ]
                 if found:
-                    rows.append(summarise(found, scan, c, width, bound, h))
+                    rows.append(
+                        summarise(found, scan, c, width, bound, h) | {"recipe": args.recipe}
+                    )
         points[name] = rows
     goals = targets(points)
     command = command_line("sweep_decisions.py", argv)
     bounds = {name: bound_rows(args.bound, t["scan"].name) for name, t in pairs.items()}
-    write(args.out, points, goals, bounds, command)
+    write(args.out, points, goals, bounds, command, args.recipe)
     return 0
 
 
@@ -285,12 +300,14 @@ def _width(scan: Path) -> int:
     return int(split_info(scan, "test").attrs["config"]["width"])
 
 
-def write(out: Path, points: dict, goals: list[dict], bounds: dict, command: str) -> None:
+def write(
+    out: Path, points: dict, goals: list[dict], bounds: dict, command: str, recipe: str = RECIPE
+) -> None:
     lines = [
         "# Deciding mid-sweep: accuracy against sensor time",
         "",
         f"Made by `{command}` (`benchmark/sweep_decisions.py`; its docstring says what the "
-        "network is). snn_simlidar_tuned behind a column gate of C columns (the sweep's first C "
+        f"network is). {recipe} behind a column gate of C columns (the sweep's first C "
         "firings, aligned by delay lines), the paper's protocol (all 3000 training samples, "
         "60 epochs, the last scored); accuracy: mean ± sample std over seeds [95 % interval of "
         "the mean, Student's t]; decision: sensor time, us after the window's first firing "

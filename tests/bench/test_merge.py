@@ -53,6 +53,8 @@ SCRIPT_CELLS = {
     "early-objectives": "benchmark/early_objectives.py",
     "early-objectives-crops": "benchmark/early_objectives.py",
     "sweep-decisions": "benchmark/sweep_decisions.py",
+    "sweep-decisions-scnn": "benchmark/sweep_decisions.py",
+    "weather": "benchmark/weather.py",
 }
 TINY = """
 name = "tiny"
