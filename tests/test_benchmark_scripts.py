@@ -425,3 +425,33 @@ def test_weather_scores_models_trained_in_clear_air_on_every_weather(tmp_path):
     assert (clear == fog).all()
     assert (out / "weather.png").stat().st_size > 0
     assert "| cnn |" in (out / "weather.md").read_text()
+
+
+def test_the_committed_weather_table_recomputes_from_its_cells():
+    """benchmark/results/weather: every mean of weather.json is its cells' (3 seeds a model),
+    the bound is each weather's every-spike row of the bound's runs, and no model trained in
+    clear air is above the bound of the weather it is tested in (by the mean)."""
+    weather = _script("weather")
+    folder = ROOT / "benchmark/results/weather"
+    result = json.loads((folder / "weather.json").read_text())
+    cells = {}
+    for path in sorted((folder / "cells").glob("*.json")):
+        cell = json.loads(path.read_text())
+        cells.setdefault(path.name.split("__")[0], []).append(cell)
+    weathers = list(result["datasets"])
+    again = weather.summarise(cells, weathers, result["bound"])
+    assert again["points"].keys() == result["points"].keys()
+    for model, rows in result["points"].items():
+        for mine, theirs in zip(again["points"][model], rows, strict=True):
+            assert mine["weather"] == theirs["weather"] and mine["seeds"] == theirs["seeds"]
+            assert mine["accuracy"] == pytest.approx(theirs["accuracy"])
+            assert mine["accuracy_ci95"] == pytest.approx(theirs["accuracy_ci95"])
+    assert {m: len(c) for m, c in cells.items()} == {
+        "cnn": 3, "snn_simlidar_tuned": 3, "snntorch_lif": 3}  # fmt: skip
+    for name, dataset in result["datasets"].items():
+        run = json.loads((folder / f"bound/runs/{dataset}__near_first-as_value.json").read_text())
+        every = [r for r in run["rows"] if r["k"] is None][0]
+        assert result["bound"][name]["accuracy"] == pytest.approx(100 * every["accuracy_mean"])
+    for rows in result["points"].values():
+        for row in rows:
+            assert row["accuracy"] <= result["bound"][row["weather"]]["accuracy"]
