@@ -2,7 +2,8 @@
 
 Every hit in range of the ray caster becomes a return under the other profiles. Here a hit
 returns only if the receiver detects it (:mod:`simlidar.sensor.receiver`, every formula in
-``docs/sensor-model.md``):
+``docs/sensor-model.md``; with a beam footprint, a return mode or fog, through each pulse's
+waveform: :func:`receive_beams`):
 
 1. each catalog surface of a sample is made of one material, a choice among the materials
    file's ``[surfaces]`` list, with a reflectance drawn uniformly in that material's
@@ -18,9 +19,9 @@ returns only if the receiver detects it (:mod:`simlidar.sensor.receiver`, every 
 Randomness: a sample's draws here come from a stream of their own,
 ``SeedSequence(seed, spawn_key=(split, index, RECEIVER_STREAM))``, read in a fixed order (two
 uniforms per catalog surface, label order: material, reflectance; then one standard normal per
-pixel), so the sample's own stream, and with it the scenes, phases and noise of the other
-profiles, is untouched: a ``sensor`` sample sees the scene its ``physical`` twin (same seed,
-split and index) sees.
+pixel, and in ``dual`` return mode a second block of one per pixel), so the sample's own
+stream, and with it the scenes, phases and noise of the other profiles, is untouched: a
+``sensor`` sample sees the scene its ``physical`` twin (same seed, split and index) sees.
 """
 
 import hashlib
