@@ -257,6 +257,16 @@ class ExportFormats(click.ParamType):
 @sensor_option
 @scenes_option
 @click.option(
+    "--profile",
+    default=None,
+    help="A profile with a receiver (sensor, or a .toml file): a hit returns only when the "
+    "receiver detects it, and the intensity is its reflectivity byte instead of the |cos| "
+    "proxy (docs/sweeps.md). [default: none: every hit in range returns]",
+)
+@setting_option(
+    GeneratorConfig, "fog_visibility_m", "--fog", "fog_visibility_m", metavar="VISIBILITY_M"
+)
+@click.option(
     "--export",
     "exports",
     type=ExportFormats(),
@@ -267,15 +277,44 @@ class ExportFormats(click.ParamType):
 @out_option("the sweep directory")
 @click.option("--force", is_flag=True, help="Overwrite an existing sweep directory.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-def sweep(frames, classes, seed, variation, sensor, scenes, exports, out, force, as_json):
+def sweep(
+    frames,
+    classes,
+    seed,
+    variation,
+    sensor,
+    scenes,
+    profile,
+    fog_visibility_m,
+    exports,
+    out,
+    force,
+    as_json,
+):
     """Simulate full 360-degree frames: every firing of whole rotations of the sensor over the
     scenes, with range, surface label, intensity proxy and emission time per point, into
     frames.h5, a bird's-eye picture (bev.png) and, with --export, point-cloud files
-    (docs/sweeps.md)."""
+    (docs/sweeps.md). With --profile sensor, through the VLP-16's receiver."""
 
     chosen_sensor = chosen_sensor_of(sensor)
     catalog = catalog_for(scenes, classes)
-    config = GeneratorConfig(classes=classes, seed=seed, variation=variation, sensor=chosen_sensor)
+    fields = dict(classes=classes, seed=seed, sensor=chosen_sensor)
+    if profile is None:
+        config = GeneratorConfig(variation=variation, fog_visibility_m=fog_visibility_m, **fields)
+    else:
+        try:
+            chosen = load_profile(profile)
+        except ConfigError as exc:
+            raise click.BadParameter(str(exc), param_hint="'--profile'") from None
+        if chosen.receiver is None:
+            raise click.BadParameter(
+                f"{chosen.name!r}: expected a profile with a receiver (sensor): a sweep's "
+                "pulses follow no other profile's rule",
+                param_hint="'--profile'",
+            )
+        config = GeneratorConfig.from_profile(
+            chosen, variation=variation, fog_visibility_m=fog_visibility_m, **fields
+        )
     start = time.perf_counter()
     path = run_sweep(config, SweepConfig(frames=frames), catalog, out, exports, force=force)
     seconds = time.perf_counter() - start

@@ -102,6 +102,10 @@ def dataset_version(config) -> str:
 # A sweep's frames file (``simlidar sweep``): its ``sweep_version`` attribute and folder name.
 # 1.1.0: the catalog's sensor variants (HDL-64E frames changed)
 SWEEP_VERSION = "1.1.0"
+# Sweeps through a receiver (``simlidar sweep --profile sensor``, issue 41): returns are what the
+# receiver detects, with its range noise, and ``intensity`` is its reflectivity byte instead of
+# the |cos| proxy (attributes ``receiver``, ``materials``); other sweeps keep 1.1.0 and bytes.
+SWEEP_RECEIVER_VERSION = "1.2.0"
 
 
 def major(version: str) -> int:

@@ -12,8 +12,12 @@ where every frame sees it: ``object_points`` counts its returns).
 
 Each pulse keeps its quantised range (NaN: no return), the surface it hit (a per-point label:
 segmentation), an intensity proxy (``|cos|`` of the angle of incidence: real intensities also
-depend on the surface's reflectivity, which the scenes do not model) and, shared by every
-frame, its emission time within the rotation. :func:`sweep` writes them into a frames file
+depend on the surface's reflectivity) and, shared by every frame, its emission time within the
+rotation. Through a profile with a receiver (``--profile sensor``, :mod:`simlidar.generator.
+returns`) a hit returns only when the receiver detects it, with its range noise, and the
+intensity is the sensor's reflectivity byte of the surface's drawn material (frame f's draws:
+``SeedSequence(seed, spawn_key=(2, f, 41))``); fog (``--fog``) takes the waveform path, one ray
+a pulse and its strongest return. :func:`sweep` writes them into a frames file
 (its schema and version: :mod:`simlidar.dataset.schema`, :mod:`simlidar.dataset.version`),
 draws its bird's-eye picture (:mod:`simlidar.generator.bev`) and exports its frames
 (:mod:`simlidar.generator.exports`: KITTI ``.bin`` with a SemanticKITTI-style ``.label`` of
@@ -26,6 +30,7 @@ little. That is the catalog's extent, not the sweep's.
 """
 
 import json
+import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -34,7 +39,7 @@ import numpy as np
 from simlidar import __version__
 from simlidar.atomic import building
 from simlidar.dataset.schema import SWEEP_FILE, SWEEP_FORMAT, SWEEP_SCHEMA
-from simlidar.dataset.version import SWEEP_VERSION
+from simlidar.dataset.version import SWEEP_RECEIVER_VERSION, SWEEP_VERSION
 from simlidar.dataset.writer import SplitWriter
 from simlidar.errors import ConfigError
 from simlidar.generator.bev import draw_bev
@@ -42,7 +47,21 @@ from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.exports import EXPORTS, export_frame
 from simlidar.generator.frames import frame_points as frame_points  # docs/sweeps.md's path
 from simlidar.generator.pulses import quantise_range
-from simlidar.generator.simulate import FIXED_COLUMNS, class_plan, factors, sample_stream
+from simlidar.generator.returns import (
+    check_physics,
+    fingerprint,
+    receive,
+    receive_beams,
+    receiver_physics,
+    receiver_stream,
+)
+from simlidar.generator.simulate import (
+    FIXED_COLUMNS,
+    SPLIT_IDS,
+    class_plan,
+    factors,
+    sample_stream,
+)
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.model import row_order
@@ -113,10 +132,15 @@ def simulate_frames(config: GeneratorConfig, catalog: Catalog, start: int, stop:
     hits = cast(scene, origins, directions, index % MAX_BATCH, sensor.max_range_m, incidence=True)
     r = quantise_range(hits.range_m, sensor)
     returned = ~np.isnan(r)
+    intensity = np.where(returned, hits.cos_incidence, 0.0)
+    surface = np.where(returned, hits.surface, 0)
+    if config.receiver is not None:
+        r, surface, intensity = received(config, catalog, index, hits, r)
+        returned = ~np.isnan(r)
     return Frames(
         range_m=r.astype(np.float32),
-        surface=np.where(returned, hits.surface, 0).astype(np.uint8),
-        intensity=np.where(returned, hits.cos_incidence, 0.0).astype(np.float32),
+        surface=surface.astype(np.uint8),
+        intensity=intensity.astype(np.float32),
         labels=labels.astype(np.int64),
         layout=layout.astype(np.uint8),
         object=obj.astype(np.uint8),
@@ -125,6 +149,30 @@ def simulate_frames(config: GeneratorConfig, catalog: Catalog, start: int, stop:
         object_points=(hits.on_object & returned).sum(axis=(1, 2)).astype(np.int32),
         phase=u[:, 0],
     )
+
+
+def received(config: GeneratorConfig, catalog: Catalog, index: np.ndarray, hits, range_m):
+    """Frames' hits through the profile's receiver: (range m, NaN: no return; surface; the
+    reflectivity byte), each (n, H, C). One ray a pulse and its strongest return; under fog
+    through the waveform (:func:`simlidar.generator.returns.receive_beams`, one sub-ray)."""
+    sensor = config.sensor
+    physics = receiver_physics(config.profile)
+    choices = check_physics(physics, sensor, catalog.surfaces, config.return_mode)
+    streams = [receiver_stream(config.seed, SPLIT_IDS["sweep"], i) for i in index]
+    hit_m = np.where(np.isnan(range_m), np.nan, hits.range_m)  # unquantised, within range
+    surface = np.where(np.isnan(range_m), 0, hits.surface).astype(np.uint8)
+    if config.full_waveform:
+        got = receive_beams(
+            physics, choices, sensor, streams, hit_m[..., None], surface[..., None],
+            hits.cos_incidence[..., None], np.ones(1), config.return_mode,
+            config.extinction_per_m, config.fog_visibility_m,
+        )  # fmt: skip
+        return got.range_m, got.surface, got.intensity
+    got = receive(
+        physics, choices, sensor, streams, hit_m, surface, hits.cos_incidence,
+        config.extinction_per_m,
+    )  # fmt: skip
+    return got.range_m, np.where(np.isnan(got.range_m), 0, surface), got.intensity
 
 
 def object_boxes(scene) -> np.ndarray:
@@ -150,12 +198,21 @@ def object_boxes(scene) -> np.ndarray:
     return boxes
 
 
+def sweep_version(config: GeneratorConfig) -> str:
+    """SWEEP_RECEIVER_VERSION through a receiver, else SWEEP_VERSION."""
+    return SWEEP_RECEIVER_VERSION if config.receiver is not None else SWEEP_VERSION
+
+
 def sweep_name(config: GeneratorConfig, sweep: SweepConfig) -> str:
-    """``simlidar-sweep-<classes>c-<sensor>-<frames>f-seed<seed>[-var<v>]-v<version>``."""
+    """``simlidar-sweep-<classes>c-<sensor>-<frames>f-seed<seed>[-<profile>][-fog<V>][-var<v>]-v<version>``;
+    ``-<profile>`` names a profile with a receiver (``-sensor``)."""
     variation = f"-var{float(config.variation)!r}" if config.variation != 1.0 else ""
+    receiver = f"-{config.profile_name}" if config.receiver is not None else ""
+    if math.isfinite(config.fog_visibility_m):
+        receiver += f"-fog{float(config.fog_visibility_m)!r}"
     return (
         f"simlidar-sweep-{config.classes}c-{config.sensor.name}-{sweep.frames}f-seed"
-        f"{config.seed}{variation}-v{SWEEP_VERSION}"
+        f"{config.seed}{receiver}{variation}-v{sweep_version(config)}"
     )
 
 
@@ -183,7 +240,7 @@ def sweep(
     h, c = sensor.beams, cycles_per_rotation(sensor)
     attrs = {
         "format": SWEEP_FORMAT,
-        "sweep_version": SWEEP_VERSION,
+        "sweep_version": sweep_version(config),
         "simlidar_version": __version__,
         "config": config.to_json(),
         "sweep": json.dumps(asdict(sweep_config), sort_keys=True),
@@ -195,6 +252,22 @@ def sweep(
         "row_laser_ids": np.array(row_order(sensor), dtype=np.int32),
         "cycles": c,
     }
+    if config.receiver is not None:  # absent: every hit in range returns (1.1.0's bytes)
+        if config.beam_samples != 1 or config.return_mode != "strongest":
+            raise ConfigError(
+                f"beam_samples={config.beam_samples}, return_mode={config.return_mode!r}: "
+                "expected one ray a pulse and its strongest return in a sweep (its footprints "
+                "and returns are not modelled yet)"
+            )
+        physics = receiver_physics(config.profile)
+        check_physics(physics, sensor, catalog.surfaces)
+        receiver, materials = physics.receiver_dict(), physics.materials_dict()
+        attrs |= {
+            "receiver": json.dumps(receiver, sort_keys=True),
+            "receiver_sha256": fingerprint(receiver),
+            "materials": json.dumps(materials, sort_keys=True),
+            "materials_sha256": fingerprint(materials),
+        }
     shapes = {name: (dtype, tail(h, c)) for name, (dtype, tail) in SWEEP_SCHEMA.items()}
     name = sweep_name(config, sweep_config)
     with building(out, name, force) as folder:

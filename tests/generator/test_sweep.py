@@ -13,7 +13,7 @@ from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.exports import export_frame
 from simlidar.generator.frames import frame_points, read_frame
-from simlidar.generator.sweep import SweepConfig, sweep
+from simlidar.generator.sweep import FRAME_BATCH, SweepConfig, sweep
 from simlidar.sensor import default_sensor, load_sensor, row_order
 from simlidar.sensor.rays import (
     cycles_per_rotation,
@@ -164,6 +164,9 @@ def test_the_cli_writes_a_sweep_and_its_exports(tmp_path, cli):
         (["--export", "kitti,las"], "'las': expected a comma-separated list of kitti, ply, pcd"),
         (["--classes", 5], "classes=5: expected one of [4, 8, 32]"),
         (["--sensor", "hdl99"], "sensor 'hdl99': expected one of"),
+        (["--profile", "physical"], "'physical': expected a profile with a receiver (sensor)"),
+        (["--fog", "50"], "fog_visibility_m=50.0 (--fog): expected a profile with a receiver"),
+        (["--profile", "nosuch"], "profile 'nosuch': expected one of"),
     ],
 )
 def test_bad_sweep_options_are_one_line_and_write_nothing(tmp_path, args, message, cli):
@@ -255,3 +258,60 @@ def test_a_folder_that_is_neither_kitti_nor_a_sweep_is_named(tmp_path, cli):
     result = cli("convert", "kitti", tmp_path, "--out", tmp_path / "out")
     assert result.exit_code != 0
     assert "expected the KITTI object benchmark's training layout" in result.output
+
+
+SENSOR_FRAMES = 6
+
+
+def _sensor_sweep(out, catalog, batch=FRAME_BATCH, **fields):
+    from simlidar.generator.profiles import load_profile
+
+    config = GeneratorConfig.from_profile(load_profile("sensor"), **fields)
+    frames = SweepConfig(frames=SENSOR_FRAMES)
+    return sweep(config, frames, catalog, out, progress=False, batch=batch)
+
+
+def test_a_sweep_through_the_receiver_keeps_the_scenes_and_reports_its_bytes(tmp_path, catalog):
+    """--profile sensor: the same frames (labels, phases, boxes) as the plain sweep, returns a
+    subset of its hits, the intensity the VLP-16's reflectivity byte (whole numbers, 0 where
+    nothing returns, at most 100 on the diffuse scenery), the receiver in the attributes,
+    version 1.2.0; fog loses more and makes no return of its own (the generator's crossover);
+    the same bytes for any batch."""
+    plain = sweep(GeneratorConfig(), SweepConfig(frames=SENSOR_FRAMES), catalog, tmp_path / "p",
+                  progress=False) / "frames.h5"  # fmt: skip
+    path = _sensor_sweep(tmp_path / "s", catalog)
+    assert path.name == "simlidar-sweep-32c-vlp16-6f-seed0-sensor-v1.2.0"
+    foggy = _sensor_sweep(tmp_path / "f", catalog, fog_visibility_m=50.0)
+    assert foggy.name == "simlidar-sweep-32c-vlp16-6f-seed0-sensor-fog50.0-v1.2.0"
+    with (
+        h5py.File(plain) as a,
+        h5py.File(path / "frames.h5") as b,
+        h5py.File(foggy / "frames.h5") as c,
+    ):
+        for name in ("labels", "layout", "object", "phase", "object_box"):
+            assert np.array_equal(a[name][:], b[name][:], equal_nan=True), name
+        assert b.attrs["sweep_version"] == "1.2.0" and "receiver" in b.attrs
+        assert a.attrs["sweep_version"] == "1.1.0" and "receiver" not in a.attrs
+        hit, returned, fogged = (~np.isnan(f["range_m"][:]) for f in (a, b, c))
+        assert not (returned & ~hit).any() and returned.sum() < hit.sum()
+        assert not (fogged & ~returned).any() and fogged.sum() < returned.sum()
+        intensity = b["intensity"][:]
+        assert np.array_equal(intensity, np.round(intensity)) and intensity.max() <= 255
+        assert (intensity[~returned] == 0).all() and (intensity[returned] > 0).mean() > 0.99
+        names = json.loads(b.attrs["surface_names"])
+        scenery = np.isin(b["surface"][:], [names.index(n) for n in ("road", "wall", "ground")])
+        assert (intensity[scenery & returned] <= 100).all()
+        assert (b["surface"][:][returned] > 0).all() and (b["surface"][:][~returned] == 0).all()
+    again = _sensor_sweep(tmp_path / "again", catalog, batch=4)
+    assert (again / "frames.h5").read_bytes() == (path / "frames.h5").read_bytes()
+    points = frame_points(path / "frames.h5", 0)
+    assert len(points) == int(returned[0].sum())
+
+
+def test_a_sweep_refuses_footprints_and_return_modes_in_one_line(tmp_path, catalog):
+    from simlidar.generator.profiles import load_profile
+
+    config = GeneratorConfig.from_profile(load_profile("sensor"), beam_samples=2)
+    with pytest.raises(ConfigError, match=r"beam_samples=2, return_mode='strongest': expected"):
+        sweep(config, SweepConfig(frames=1), catalog, tmp_path, progress=False)
+    assert not any(tmp_path.iterdir())
