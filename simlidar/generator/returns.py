@@ -27,7 +27,7 @@ stream, and with it the scenes, phases and noise of the other profiles, is untou
 import hashlib
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -179,6 +179,52 @@ def _per_label(table: np.ndarray, labels: np.ndarray) -> np.ndarray:
     return np.take_along_axis(table, flat, axis=1).reshape(labels.shape)
 
 
+def _hit_power(receiver, table, retro_table, range_m, surface, cos_incidence, alpha):
+    """Per hit (any shape): whether there is one, the drawn reflectance (NaN: no hit), its
+    retro-reflectivity, the reflectance the equation uses (0: no hit), the range it divides by
+    (1 m where no hit) and the received power of the range equation (0: no hit)."""
+    hit = ~np.isnan(range_m)
+    reflectance = np.where(hit, _per_label(table, surface), np.nan)
+    retro = _per_label(retro_table, surface)
+    rho = np.where(hit, reflectance, 0.0)
+    safe_m = np.where(hit, range_m, 1.0)  # the equation divides by R^2
+    incidence = np.arccos(np.clip(cos_incidence.astype(np.float64), 0.0, 1.0))
+    power = received_power_w(receiver, safe_m, rho, incidence, alpha)
+    return hit, reflectance, retro, rho, safe_m, np.where(hit, power, 0.0)
+
+
+def receive_hits(
+    config,
+    physics: Physics,
+    choices: list[list[Material]],
+    streams: list[np.random.Generator],
+    range_m: np.ndarray,
+    surface: np.ndarray,
+    cos_incidence: np.ndarray,
+    weights: np.ndarray | None = None,
+) -> Returns:
+    """The returns of a block of hits under ``config`` (a GeneratorConfig with a receiver):
+    through each pulse's waveform where ``config.full_waveform`` (:func:`receive_beams`; hits
+    (n, H, W, S) of the sub-rays of ``weights``, or (n, H, W) for one ray a pulse), else by
+    :func:`receive`; ``surface`` of the result is the returned surface (0: no return)."""
+    if config.full_waveform:
+        if weights is None:  # one ray a pulse
+            range_m, surface, cos_incidence = (
+                a[..., None] for a in (range_m, surface, cos_incidence)
+            )
+            weights = np.ones(1)
+        return receive_beams(
+            physics, choices, config.sensor, streams, range_m, surface, cos_incidence,
+            weights, config.return_mode, config.extinction_per_m, config.fog_visibility_m,
+        )  # fmt: skip
+    got = receive(
+        physics, choices, config.sensor, streams, range_m, surface, cos_incidence,
+        config.extinction_per_m,
+    )  # fmt: skip
+    returned = np.where(np.isnan(got.range_m), 0, surface).astype(np.uint8)
+    return replace(got, surface=returned)
+
+
 def receive(
     physics: Physics,
     choices: list[list[Material]],
@@ -202,15 +248,9 @@ def receive(
     receiver = physics.receiver
     table, retro_table = _surface_tables(streams, choices)
     z = np.stack([g.standard_normal(range_m.shape[1:]) for g in streams])  # (n, H, W)
-    reflectance = _per_label(table, surface)
-    retro = _per_label(retro_table, surface)
-    hit = ~np.isnan(range_m)
-    reflectance = np.where(hit, reflectance, np.nan)
-    rho = np.where(hit, reflectance, 0.0)
-    safe_m = np.where(hit, range_m, 1.0)  # the equation divides by R^2
-    incidence = np.arccos(np.clip(cos_incidence.astype(np.float64), 0.0, 1.0))
-    power = received_power_w(receiver, safe_m, rho, incidence, extinction_per_m)
-    power = np.where(hit, power, 0.0)
+    hit, reflectance, retro, rho, safe_m, power = _hit_power(
+        receiver, table, retro_table, range_m, surface, cos_incidence, extinction_per_m
+    )
     seen = hit & detected(receiver, power)
     sigma = np.where(seen, range_noise_m(receiver, np.where(seen, power, 1.0)), 0.0)
     returned_m = quantise_range(np.where(seen, safe_m + sigma * z, np.nan), sensor)
@@ -265,14 +305,10 @@ def receive_beams(
     reports = 2 if mode == "dual" else 1
     z = np.stack([g.standard_normal((reports, rows, cols)) for g in streams])  # (n, R, H, W)
     z = np.moveaxis(z, 1, -1)  # (n, H, W, R)
-    reflectance = np.where(np.isnan(range_m), np.nan, _per_label(table, surface))
-    retro = _per_label(retro_table, surface)
-    hit = ~np.isnan(range_m)
-    rho = np.where(hit, reflectance, 0.0)
-    safe_m = np.where(hit, range_m, 1.0)
-    incidence = np.arccos(np.clip(cos_incidence.astype(np.float64), 0.0, 1.0))
-    power = received_power_w(receiver, safe_m, rho, incidence, extinction_per_m) * weights
-    power = np.where(hit, power, 0.0).reshape(-1, subrays)
+    hit, reflectance, retro, rho, safe_m, power = _hit_power(
+        receiver, table, retro_table, range_m, surface, cos_incidence, extinction_per_m
+    )
+    power = (power * weights).reshape(-1, subrays)
     times = np.where(hit, tof_ns(safe_m), np.nan).reshape(-1, subrays)
     sigma_ns = pulse_sigma_ns(receiver.pulse_width_ns)
     fog = None
@@ -285,7 +321,7 @@ def receive_beams(
     if fog is None:
         echo = echoes(times, power, sigma_ns)
     else:
-        axis_m = np.where(hit, range_m, np.nan).reshape(-1, subrays)[:, 0]
+        axis_m = range_m.reshape(-1, subrays)[:, 0]  # NaN: no hit
         echo = echoes(times, power, sigma_ns, BIN_NS, fog, fog.column(axis_m))
     pick = reported(echo, receiver.threshold_w, mode, receiver.dual_when_strongest_is_last)
     pulses = np.arange(len(pick))[:, None]

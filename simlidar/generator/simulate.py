@@ -18,8 +18,7 @@ from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.pulses import delays_from_range, quantise_range, shift_delays
 from simlidar.generator.returns import (
     check_physics,
-    receive,
-    receive_beams,
+    receive_hits,
     receiver_physics,
     receiver_stream,
 )
@@ -283,11 +282,9 @@ def simulate(
         split_id = SPLIT_IDS[split]
         streams = [receiver_stream(config.seed, split_id, i) for i in index]
         if beams:
-            got = receive_beams(
-                physics, choices, sensor, streams, hit_m, hit_surface, cos_incidence,
-                weights, config.return_mode, config.extinction_per_m, config.fog_visibility_m,
-            )  # fmt: skip
-            surface = got.surface
+            got = receive_hits(
+                config, physics, choices, streams, hit_m, hit_surface, cos_incidence, weights
+            )
             received = {
                 "echoes": got.echoes,
                 "returns_tof_ns": tof_ns(got.returns_range_m).astype(np.float32),
@@ -295,12 +292,8 @@ def simulate(
                 "returns_surface": got.returns_surface,
             }
         else:
-            got = receive(
-                physics, choices, sensor, streams, hit_m, surface, cos_incidence,
-                config.extinction_per_m,
-            )  # fmt: skip
-            surface = np.where(np.isnan(got.range_m), 0, surface).astype(np.uint8)
-        range_m = got.range_m
+            got = receive_hits(config, physics, choices, streams, hit_m, surface, cos_incidence)
+        range_m, surface = got.range_m, got.surface
         received |= {"intensity": got.intensity, "reflectance": got.reflectance}
         received["power_w"] = got.power_w
     tof, clean = delays_from_range(range_m, sensor)

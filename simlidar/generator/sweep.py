@@ -50,8 +50,7 @@ from simlidar.generator.pulses import quantise_range
 from simlidar.generator.returns import (
     check_physics,
     fingerprint,
-    receive,
-    receive_beams,
+    receive_hits,
     receiver_physics,
     receiver_stream,
 )
@@ -152,27 +151,16 @@ def simulate_frames(config: GeneratorConfig, catalog: Catalog, start: int, stop:
 
 
 def received(config: GeneratorConfig, catalog: Catalog, index: np.ndarray, hits, range_m):
-    """Frames' hits through the profile's receiver: (range m, NaN: no return; surface; the
-    reflectivity byte), each (n, H, C). One ray a pulse and its strongest return; under fog
-    through the waveform (:func:`simlidar.generator.returns.receive_beams`, one sub-ray)."""
-    sensor = config.sensor
+    """Frames' hits through the profile's receiver (one ray a pulse, its strongest return;
+    :func:`simlidar.generator.returns.receive_hits`): (range m, NaN: no return; surface; the
+    reflectivity byte), each (n, H, C)."""
     physics = receiver_physics(config.profile)
-    choices = check_physics(physics, sensor, catalog.surfaces, config.return_mode)
+    choices = check_physics(physics, config.sensor, catalog.surfaces, config.return_mode)
     streams = [receiver_stream(config.seed, SPLIT_IDS["sweep"], i) for i in index]
     hit_m = np.where(np.isnan(range_m), np.nan, hits.range_m)  # unquantised, within range
     surface = np.where(np.isnan(range_m), 0, hits.surface).astype(np.uint8)
-    if config.full_waveform:
-        got = receive_beams(
-            physics, choices, sensor, streams, hit_m[..., None], surface[..., None],
-            hits.cos_incidence[..., None], np.ones(1), config.return_mode,
-            config.extinction_per_m, config.fog_visibility_m,
-        )  # fmt: skip
-        return got.range_m, got.surface, got.intensity
-    got = receive(
-        physics, choices, sensor, streams, hit_m, surface, hits.cos_incidence,
-        config.extinction_per_m,
-    )  # fmt: skip
-    return got.range_m, np.where(np.isnan(got.range_m), 0, surface), got.intensity
+    got = receive_hits(config, physics, choices, streams, hit_m, surface, hits.cos_incidence)
+    return got.range_m, got.surface, got.intensity
 
 
 def object_boxes(scene) -> np.ndarray:

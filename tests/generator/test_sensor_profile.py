@@ -50,7 +50,7 @@ def test_paper_and_physical_never_enter_the_receiver(tmp_path, catalog, monkeypa
     def refuse(*args, **kwargs):
         raise AssertionError("the receiver path was entered")
 
-    for name in ("receive", "receiver_physics", "receiver_stream"):
+    for name in ("receive_hits", "receiver_physics", "receiver_stream"):
         monkeypatch.setattr(simulate_module, name, refuse)
     for profile in ("paper", "physical"):
         data, attrs = _read(_generate(tmp_path / profile, profile, catalog))
