@@ -37,7 +37,7 @@ from simlidar.scene.recipe import load_catalog
 from simlidar.script_args import command_line, integers, run
 from simlidar.sensor.model import SPEED_OF_LIGHT_M_PER_S
 from simlidar.sensor.raycast import MAX_BATCH
-from simlidar.sensor.receiver import koschmieder_extinction_per_m, max_range_m
+from simlidar.sensor.receiver import max_range_m
 
 ROOT = Path(__file__).resolve().parents[1]
 # Seeing Through Fog's fit for the HDL-64E S3D (lidar_foggification.py: n, g)
@@ -72,36 +72,52 @@ def ranges() -> list[dict]:
     return rows
 
 
-def dataset(samples: int, crossover: tuple[float, float]) -> list[dict]:
+def weather_rows(samples: int, option: str, values) -> list[dict]:
+    """``samples`` train samples of the ``sensor`` profile with the GeneratorConfig field
+    ``option`` at each of ``values`` (the first: clear air): the share of the clear-air returns
+    lost, the share of pulses whose first return is the weather's own (surface 0) and its median
+    range."""
     catalog, profile = load_catalog(), load_profile("sensor")
+    rows, clear = [], None
+    for value in values:
+        config = GeneratorConfig.from_profile(
+            profile, train_size=samples, test_size=32, **{option: value}
+        )
+        s = simulate(config, catalog, "train", 0, samples)
+        returned = ~np.isnan(s.tof_ns)
+        own = returned & (s.surface == 0)
+        hard = returned & ~own
+        clear = hard if clear is None else clear
+        range_m = s.tof_ns[own] * 1e-9 * SPEED_OF_LIGHT_M_PER_S / 2.0
+        rows.append(
+            {
+                option: value,
+                "alpha": config.extinction_per_m,
+                "lost_percent": 100.0 * float((clear & ~hard).sum() / clear.sum()),
+                "weather_returns_percent": 100.0 * float(own.mean()),
+                "weather_range_median_m": float(np.median(range_m)) if own.any() else None,
+            }
+        )
+    return rows
+
+
+def dataset(samples: int, crossover: tuple[float, float]) -> list[dict]:
     kept = weather.CROSSOVER_M
     weather.CROSSOVER_M = crossover
     try:
-        rows, clear = [], None
-        for visibility in VISIBILITIES:
-            config = GeneratorConfig.from_profile(
-                profile, train_size=samples, test_size=32, fog_visibility_m=visibility
-            )
-            s = simulate(config, catalog, "train", 0, samples)
-            returned = ~np.isnan(s.tof_ns)
-            fog = returned & (s.surface == 0)
-            hard = returned & ~fog
-            clear = hard if clear is None else clear
-            range_m = s.tof_ns[fog] * 1e-9 * SPEED_OF_LIGHT_M_PER_S / 2.0
-            rows.append(
-                {
-                    "visibility_m": visibility,
-                    "alpha": 0.0
-                    if math.isinf(visibility)
-                    else koschmieder_extinction_per_m(visibility),
-                    "lost_percent": 100.0 * float((clear & ~hard).sum() / clear.sum()),
-                    "fog_returns_percent": 100.0 * float(fog.mean()),
-                    "fog_range_median_m": float(np.median(range_m)) if fog.any() else None,
-                }
-            )
-        return rows
+        rows = weather_rows(samples, "fog_visibility_m", VISIBILITIES)
     finally:
         weather.CROSSOVER_M = kept
+    return [
+        {
+            "visibility_m": r["fog_visibility_m"],
+            "alpha": r["alpha"],
+            "lost_percent": r["lost_percent"],
+            "fog_returns_percent": r["weather_returns_percent"],
+            "fog_range_median_m": r["weather_range_median_m"],
+        }
+        for r in rows
+    ]
 
 
 def main(argv=None) -> int:

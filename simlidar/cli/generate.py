@@ -112,6 +112,7 @@ def catalog_for(scenes, classes: int):
 @setting_option(
     GeneratorConfig, "fog_visibility_m", "--fog", "fog_visibility_m", metavar="VISIBILITY_M"
 )
+@setting_option(GeneratorConfig, "rain_rate_mm_h", "--rain", "rain_rate_mm_h", metavar="MM_PER_H")
 @setting_option(GeneratorConfig, "beam_samples", metavar="Q")
 @setting_option(GeneratorConfig, "return_mode")
 @scenes_option
@@ -155,6 +156,7 @@ def generate(
     sensor,
     timing,
     fog_visibility_m,
+    rain_rate_mm_h,
     beam_samples,
     return_mode,
     scenes,
@@ -199,6 +201,7 @@ def generate(
         sensor=chosen_sensor,
         timing=timing,
         fog_visibility_m=fog_visibility_m,
+        rain_rate_mm_h=rain_rate_mm_h,
         beam_samples=beam_samples,
         return_mode=return_mode,
     )
@@ -266,6 +269,7 @@ class ExportFormats(click.ParamType):
 @setting_option(
     GeneratorConfig, "fog_visibility_m", "--fog", "fog_visibility_m", metavar="VISIBILITY_M"
 )
+@setting_option(GeneratorConfig, "rain_rate_mm_h", "--rain", "rain_rate_mm_h", metavar="MM_PER_H")
 @click.option(
     "--export",
     "exports",
@@ -286,6 +290,7 @@ def sweep(
     scenes,
     profile,
     fog_visibility_m,
+    rain_rate_mm_h,
     exports,
     out,
     force,
@@ -300,7 +305,8 @@ def sweep(
     catalog = catalog_for(scenes, classes)
     fields = dict(classes=classes, seed=seed, sensor=chosen_sensor)
     if profile is None:
-        config = GeneratorConfig(variation=variation, fog_visibility_m=fog_visibility_m, **fields)
+        fields |= dict(fog_visibility_m=fog_visibility_m, rain_rate_mm_h=rain_rate_mm_h)
+        config = GeneratorConfig(variation=variation, **fields)
     else:
         try:
             chosen = load_profile(profile)
@@ -313,7 +319,11 @@ def sweep(
                 param_hint="'--profile'",
             )
         config = GeneratorConfig.from_profile(
-            chosen, variation=variation, fog_visibility_m=fog_visibility_m, **fields
+            chosen,
+            variation=variation,
+            fog_visibility_m=fog_visibility_m,
+            rain_rate_mm_h=rain_rate_mm_h,
+            **fields,
         )
     start = time.perf_counter()
     path = run_sweep(config, SweepConfig(frames=frames), catalog, out, exports, force=force)

@@ -10,7 +10,7 @@ from pathlib import Path
 from simlidar.convert.about import ABOUT
 from simlidar.dataset.reader import dataset_splits
 from simlidar.dataset.schema import CONVERTED_SCHEMAS, SPLITS
-from simlidar.dataset.version import SOURCES
+from simlidar.dataset.version import SOURCES, notes_until
 from simlidar.generator.about import CITATION
 from simlidar.release.card import (
     card_head,
@@ -165,7 +165,11 @@ def converted_card(path: str | Path) -> str:
         "input (its sha256 above):\n",
         "```python\n" + regenerate_call(info.source, attrs["config"]) + "\n```\n",
         "## Versions\n",
-        "\n".join(f"* {v} ({dates.get(v, 'unreleased')}): {n}" for v, n in notes.items()) + "\n",
+        "\n".join(
+            f"* {v} ({dates.get(v, 'unreleased')}): {n}"
+            for v, n in notes_until(notes, version).items()
+        )
+        + "\n",
         "## Loading\n",
         "```python\nfrom simlidar.data import load_split\n"
         f"x, y = load_split('.', 'train')  # x: (N, {info.height}, {info.width}) float32, "

@@ -25,6 +25,7 @@ from simlidar.dataset.shards import find_split_files, shard_of
 from simlidar.dataset.version import (
     GENERATOR,
     PHYSICAL_VERSION,
+    RAIN_VERSION,
     RETURNS_VERSION,
     SCAN_VERSION,
     SENSOR_VERSION,
@@ -328,13 +329,17 @@ def read_split_info(path: Path) -> SplitInfo:
 
 def written_version(attrs) -> str | None:
     """The version this simlidar writes for a split like this one, when it is not its source's
-    current version: a split with a receiver is RETURNS_VERSION (4.1.0) where its returns come
-    from waveforms (attribute ``return_mode``), else SENSOR_VERSION (4.0.0); a scan-timed split is
+    current version: a split with a receiver is RAIN_VERSION (4.2.0) with rain (``rain_rate_mm_h``
+    in its configuration), RETURNS_VERSION (4.1.0) where its returns come from waveforms
+    (attribute ``return_mode``), else SENSOR_VERSION (4.0.0); a scan-timed split is
     SCAN_VERSION (3.0.0); a generated split without a profile follows the physical rule, still
     written as PHYSICAL_VERSION (1.0.0)."""
     if split_source(attrs) != GENERATOR:
         return None
     if "receiver" in attrs:
+        config = _decode(attrs.get("config", ""))
+        if isinstance(config, dict) and "rain_rate_mm_h" in config:
+            return RAIN_VERSION
         return RETURNS_VERSION if "return_mode" in attrs else SENSOR_VERSION
     if _decode(attrs.get("timing", "flash")) == "scan":
         return SCAN_VERSION

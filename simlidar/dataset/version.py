@@ -26,6 +26,10 @@ SENSOR_VERSION = "4.0.0"
 # ``--return-mode``, or fog, ``--fog``, whose backscatter joins the waveform): fields added
 # (a new MINOR); the clear-air 4.0.0 datasets keep their version and bytes.
 RETURNS_VERSION = "4.1.0"
+# Rain (``--rain R``, issue 41): the sensor profile's waveform path with the echoes of the drops
+# in each beam and their extinction; the records' fields are 4.1.0's, but the configuration gains
+# ``rain_rate_mm_h``, which a 4.1.0 reader does not know (a new MINOR); the others keep theirs.
+RAIN_VERSION = "4.2.0"
 
 # Release dates are part of the published metadata (croissant.json's datePublished), so they are
 # constants too: a dataset's bytes never depend on the day it was generated.
@@ -35,6 +39,7 @@ RELEASE_DATES: dict[str, str] = {
     "3.0.0": "2026-11-23",
     "4.0.0": "2026-11-25",
     "4.1.0": "2026-11-26",
+    "4.2.0": "2026-11-26",
 }
 
 RELEASE_NOTES: dict[str, str] = {
@@ -84,15 +89,27 @@ RELEASE_NOTES: dict[str, str] = {
         "new MINOR. Clear-air datasets with one ray and the strongest return keep 4.0.0 and "
         "its bytes."
     ),
+    "4.2.0": (
+        "Rain for the `sensor` profile (`--rain R`, mm/h; issue 41), after LISA (Kilic et al. "
+        "2021): drops of the Marshall-Palmer size distribution take power from every pulse by "
+        "two-way extinction (Q_ext = 2) and the drops in each beam echo (water's Fresnel "
+        "reflectance times the share of the beam a drop covers), their echoes joining the "
+        "pulse's waveform; an echo the drops make is a return of surface 0. Rain datasets have "
+        "4.1.0's fields and a configuration key `rain_rate_mm_h`, hence a new MINOR. Datasets "
+        "without rain keep their versions and bytes; a card now lists the release notes up to "
+        "its own dataset's version."
+    ),
 }
 
 
 def dataset_version(config) -> str:
     """The version a generated dataset of ``config`` (a GeneratorConfig) carries:
-    RETURNS_VERSION under a receiver whose returns come from waveforms, SENSOR_VERSION under
-    another receiver, SCAN_VERSION under scan timing, PHYSICAL_VERSION for the
-    physical pulse rule (its records are those of 1.0.0), else DATASET_VERSION."""
+    RAIN_VERSION for rain, RETURNS_VERSION under a receiver whose returns come from waveforms,
+    SENSOR_VERSION under another receiver, SCAN_VERSION under scan timing, PHYSICAL_VERSION for
+    the physical pulse rule (its records are those of 1.0.0), else DATASET_VERSION."""
     if config.receiver is not None:
+        if config.rain_rate_mm_h > 0.0:
+            return RAIN_VERSION
         return RETURNS_VERSION if config.full_waveform else SENSOR_VERSION
     if config.timing == "scan":
         return SCAN_VERSION
@@ -105,12 +122,28 @@ SWEEP_VERSION = "1.1.0"
 # Sweeps through a receiver (``simlidar sweep --profile sensor``, issue 41): returns are what the
 # receiver detects, with its range noise, and ``intensity`` is its reflectivity byte instead of
 # the |cos| proxy (attributes ``receiver``, ``materials``); other sweeps keep 1.1.0 and bytes.
+# Fog and rain sweeps (``--fog``, ``--rain``) are 1.2.0 too: their fields are the same.
 SWEEP_RECEIVER_VERSION = "1.2.0"
 
 
 def major(version: str) -> int:
     """The MAJOR part of ``MAJOR.MINOR.PATCH``."""
     return int(str(version).split(".")[0])
+
+
+def notes_until(notes: dict[str, str], version: str) -> dict[str, str]:
+    """The release notes of ``version`` and the versions before it (a dataset's card lists
+    these, so that a later release leaves the card of an earlier dataset as it was); all of
+    them where ``version`` is not MAJOR.MINOR.PATCH."""
+
+    def key(text: str) -> tuple[int, ...] | None:
+        parts = str(text).split(".")
+        return tuple(map(int, parts)) if len(parts) == 3 and all(map(str.isdigit, parts)) else None
+
+    top = key(version)
+    if top is None:
+        return dict(notes)
+    return {v: n for v, n in notes.items() if key(v) is None or key(v) <= top}
 
 
 GENERATOR = "simlidar-generator"  # the source of a split file without a `source` attribute

@@ -2,13 +2,14 @@
 and a datasheet) and Croissant description, made from :mod:`simlidar.generator.about` and the
 split files' own attributes."""
 
+import math
 from functools import cache
 from pathlib import Path
 
 from simlidar.dataset.reader import dataset_splits
 from simlidar.dataset.schema import SCHEMA, SPLITS, generated_schema, reported_returns
 from simlidar.dataset.shards import SHARD_SAMPLES
-from simlidar.dataset.version import RELEASE_DATES, RELEASE_NOTES
+from simlidar.dataset.version import RELEASE_DATES, RELEASE_NOTES, notes_until
 from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.about import (
     CITATION,
@@ -39,7 +40,8 @@ from simlidar.release.croissant import CONTEXT, field, file_objects
 from simlidar.release.info import dataset_info
 from simlidar.sensor.footprint import subray_count
 from simlidar.sensor.model import Sensor, load_sensor, sensor_names
-from simlidar.sensor.weather import CROSSOVER_M
+from simlidar.sensor.receiver import koschmieder_extinction_per_m
+from simlidar.sensor.weather import CROSSOVER_M, rain_extinction_per_m
 
 _DOCS = {  # one line per dataset of a split file; the full table is docs/dataset-format.md
     "delays": "normalised delays with noise: the network input (1.0 = no return)",
@@ -152,6 +154,7 @@ def regenerate_command(
         "sensor",
         "timing",
         "fog_visibility_m",
+        "rain_rate_mm_h",
         "beam_samples",
         "return_mode",
     }
@@ -187,8 +190,10 @@ def regenerate_command(
         parts.append(f"--sensor {sensor.name}")
     if config.timing != "flash":
         parts.append(f"--timing {config.timing}")
-    if config.extinction_per_m:
+    if math.isfinite(config.fog_visibility_m):
         parts.append(f"--fog {config.fog_visibility_m!r}")
+    if config.rain_rate_mm_h:
+        parts.append(f"--rain {config.rain_rate_mm_h!r}")
     if config.beam_samples != 1:
         parts.append(f"--beam-samples {config.beam_samples}")
     if config.return_mode != "strongest":
@@ -282,12 +287,25 @@ def _receiver_lines(attrs, config: GeneratorConfig) -> str:
         return ""
     receiver, surfaces = attrs["receiver"], attrs["materials"]["surfaces"]
     air = "(no atmosphere)"
-    if config.extinction_per_m:
-        air = (
-            f"(fog of visibility {config.fog_visibility_m:g} m: two-way extinction "
-            f"exp(-2 alpha R), alpha = ln(20) / V = {config.extinction_per_m:.4g} per m, "
+    weather = []
+    if math.isfinite(config.fog_visibility_m):
+        alpha = koschmieder_extinction_per_m(config.fog_visibility_m)
+        weather.append(
+            f"fog of visibility {config.fog_visibility_m:g} m: two-way extinction "
+            f"exp(-2 alpha R), alpha = ln(20) / V = {alpha:.4g} per m, "
             "Koschmieder's law; the fog's own backscatter, beta = 0.046 / V per m and sr "
-            "(Hahner et al. 2021), joins each pulse's waveform, seen by the receiver from "
+            "(Hahner et al. 2021), joins each pulse's waveform"
+        )
+    if config.rain_rate_mm_h:
+        alpha = rain_extinction_per_m(config.rain_rate_mm_h)
+        weather.append(
+            f"rain of {config.rain_rate_mm_h:g} mm/h: two-way extinction by drops of the "
+            f"Marshall-Palmer distribution, alpha = {alpha:.4g} per m; the echoes of the drops "
+            "in each beam (LISA, Kilic et al. 2021) join its waveform"
+        )
+    if weather:
+        air = (
+            "(" + "; ".join(weather) + ", seen by the receiver from "
             f"{CROSSOVER_M[0]:.2f} m, wholly from {CROSSOVER_M[1]:.2f} m (an assumed biaxial "
             "geometry))"
         )
@@ -436,7 +454,7 @@ def generated_card(path: str | Path) -> str:
         "## Versions\n",
         "\n".join(
             f"* {v} ({RELEASE_DATES.get(v, 'unreleased')}): {notes}"
-            for v, notes in RELEASE_NOTES.items()
+            for v, notes in notes_until(RELEASE_NOTES, version).items()
         )
         + "\n",
         "## Loading\n",

@@ -148,9 +148,10 @@ def check_disk_space(config: GeneratorConfig, datasets: int, out: str | Path) ->
 
 
 def generated_name(config: GeneratorConfig) -> str:
-    """``simlidar-<classes>c-noise<level>-<profile>[-<sensor>][-scan][-fog<V>][-beam<Q>][-<mode>][-var<v>][-shift<s>]-v<version>``,
+    """``simlidar-<classes>c-noise<level>-<profile>[-<sensor>][-scan][-fog<V>][-rain<R>][-beam<Q>][-<mode>][-var<v>][-shift<s>]-v<version>``,
     numbers as Python's repr (0.2, 0.33); ``-<sensor>`` names a sensor other than the VLP-16,
-    ``-scan`` scan timing, ``-fog`` a fog's visibility in metres, ``-beam`` a beam footprint's
+    ``-scan`` scan timing, ``-fog`` a fog's visibility in metres, ``-rain`` a rain's rate in
+    mm/h, ``-beam`` a beam footprint's
     rings of sub-rays, ``-last`` / ``-dual`` a return mode other than strongest, ``-var`` and
     ``-shift`` values that differ from the profile's own."""
     over = config.overrides
@@ -158,6 +159,8 @@ def generated_name(config: GeneratorConfig) -> str:
     sensor += "-scan" if config.timing == "scan" else ""
     if math.isfinite(config.fog_visibility_m):
         sensor += f"-fog{float(config.fog_visibility_m)!r}"
+    if config.rain_rate_mm_h:
+        sensor += f"-rain{float(config.rain_rate_mm_h)!r}"
     sensor += f"-beam{config.beam_samples}" if config.beam_samples != 1 else ""
     sensor += f"-{config.return_mode}" if config.return_mode != "strongest" else ""
     variation = f"-var{float(over['variation'])!r}" if "variation" in over else ""

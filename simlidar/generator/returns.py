@@ -49,7 +49,7 @@ from simlidar.sensor.receiver import (
     reflectivity_byte,
 )
 from simlidar.sensor.waveform import BIN_NS, echoes, pulse_sigma_ns, reported
-from simlidar.sensor.weather import C_M_PER_NS, fog_table
+from simlidar.sensor.weather import C_M_PER_NS, CROSSOVER_M, Rain, fog_table, rain
 
 # The child stream key of a sample's receiver draws (the issue's number: any constant will do,
 # as long as no other stream of a sample uses it)
@@ -216,6 +216,7 @@ def receive_hits(
         return receive_beams(
             physics, choices, config.sensor, streams, range_m, surface, cos_incidence,
             weights, config.return_mode, config.extinction_per_m, config.fog_visibility_m,
+            config.rain_rate_mm_h,
         )  # fmt: skip
     got = receive(
         physics, choices, config.sensor, streams, range_m, surface, cos_incidence,
@@ -276,6 +277,7 @@ def receive_beams(
     mode: str,
     extinction_per_m: float = 0.0,
     visibility_m: float = math.inf,
+    rain_rate_mm_h: float = 0.0,
 ) -> Returns:
     """The returns of a block of beams sampled by S sub-rays, in a return mode
     (docs/sensor-model.md, "Beam footprint and returns"):
@@ -298,6 +300,10 @@ def receive_beams(
         fog's backscatter joins the waveform (:mod:`simlidar.sensor.weather`), and an echo
         the fog makes is a return of surface 0, NaN reflectance and the reflectivity byte of
         its apparent reflectance (the range equation read backwards at normal incidence)
+    rain_rate_mm_h : a rain's rate (its extinction is in ``extinction_per_m``): the echoes of
+        its drops (:class:`simlidar.sensor.weather.Rain`) join the waveform, drawn from each
+        sample's stream after the draws above; an echo the drops make is a return of surface
+        0, as the fog's
     """
     receiver = physics.receiver
     n, rows, cols, subrays = range_m.shape
@@ -318,11 +324,20 @@ def receive_beams(
             receiver.threshold_w, visibility_m, extinction_per_m, sigma_ns, BIN_NS,
             sensor.max_range_m,
         )  # fmt: skip
+    axis_m = range_m.reshape(-1, subrays)[:, 0]  # NaN: no hit
+    drops = rain(
+        receiver.peak_power_w, receiver.aperture_area_m2, receiver.optics_efficiency,
+        receiver.threshold_w, receiver.divergence_h_mrad, receiver.divergence_v_mrad,
+        rain_rate_mm_h,
+    )  # fmt: skip
+    all_times, all_power = times, power
+    if drops is not None:
+        drop_ns, drop_w = _drop_echoes(drops, streams, rows * cols, axis_m, extinction_per_m)
+        all_times, all_power = np.hstack([times, drop_ns]), np.hstack([power, drop_w])
     if fog is None:
-        echo = echoes(times, power, sigma_ns)
+        echo = echoes(all_times, all_power, sigma_ns)
     else:
-        axis_m = range_m.reshape(-1, subrays)[:, 0]  # NaN: no hit
-        echo = echoes(times, power, sigma_ns, BIN_NS, fog, fog.column(axis_m))
+        echo = echoes(all_times, all_power, sigma_ns, BIN_NS, fog, fog.column(axis_m))
     pick = reported(echo, receiver.threshold_w, mode, receiver.dual_when_strongest_is_last)
     pulses = np.arange(len(pick))[:, None]
     found = pick >= 0
@@ -343,7 +358,7 @@ def receive_beams(
     main_rho = np.take_along_axis(rho.reshape(flat), main, axis=1)
     main_retro = np.take_along_axis(retro.reshape(flat), main, axis=1)
     main_surface = np.take_along_axis(surface.reshape(flat), main, axis=1)
-    # an echo the surfaces make less than half of is the fog's
+    # an echo the surfaces make less than half of is the weather's (fog, drops)
     fogged = found & (np.nan_to_num(share, nan=0.0).sum(axis=2) < 0.5 * peak_w)
     apparent = (
         peak_w
@@ -393,3 +408,25 @@ def receive_beams(
         returns_intensity=intensity.reshape(shape + (reports,)).astype(np.uint8),
         returns_surface=labels.reshape(shape + (reports,)).astype(np.uint8),
     )
+
+
+def _drop_echoes(drops: Rain, streams, pixels: int, axis_m: np.ndarray, extinction_per_m: float):
+    """The echoes of the drops in front of each pulse's hard hit (beyond the crossover's r_1):
+    times (ns) and powers (W), (P, D) NaN / 0 padded, P = samples x ``pixels`` pulses (``axis_m``
+    (P,): the beam axis's hit, NaN: none, so the drops reach as far as they can be seen)."""
+    pulse, range_m, diameter = [], [], []
+    for i, g in enumerate(streams):
+        p, r, d = drops.draw(g, pixels)
+        pulse.append(p + i * pixels), range_m.append(r), diameter.append(d)
+    pulse, range_m, diameter = (np.concatenate(a) for a in (pulse, range_m, diameter))
+    blocked = np.nan_to_num(axis_m[pulse], nan=np.inf)
+    seen = (range_m > CROSSOVER_M[0]) & (range_m < blocked)
+    pulse, range_m, diameter = pulse[seen], range_m[seen], diameter[seen]
+    count = np.bincount(pulse, minlength=len(axis_m))
+    most = int(count.max()) if len(count) else 0
+    rank = np.arange(len(pulse)) - (np.cumsum(count) - count)[pulse]
+    times = np.full((len(axis_m), most), np.nan)
+    power = np.zeros((len(axis_m), most))
+    times[pulse, rank] = tof_ns(range_m)
+    power[pulse, rank] = drops.echo_w(range_m, diameter, extinction_per_m)
+    return times, power

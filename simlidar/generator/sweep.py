@@ -14,15 +14,15 @@ Each pulse keeps its quantised range (NaN: no return), the surface it hit (a per
 segmentation), an intensity proxy (``|cos|`` of the angle of incidence: real intensities also
 depend on the surface's reflectivity) and, shared by every frame, its emission time within the
 rotation. Through a profile with a receiver (``--profile sensor``, :mod:`simlidar.generator.
-returns`) a hit returns only when the receiver detects it, with its range noise, and the
-intensity is the sensor's reflectivity byte of the surface's drawn material (frame f's draws:
-``SeedSequence(seed, spawn_key=(2, f, 41))``); fog (``--fog``) takes the waveform path, one ray
-a pulse and its strongest return. :func:`sweep` writes them into a frames file
-(its schema and version: :mod:`simlidar.dataset.schema`, :mod:`simlidar.dataset.version`),
+returns`) a hit returns only when the receiver detects it, with its range noise, and the intensity
+is the sensor's reflectivity byte of the surface's drawn material (frame f's draws:
+``SeedSequence(seed, spawn_key=(2, f, 41))``); fog (``--fog``) and rain (``--rain``) take the
+waveform path, one ray a pulse and its strongest return. :func:`sweep` writes them into a frames
+file (its schema and version: :mod:`simlidar.dataset.schema`, :mod:`simlidar.dataset.version`),
 draws its bird's-eye picture (:mod:`simlidar.generator.bev`) and exports its frames
 (:mod:`simlidar.generator.exports`: KITTI ``.bin`` with a SemanticKITTI-style ``.label`` of
-surfaces, PLY or PCD); :func:`~simlidar.generator.frames.frame_points` turns a frame of the
-file into a point cloud in the sensor's frame. The file format: docs/sweeps.md.
+surfaces, PLY or PCD); :func:`~simlidar.generator.frames.frame_points` turns a frame of the file
+into a point cloud in the sensor's frame. The file format: docs/sweeps.md.
 
 The scenes were written for a window ahead of the sensor: behind it the road ends 0-10 m back
 (``entry_m`` of the tunnel, the road box of every layout), so the rear half of a frame sees
@@ -192,12 +192,14 @@ def sweep_version(config: GeneratorConfig) -> str:
 
 
 def sweep_name(config: GeneratorConfig, sweep: SweepConfig) -> str:
-    """``simlidar-sweep-<classes>c-<sensor>-<frames>f-seed<seed>[-<profile>][-fog<V>][-var<v>]-v<version>``;
+    """``simlidar-sweep-<classes>c-<sensor>-<frames>f-seed<seed>[-<profile>][-fog<V>][-rain<R>][-var<v>]-v<version>``;
     ``-<profile>`` names a profile with a receiver (``-sensor``)."""
     variation = f"-var{float(config.variation)!r}" if config.variation != 1.0 else ""
     receiver = f"-{config.profile_name}" if config.receiver is not None else ""
     if math.isfinite(config.fog_visibility_m):
         receiver += f"-fog{float(config.fog_visibility_m)!r}"
+    if config.rain_rate_mm_h:
+        receiver += f"-rain{float(config.rain_rate_mm_h)!r}"
     return (
         f"simlidar-sweep-{config.classes}c-{config.sensor.name}-{sweep.frames}f-seed"
         f"{config.seed}{receiver}{variation}-v{sweep_version(config)}"

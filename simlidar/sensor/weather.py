@@ -28,6 +28,23 @@ Evaluated on the waveform's bins (:data:`simlidar.sensor.waveform.BIN_NS`), the 
 slabs of ``SLAB_M`` (a fifth of the 4 ns pulse's range sigma), as a table of the fog waveform of
 a beam blocked at each slab; only as far as the fog could reach ``FLOOR`` of the detection
 threshold unblocked (beyond, it is too faint to make or move an echo).
+
+Rain after LISA (Kilic et al. 2021; their code ``velatkilic/LISA``, ``python_old/
+atmos_models.py``, the paper's): drops of the Marshall-Palmer size distribution (``N_MP_rain``:
+N(D) = 8000 exp(-Lambda D) per m^3 and mm, Lambda = 4.1 R^-0.21 per mm, R in mm/h) take power
+from every pulse, alpha = (pi / 4) 1e-6 int D^2 Q_ext N(D) dD per metre (LISA's ``alpha``), with
+Q_ext = 2, the large-particle limit (van de Hulst 1957; LISA's own Mie table for water at 905 nm
+gives 2.01 to 2.03 above 0.05 mm), so alpha = pi 1e-6 N0 / Lambda^3 (1.56e-3 per m at 10 mm/h;
+0.365 R^0.63 per km). Each drop in the beam is a small target (LISA's ``lisa_mc``): its echo is
+the range equation's for the Fresnel reflectance of water at normal incidence, ((n - 1) / (n +
+1))^2 with n = 1.328 (LISA's default), times the share of the beam it covers, min(D^2 / (theta_h
+theta_v r^2), 1) (LISA: ``min((D / D_b(r))^2, 1)``, for a circular beam), and, as the fog's,
+the crossover of the biaxial receiver. LISA samples every drop over 0.05 mm in the beam's cone;
+here only the drops whose echo could reach ``RAIN_FLOOR`` of the threshold are sampled (a
+Poisson process restricted to that region of size and range, exact for those drops; the
+others' summed echo within a pulse's reach stays far below the threshold:
+``tests/sensor/test_weather.py``), and their echoes join the pulse's waveform, as the fog's
+does, instead of LISA's one-point choice between the target and the strongest drop.
 """
 
 import math
@@ -147,3 +164,102 @@ def fog_table(
     t = np.arange(first_bin, last_bin + 1) * bin_ns
     pulses = np.exp(-((t[:, None] - times[None, :]) ** 2) / (2.0 * sigma_ns**2))
     return FogTable(first_bin, np.cumsum(pulses * slab_w[None, :], axis=1), start, bin_ns)
+
+
+# Rain: LISA (Kilic et al. 2021), python_old/atmos_models.py
+RAIN_N0_PER_M3_MM = 8000.0  # Marshall & Palmer 1948, as LISA's N_MP_rain
+RAIN_SLOPE = (4.1, -0.21)  # Lambda = 4.1 R^-0.21 per mm (Marshall & Palmer 1948, as LISA)
+EXTINCTION_EFFICIENCY = 2.0  # Q_ext of drops far larger than the wavelength (van de Hulst 1957)
+WATER_INDEX = 1.328  # water's refractive index at 905 nm: LISA's default m
+RAIN_FLOOR = 0.1  # drops are sampled where their echo could reach this x the threshold
+MAX_RAIN_MM_H = 500.0  # the largest rate accepted (heavier than any hour on record)
+_GAMMA_SHAPE = 2.5  # sampled diameters have density ~ N(D) D^1.5 (see Rain)
+
+
+def rain_slope_per_mm(rate_mm_h: float) -> float:
+    """Lambda of the Marshall-Palmer distribution (per mm) at rain rate R (mm/h)."""
+    return RAIN_SLOPE[0] * rate_mm_h ** RAIN_SLOPE[1]
+
+
+def rain_extinction_per_m(rate_mm_h: float) -> float:
+    """The rain's extinction coefficient alpha (1/m) at rate R (mm/h; 0: no rain)::
+
+    alpha = (pi / 4) 1e-6 Q_ext int D^2 N0 exp(-Lambda D) dD = (pi / 2) 1e-6 Q_ext N0 / Lambda^3
+    """
+    if rate_mm_h <= 0.0:
+        return 0.0
+    slope = rain_slope_per_mm(rate_mm_h)
+    return 0.5 * math.pi * 1e-6 * EXTINCTION_EFFICIENCY * RAIN_N0_PER_M3_MM / slope**3
+
+
+def fresnel_reflectance(index: float) -> float:
+    """The reflectance of a smooth surface at normal incidence, ((n - 1) / (n + 1))^2."""
+    return ((index - 1.0) / (index + 1.0)) ** 2
+
+
+@dataclass(frozen=True)
+class Rain:
+    """The drops of a rain a receiver could see: in each pulse's beam, the Poisson process of
+    the drops (diameter D, range r) whose echo, bounded above by ``drop_w * D^2 / r^4`` (the
+    echo without the cap at a full beam, the crossover and extinction, each at most 1), reaches
+    ``RAIN_FLOOR`` x the threshold: r <= reach sqrt(D) (D in mm). Their number in a beam is
+    Poisson, of mean ``mean_per_pulse`` = (pi / 12) theta_h theta_v N0 reach^3 int N(D) / N0
+    D^1.5 dD over D >= ``smallest_mm`` (where reach sqrt(D) is the crossover's r_1: smaller
+    drops are never seen); a drop's diameter has density ~ exp(-Lambda D) D^1.5 there (a gamma
+    of shape 2.5, truncated) and its range is uniform in the cone's volume up to reach sqrt(D).
+    """
+
+    rate_mm_h: float
+    slope_per_mm: float  # Lambda
+    full_w: float  # K rho_w: the echo of a drop that fills the beam is full_w / r^2
+    solid_angle: float  # theta_h theta_v (rad^2): a drop covers D^2 / (theta_h theta_v r^2)
+    reach_m: float  # r <= reach_m sqrt(D / mm)
+    smallest_mm: float
+    mean_per_pulse: float
+
+    def draw(self, g: np.random.Generator, pulses: int):
+        """One sample's drops in its ``pulses`` beams: (pulse index, range m, diameter mm),
+        from ``pulses`` Poisson counts then two uniforms a drop (diameter, range)."""
+        from scipy.special import gammaincc, gammainccinv
+
+        counts = g.poisson(self.mean_per_pulse, pulses)
+        u = g.random((int(counts.sum()), 2))
+        pulse = np.repeat(np.arange(pulses), counts)
+        top = gammaincc(_GAMMA_SHAPE, self.slope_per_mm * self.smallest_mm)
+        diameter_mm = gammainccinv(_GAMMA_SHAPE, (1.0 - u[:, 0]) * top) / self.slope_per_mm
+        range_m = self.reach_m * np.sqrt(diameter_mm) * np.cbrt(u[:, 1])
+        return pulse, range_m, diameter_mm
+
+    def echo_w(self, range_m, diameter_mm, extinction_per_m: float):
+        """A drop's echo (W, the range equation's peak power): LISA's, with the crossover."""
+        r = np.asarray(range_m, dtype=float)
+        d_m = np.asarray(diameter_mm, dtype=float) * 1e-3
+        share = np.minimum(d_m**2 / (self.solid_angle * r**2), 1.0)
+        return self.full_w * share * crossover(r) * np.exp(-2.0 * extinction_per_m * r) / r**2
+
+
+def rain(
+    peak_power_w: float,
+    aperture_area_m2: float,
+    optics_efficiency: float,
+    threshold_w: float,
+    divergence_h_mrad: float,
+    divergence_v_mrad: float,
+    rate_mm_h: float,
+) -> Rain | None:
+    """The rain (:class:`Rain`) a receiver sees at rate R (mm/h); None for no rain."""
+    from scipy.special import gamma, gammaincc
+
+    if rate_mm_h <= 0.0:
+        return None
+    slope = rain_slope_per_mm(rate_mm_h)
+    full_w = (
+        peak_power_w * aperture_area_m2 * optics_efficiency * fresnel_reflectance(WATER_INDEX)
+    ) / math.pi
+    solid = divergence_h_mrad * 1e-3 * divergence_v_mrad * 1e-3
+    # drop_w D_m^2 / r^4 >= FLOOR threshold  <=>  r <= (drop_w 1e-6 D_mm^2 / (FLOOR th))^(1/4)
+    reach = (full_w / solid * 1e-6 / (RAIN_FLOOR * threshold_w)) ** 0.25
+    smallest = (CROSSOVER_M[0] / reach) ** 2
+    moment = gamma(_GAMMA_SHAPE) * gammaincc(_GAMMA_SHAPE, slope * smallest) / slope**_GAMMA_SHAPE
+    mean = math.pi / 12.0 * solid * RAIN_N0_PER_M3_MM * reach**3 * moment
+    return Rain(rate_mm_h, slope, full_w, solid, reach, smallest, float(mean))

@@ -1,0 +1,107 @@
+"""Rain in generated datasets (issue 41, item 4): a new dataset version whose drops make near
+returns of surface 0 and whose extinction only takes returns away from the clear-air twin, the
+same bytes whatever the batches and workers, a card that says so, and one-line errors."""
+
+import hashlib
+
+import h5py
+import numpy as np
+import pytest
+
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.generate import generate
+from simlidar.generator.profiles import load_profile
+from simlidar.sensor.weather import CROSSOVER_M, rain
+
+SIZES = dict(train_size=64, test_size=32)
+C_M_PER_NS = 0.299792458
+
+
+def _generate(out, catalog, **options):
+    run = {k: options.pop(k) for k in ("batch_size", "workers") if k in options}
+    config = GeneratorConfig.from_profile(load_profile("sensor"), **SIZES, **options)
+    (written,) = generate(config, [0.1], catalog, out, progress=False, preview=False, **run)
+    return written.path
+
+
+def _read(path, split="train"):
+    with h5py.File(path / f"{split}.h5") as f:
+        return {name: f[name][:] for name in f}, dict(f.attrs)
+
+
+@pytest.fixture(scope="module")
+def made(tmp_path_factory, catalog):
+    out = tmp_path_factory.mktemp("rain")
+    return {
+        "clear": _generate(out / "a", catalog),
+        "rain": _generate(out / "b", catalog, rain_rate_mm_h=200.0),
+    }
+
+
+def test_rain_is_a_dataset_version_of_its_own(made):
+    assert made["clear"].name == "simlidar-32c-noise0.1-sensor-v4.0.0"
+    assert made["rain"].name == "simlidar-32c-noise0.1-sensor-rain200.0-v4.2.0"
+    _, attrs = _read(made["rain"])
+    assert '"rain_rate_mm_h": 200.0' in attrs["config"] and attrs["dataset_version"] == "4.2.0"
+    _, clear = _read(made["clear"])
+    assert "rain_rate_mm_h" not in clear["config"]
+
+
+def test_the_drops_make_near_returns_and_the_extinction_takes_far_ones(made):
+    rainy, _ = _read(made["rain"])
+    clear, _ = _read(made["clear"])
+    np.testing.assert_array_equal(rainy["labels"], clear["labels"])  # the same scenes
+    surface = rainy["returns_surface"][..., 0]
+    range_m = rainy["returns_tof_ns"][..., 0] * C_M_PER_NS / 2
+    drop = surface == 0
+    drop &= ~np.isnan(range_m)
+    assert drop.sum() > 10  # 200 mm/h: about 2 in 1,000 pulses
+    # a drop is seen beyond the crossover's r_1, and no farther than a drop 8 mm wide could be
+    # (noise: the receiver's range accuracy)
+    drops = rain(80.0, 3.1416e-4, 0.05, 3.2e-8, 3.0, 1.5, 200.0)
+    assert range_m[drop].min() > CROSSOVER_M[0] - 0.2
+    assert range_m[drop].max() < drops.reach_m * np.sqrt(8.0)
+    assert np.all(rainy["intensity"][rainy["surface"] == 0] <= 1)  # water: ~2 % of a share
+    # beyond any drop, a surface the rain's receiver reports is one the clear air's reports
+    far = clear["tof_ns"] * C_M_PER_NS / 2 > 20.0
+    hard_rain = (rainy["surface"] > 0) & far
+    assert np.all(clear["surface"][hard_rain] > 0)
+    assert hard_rain.sum() < ((clear["surface"] > 0) & far).sum()  # the extinction's losses
+
+
+def _digest(path):
+    files = ("train.h5", "test.h5", "README.md")
+    return hashlib.sha256(b"".join((path / n).read_bytes() for n in files)).hexdigest()
+
+
+def test_the_same_seed_gives_the_same_bytes_whatever_the_batches_and_workers(
+    made, tmp_path, catalog
+):
+    again = _generate(tmp_path / "a", catalog, rain_rate_mm_h=200.0, batch_size=5)
+    pool = _generate(tmp_path / "b", catalog, rain_rate_mm_h=200.0, workers=2)
+    assert _digest(again) == _digest(pool) == _digest(made["rain"])
+
+
+def test_the_card_says_rain_and_lists_the_notes_up_to_its_version(made, cli):
+    card = (made["rain"] / "README.md").read_text()
+    assert "--profile sensor" in card and "--rain 200.0" in card
+    assert "rain of 200 mm/h" in card and "Marshall-Palmer" in card
+    assert "* 4.2.0 (2026-11-26): Rain" in card
+    clear = (made["clear"] / "README.md").read_text()
+    assert "* 4.0.0 (" in clear and "* 4.1.0 (" not in clear and "* 4.2.0 (" not in clear
+    assert cli("verify", made["rain"]).exit_code == 0
+
+
+@pytest.mark.parametrize(
+    "options, expected",
+    [
+        (("--profile", "physical", "--rain", "10"), "expected a profile with a receiver"),
+        (("--profile", "sensor", "--rain", "-1"), "not in the range 0<=x<=500"),
+        (("--profile", "sensor", "--rain", "1000"), "not in the range 0<=x<=500"),
+        (("--profile", "sensor", "--rain", "nan"), "'nan' is not a number in the range 0<=x<=500"),
+    ],
+)
+def test_a_wrong_rain_is_one_line_and_writes_nothing(tmp_path, cli, options, expected):
+    result = cli("generate", *options, "--out", tmp_path / "o")
+    assert result.exit_code == 2 and expected in result.output, result.output
+    assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
