@@ -1,30 +1,36 @@
-"""Weather as a benchmark axis: networks trained in clear air, tested in fog (issue 41, item 6).
+"""Weather as a benchmark axis: networks trained in clear air or on mixed weather, tested in
+fog and rain (issue 41, item 6).
 
     python benchmark/weather.py --data /tmp/weather                   # the published run
-    python benchmark/weather.py --data /tmp/weather --seeds 0 --visibilities 50 \\
+    python benchmark/weather.py --data /tmp/weather --seeds 0 --visibilities 50 --rains 50 \\
         --models cnn                                                   # a quick look
 
 Generates the ``sensor`` profile's datasets (noise ``--noise``, 3000 / 600 samples, seed 0) in
-clear air and at every visibility of ``--visibilities`` (``simlidar generate --profile sensor
---fog V``): the same seed, so the same scenes, materials, phases and noise draws, only the fog
-differs. Each model of ``--models`` trains on the clear train split by the paper's protocol (all
-of it, the recipe's epochs, the last kept; the recipe's time cap lifted so that load cannot
-change a figure) for every seed of ``--seeds``, and is scored on the test split of every
-weather. Beside each test split the early-information bound with every spike
-(``benchmark/early_bound.py --ks 256``: its two learner families trained with fresh noise on that
-weather's own train split, near first): what a learner that trained in that weather reaches, so
-the distance between a network and its weather's bound is the price of having trained in clear
-air plus the network's own gap there.
+clear air, at every visibility of ``--visibilities`` (``simlidar generate --profile sensor --fog
+V``) and at every rain rate of ``--rains`` (``--rain R``): the same seed, so the same scenes,
+materials, phases and noise draws, only the weather differs. The *mixed* train split holds
+sample i of weather i mod K (clear air, then the fogs, then the rains: K weathers in turn, the
+same 3000 scenes), with the clear test split. Each model of ``--models`` trains by the paper's
+protocol (all of it, the recipe's epochs, the last kept; the recipe's time cap lifted so that
+load cannot change a figure) for every seed of ``--seeds``, once on the clear train split and
+once on the mixed one, and is scored on the test split of every weather. Beside each test split
+the early-information bound with every spike (``benchmark/early_bound.py --ks 256``: its two
+learner families trained with fresh noise on that weather's own train split, near first): what
+a learner that trained in that weather reaches, so the distance between a network trained in
+clear air and its weather's bound is the price of having trained in clear air plus the
+network's own gap there.
 
-Each (model, seed) is a JSON file under ``--out``/cells (a rerun skips it); the bound's runs
+Each (model, training, seed) is a JSON file under ``--out``/cells (a rerun skips it, or trains
+it again where it lacks a weather, and then stops if a score it had changed); the bound's runs
 are under ``--out``/bound. Writes weather.md, weather.json and weather.png (accuracy against
-visibility, mean and 95 % interval over seeds, beside the bound).
+visibility and rain rate, mean and 95 % interval over seeds, beside the bound).
 """
 
 import argparse
 import json
 import math
 import os
+import shutil
 import sys
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -41,6 +47,8 @@ from simlidar.script_args import command_line, integers, run
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ("snn_simlidar_tuned", "cnn")
 VISIBILITIES = (200.0, 100.0, 50.0, 30.0)
+RATES = (10.0, 50.0, 100.0, 200.0)
+TRAININGS = ("clear", "mixed")
 
 
 def visibilities(text: str) -> list[float]:
@@ -57,27 +65,93 @@ def visibilities(text: str) -> list[float]:
     return values
 
 
-def datasets(root: Path, noise: float, fogs: list[float], sizes: dict) -> dict[str, Path]:
-    """The clear-air dataset and one per visibility ("clear", "50", ...), made where missing."""
+def rain_rates(text: str) -> list[float]:
+    """``--rains``: comma-separated mm/h, each in (0, 500]; empty: none."""
+    from simlidar.sensor.weather import MAX_RAIN_MM_H
+
+    values = []
+    for item in filter(None, text.split(",")):
+        try:
+            value = float(item)
+        except ValueError:
+            value = math.nan
+        if not 0 < value <= MAX_RAIN_MM_H:
+            raise argparse.ArgumentTypeError(
+                f"{item!r}: expected a rain rate in mm/h in (0, {MAX_RAIN_MM_H:g}]"
+            )
+        values.append(value)
+    return values
+
+
+def datasets(
+    root: Path, noise: float, fogs: list[float], rains: list[float], sizes: dict
+) -> dict[str, Path]:
+    """The clear-air dataset, one per visibility and one per rain rate ("clear", "50", ...,
+    "rain10", ...), made where missing."""
     from simlidar.generator.config import GeneratorConfig
     from simlidar.generator.generate import generate, generated_name
     from simlidar.generator.profiles import load_profile
     from simlidar.scene.recipe import load_catalog
 
     found = {}
-    for fog in [math.inf, *fogs]:
+    weathers = [("clear", {})]
+    weathers += [(f"{fog:g}", {"fog_visibility_m": fog}) for fog in fogs]
+    weathers += [(f"rain{rate:g}", {"rain_rate_mm_h": rate}) for rate in rains]
+    for key, weather in weathers:
         config = GeneratorConfig.from_profile(
-            load_profile("sensor"), noise=noise, fog_visibility_m=fog, seed=0, **sizes
+            load_profile("sensor"), noise=noise, seed=0, **weather, **sizes
         )
         path = root / generated_name(config)
         if not path.is_dir():
             generate(config, [noise], load_catalog(), root, progress=False)
-        found["clear" if math.isinf(fog) else f"{fog:g}"] = path
+        found[key] = path
     return found
 
 
-def cell(recipe_name: str, seed: int, sets: dict[str, str], path: str) -> str:
-    """Train ``recipe_name`` on the clear train split, score it on every test split of
+def mixed_dataset(sets: dict[str, Path], root: Path) -> Path:
+    """The mixed train split beside the clear test split: a copy of the clear dataset whose
+    train rows i are weather i mod K's (every per-pixel dataset the two share), made where
+    missing, atomically; its card and checksums are dropped (they would describe clear air)
+    and ``mixed.json`` says what it holds."""
+    import h5py
+
+    names = list(sets)
+    path = root / f"{sets['clear'].name}-mixed-{'-'.join(names[1:])}"
+    if path.is_dir():
+        return path
+    building = root / f".{path.name}.partial-{os.getpid()}"
+    shutil.rmtree(building, ignore_errors=True)
+    building.mkdir(parents=True)
+    for split in ("train.h5", "test.h5"):
+        shutil.copyfile(sets["clear"] / split, building / split)
+    with h5py.File(building / "train.h5", "r+") as mine:
+        n = len(mine["labels"])
+        for k, name in enumerate(names[1:], start=1):
+            rows = np.arange(k, n, len(names))
+            with h5py.File(sets[name] / "train.h5", "r") as theirs:
+                assert np.array_equal(theirs["labels"][:], mine["labels"][:])  # the same scenes
+                for field, data in mine.items():
+                    if field in theirs and theirs[field].shape == data.shape and len(data) == n:
+                        values = data[:]
+                        values[rows] = theirs[field][:][rows]
+                        data[:] = values
+    (building / "mixed.json").write_text(
+        json.dumps(
+            {
+                "rule": "train row i from weather i mod K; test: clear air's",
+                "weathers": {w: p.name for w, p in sets.items()},
+            },
+            indent=1,
+        )  # fmt: skip
+        + "\n"
+    )
+    os.replace(building, path)
+    return path
+
+
+def cell(recipe_name: str, seed: int, trained_on: str, sets: dict[str, str], path: str) -> str:
+    """Train ``recipe_name`` on the train split of the dataset ``trained_on`` (the clear one,
+    or the mixed one, whose test split is the clear one), score it on every test split of
     ``sets``; write the JSON atomically."""
     import torch
 
@@ -88,7 +162,7 @@ def cell(recipe_name: str, seed: int, sets: dict[str, str], path: str) -> str:
 
     recipe = load_recipe(recipe_name)
     recipe["training"]["validation"] = 0  # the paper's protocol: all 3000, the last epoch
-    result = train(recipe, sets["clear"], seed=seed, max_seconds=float("inf"), progress=False)
+    result = train(recipe, trained_on, seed=seed, max_seconds=float("inf"), progress=False)
     accuracy = {}
     for weather, dataset in sets.items():
         x, y = load_split(dataset, "test")
@@ -102,7 +176,7 @@ def cell(recipe_name: str, seed: int, sets: dict[str, str], path: str) -> str:
     record = {
         "recipe": recipe_name,
         "seed": seed,
-        "trained_on": Path(sets["clear"]).name,
+        "trained_on": Path(trained_on).name,
         "test_accuracy": accuracy,
         "epochs": result.epochs,
         "seconds": result.seconds,
@@ -141,6 +215,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", type=Path, required=True, help="where the datasets are made")
     parser.add_argument("--visibilities", type=visibilities, default="200,100,50,30")
+    parser.add_argument("--rains", type=rain_rates, default="10,50,100,200", help="mm/h")
     parser.add_argument("--noise", type=float, default=0.1, choices=(0.1, 0.2))
     parser.add_argument("--models", default=",".join(MODELS))
     parser.add_argument("--seeds", type=SEEDS, default="0,1,2")
@@ -153,19 +228,28 @@ def main(argv=None) -> int:
     models = [m for m in args.models.split(",") if m]
     check_recipes(models)
     sizes = {"train_size": args.train_size, "test_size": args.test_size}
-    sets = datasets(args.data, args.noise, args.visibilities, sizes)
+    sets = datasets(args.data, args.noise, args.visibilities, args.rains, sizes)
+    train_on = {"clear": sets["clear"], "mixed": mixed_dataset(sets, args.data)}
     cells = args.out / "cells"
     cells.mkdir(parents=True, exist_ok=True)
 
-    def cell_path(model: str, seed: int) -> Path:  # a recipe file's stem, a shipped name
-        return cells / f"{Path(model).stem}__seed{seed}.json"
+    def cell_path(model: str, training: str, seed: int) -> Path:  # a recipe file's stem
+        middle = "" if training == "clear" else f"{training}__"
+        return cells / f"{Path(model).stem}__{middle}seed{seed}.json"
 
-    todo = [
-        (m, s, {w: str(p) for w, p in sets.items()}, str(cell_path(m, s)))
-        for s in args.seeds
-        for m in models
-        if not cell_path(m, s).is_file()
-    ]
+    before = {}  # the scores of cells trained again for a weather they lack
+    todo = []
+    for s in args.seeds:
+        for training in TRAININGS:
+            for m in models:
+                path = cell_path(m, training, s)
+                if path.is_file():
+                    had = json.loads(path.read_text())["test_accuracy"]
+                    if set(sets) <= set(had):
+                        continue
+                    before[str(path)] = had
+                todo.append((m, s, str(train_on[training]), {w: str(p) for w, p in sets.items()},
+                             str(path)))  # fmt: skip
     if todo:
         from tqdm import tqdm
 
@@ -177,14 +261,26 @@ def main(argv=None) -> int:
                 futures = [pool.submit(cell, *job) for job in todo]
                 for future in tqdm(as_completed(futures), total=len(futures), desc="cells"):
                     future.result()
+    for path, had in before.items():  # training is deterministic: the old scores must hold
+        now = json.loads(Path(path).read_text())["test_accuracy"]
+        changed = {w: (v, now[w]) for w, v in had.items() if w in now and now[w] != v}
+        if changed:
+            raise SystemExit(f"{path}: trained again, its scores changed: {changed}")
     found = {
-        Path(m).stem: [json.loads(cell_path(m, s).read_text()) for s in args.seeds] for m in models
+        label(m, training): [json.loads(cell_path(m, training, s).read_text()) for s in args.seeds]
+        for training in TRAININGS
+        for m in models
     }
     bound = {} if args.no_bound else bounds(sets, args.out / "bound")
     summary = summarise(found, list(sets), bound)
     command = command_line("weather.py", argv)
     write(args.out, summary, command, {w: p.name for w, p in sets.items()})
     return 0
+
+
+def label(model: str, training: str) -> str:
+    """A row's name: the recipe's stem, and "(mixed)" when trained on mixed weather."""
+    return Path(model).stem + ("" if training == "clear" else f" ({training})")
 
 
 def summarise(found: dict, weathers: list[str], bound: dict) -> dict:
@@ -205,16 +301,26 @@ def summarise(found: dict, weathers: list[str], bound: dict) -> dict:
     return {"points": points, "bound": bound}
 
 
+def column(weather: str) -> str:
+    """A table column's name: clear air, a fog's visibility or a rain's rate."""
+    if weather == "clear":
+        return "clear air"
+    if weather.startswith("rain"):
+        return f"rain {weather[4:]} mm/h"
+    return f"fog V = {weather} m"
+
+
 def write(out: Path, summary: dict, command: str, names: dict) -> None:
     weathers = list(names)
-    header = " | ".join("clear air" if w == "clear" else f"V = {w} m" for w in weathers)
+    header = " | ".join(map(column, weathers))
     lines = [
-        "# Weather: trained in clear air, tested in fog",
+        "# Weather: trained in clear air or on mixed weather, tested in fog and rain",
         "",
         f"Made by `{command}` (`benchmark/weather.py`; its docstring says what is compared). "
-        "Test accuracy (%), mean ± sample std over seeds [95 % interval, Student's t]; the "
-        "bound: the early-information bound with every spike on that weather's own data "
-        "(learners trained in that weather).",
+        "Test accuracy (%), mean ± sample std over seeds [95 % interval, Student's t]; "
+        "(mixed): trained on the mixed train split (row i from weather i mod K); the bound: "
+        "the early-information bound with every spike on that weather's own data (learners "
+        "trained in that weather).",
         "",
         "Datasets: " + ", ".join(f"`{n}`" for n in names.values()) + ".",
         "",
@@ -245,28 +351,42 @@ def write(out: Path, summary: dict, command: str, names: dict) -> None:
 
 
 def plot(summary: dict, weathers: list[str], path: Path) -> None:
+    """Accuracy against visibility (clear air at the right) and against rain rate (clear air
+    at the left): one colour a model, solid trained in clear air, dashed on mixed weather."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(7, 4.5))
-    ax = fig.subplots()
-    # clear air drawn at the right, beyond the thinnest fog
-    fogs = [float(w) for w in weathers if w != "clear"]
-    clear_at = 2.0 * max(fogs) if fogs else 1000.0
-    x = [clear_at if w == "clear" else float(w) for w in weathers]
-    for model, rows in summary["points"].items():
-        mean = [r["accuracy"] for r in rows]
-        low = [r["accuracy"] - (r["accuracy_ci95"] or (r["accuracy"],))[0] for r in rows]
-        high = [(r["accuracy_ci95"] or (0, r["accuracy"]))[1] - r["accuracy"] for r in rows]
-        ax.errorbar(x, mean, yerr=[low, high], fmt="o-", capsize=3, label=model)
-    if summary["bound"]:
-        ax.plot(x, [summary["bound"][w]["accuracy"] for w in weathers], "k--",
-                label="bound, every spike (learners trained in that weather)")  # fmt: skip
-    ax.set_xscale("log")
-    ax.minorticks_off()
-    ax.set_xticks(x, ["clear" if w == "clear" else w for w in weathers])
-    ax.set(xlabel="visibility (m)", ylabel="test accuracy (%)", ylim=(0, 101),
-           title="Trained in clear air, tested in fog (sensor profile)")  # fmt: skip
-    ax.legend(fontsize=8, loc="upper left")
+    fogs = [w for w in weathers if w != "clear" and not w.startswith("rain")]
+    rains = [w for w in weathers if w.startswith("rain")]
+    panels = [(kind, chosen) for kind, chosen in (("fog", fogs), ("rain", rains)) if chosen]
+    fig = Figure(figsize=(6.5 * max(1, len(panels)), 4.5))
+    axes = fig.subplots(1, max(1, len(panels)), squeeze=False)[0]
+    colours = {}
+    for ax, (kind, chosen) in zip(axes, panels):
+        values = [float(w[4:] if kind == "rain" else w) for w in chosen]
+        clear_at = 2.0 * max(values) if kind == "fog" else 0.5 * min(values)
+        shown = ["clear", *chosen]
+        x = [clear_at, *values]
+        for model, rows in summary["points"].items():
+            base = model.split(" (")[0]
+            colour = colours.setdefault(base, f"C{len(colours)}")
+            picked = [next(r for r in rows if r["weather"] == w) for w in shown]
+            mean = [r["accuracy"] for r in picked]
+            low = [r["accuracy"] - (r["accuracy_ci95"] or (r["accuracy"],))[0] for r in picked]
+            high = [(r["accuracy_ci95"] or (0, r["accuracy"]))[1] - r["accuracy"] for r in picked]
+            mixed = "(" in model  # drawn a little to the right, so that the bars show
+            at = [v * 1.06 for v in x] if mixed else x
+            ax.errorbar(at, mean, yerr=[low, high], fmt="o--" if mixed else "o-", capsize=3,
+                        color=colour, label=model)  # fmt: skip
+        if summary["bound"]:
+            ax.plot(x, [summary["bound"][w]["accuracy"] for w in shown], "k:",
+                    label="bound, every spike (learners trained in that weather)")  # fmt: skip
+        ax.set_xscale("log")
+        ax.minorticks_off()
+        ax.set_xticks(x, ["clear", *(f"{v:g}" for v in values)])
+        unit = "visibility (m)" if kind == "fog" else "rain rate (mm/h)"
+        ax.set(xlabel=unit, ylabel="test accuracy (%)", ylim=(0, 101),
+               title=f"Tested in {kind} (sensor profile)")  # fmt: skip
+        ax.legend(fontsize=7, loc="upper left" if kind == "fog" else "lower left")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
 

@@ -343,6 +343,7 @@ BAD_ARGUMENTS = [
     ("receiver_speed.py", ["--repeats", "0"], "argument --repeats: '0': expected an integer"),
     ("weather.py", ["--data", "/nonexistent/w", "--visibilities", "0"], "'0': expected a visi"),
     ("weather.py", ["--data", "/nonexistent/w", "--models", "nosuch"], "model recipe 'nosuch'"),
+    ("weather.py", ["--data", "/nonexistent/w", "--rains", "600"], "'600': expected a rain rate"),
 ]
 # where a script writes by default (the repository's benchmark/results, or --out required):
 # the bad runs are sent to tmp_path / "out", which must not be made
@@ -415,34 +416,58 @@ def test_rain_check_keeps_the_extinction_within_a_tenth_of_ulbrich_and_atlas():
 
 
 def test_weather_scores_models_trained_in_clear_air_on_every_weather(tmp_path):
-    """benchmark/weather.py at a tiny size: the clear-air and fog datasets share their scenes
-    (same labels), a model trained in clear air is scored on every test split (its clear-air
-    score is its training run's own), and the summary's interval is Student's t over seeds."""
+    """benchmark/weather.py at a tiny size: the clear-air, fog and rain datasets share their
+    scenes (same labels), the mixed train split holds row i of weather i mod 3, a model trained
+    in clear air or on mixed weather is scored on every test split (its clear-air score is its
+    training run's own), the summary's interval is Student's t over seeds, and a cell that
+    lacks a weather is trained again and must keep the scores it had."""
     weather = _script("weather")
     out = tmp_path / "out"
     args = ["--data", str(tmp_path / "data"), "--train-size", "64", "--test-size", "32",
-            "--visibilities", "50", "--models", "cnn", "--seeds", "0,1", "--no-bound",
-            "--jobs", "1", "--out", str(out)]  # fmt: skip
+            "--visibilities", "50", "--rains", "100", "--models", "cnn", "--seeds", "0,1",
+            "--no-bound", "--jobs", "1", "--out", str(out)]  # fmt: skip
     assert weather.main(args) == 0
     result = json.loads((out / "weather.json").read_text())
     names = result["datasets"]
     assert names["clear"].endswith("-sensor-v4.0.0") and "-fog50.0-" in names["50"]
-    rows = result["points"]["cnn"]
-    assert [r["weather"] for r in rows] == ["clear", "50"]
-    for row in rows:
-        cells = [json.loads((out / f"cells/cnn__seed{s}.json").read_text()) for s in (0, 1)]
-        accs = [100 * c["test_accuracy"][row["weather"]] for c in cells]
-        assert row["accuracy"] == pytest.approx(sum(accs) / 2)
-        assert row["accuracy_ci95"] == pytest.approx(
-            [row["accuracy"] - 12.706 * row["accuracy_std"] / 2 ** 0.5,
-             row["accuracy"] + 12.706 * row["accuracy_std"] / 2 ** 0.5], abs=1e-2)  # fmt: skip
-    from simlidar.dataset.loaders import load_split
+    assert names["rain100"].endswith("-sensor-rain100.0-v4.2.0")
+    assert list(result["points"]) == ["cnn", "cnn (mixed)"]
+    for model, middle in (("cnn", ""), ("cnn (mixed)", "mixed__")):
+        rows = result["points"][model]
+        assert [r["weather"] for r in rows] == ["clear", "50", "rain100"]
+        cells = [json.loads((out / f"cells/cnn__{middle}seed{s}.json").read_text()) for s in (0, 1)]
+        for row in rows:
+            accs = [100 * c["test_accuracy"][row["weather"]] for c in cells]
+            assert row["accuracy"] == pytest.approx(sum(accs) / 2)
+            assert row["accuracy_ci95"] == pytest.approx(
+                [row["accuracy"] - 12.706 * row["accuracy_std"] / 2 ** 0.5,
+                 row["accuracy"] + 12.706 * row["accuracy_std"] / 2 ** 0.5], abs=1e-2)  # fmt: skip
+    import h5py
 
-    clear = load_split(tmp_path / "data" / names["clear"], "test")[1]
-    fog = load_split(tmp_path / "data" / names["50"], "test")[1]
-    assert (clear == fog).all()
+    data = tmp_path / "data"
+    (mixed,) = data.glob("*-mixed-50-rain100")
+    assert json.loads((mixed / "mixed.json").read_text())["weathers"] == names
+    with h5py.File(mixed / "train.h5") as f:
+        delays, labels = f["delays"][:], f["labels"][:]
+    for k, name in enumerate(names.values()):
+        with h5py.File(data / name / "train.h5") as f:
+            assert (f["labels"][:] == labels).all()  # the same scenes in every weather
+            assert (f["delays"][k::3] == delays[k::3]).all()
+    assert not (delays == h5py.File(data / names["clear"] / "train.h5")["delays"][:]).all()
+    # a cell without a weather is trained again; a score that changes stops the run
+    path = out / "cells/cnn__seed0.json"
+    cell = json.loads(path.read_text())
+    kept = dict(cell["test_accuracy"])
+    del cell["test_accuracy"]["rain100"]
+    path.write_text(json.dumps(cell))
+    assert weather.main(args) == 0
+    assert json.loads(path.read_text())["test_accuracy"] == kept
+    cell["test_accuracy"]["50"] = 2.0  # a score no run can give
+    path.write_text(json.dumps(cell))
+    with pytest.raises(SystemExit, match="trained again, its scores changed"):
+        weather.main(args)
     assert (out / "weather.png").stat().st_size > 0
-    assert "| cnn |" in (out / "weather.md").read_text()
+    assert "| cnn (mixed) |" in (out / "weather.md").read_text()
 
 
 def test_the_committed_weather_table_recomputes_from_its_cells():
@@ -455,7 +480,8 @@ def test_the_committed_weather_table_recomputes_from_its_cells():
     cells = {}
     for path in sorted((folder / "cells").glob("*.json")):
         cell = json.loads(path.read_text())
-        cells.setdefault(path.name.split("__")[0], []).append(cell)
+        stem, *middle, _ = path.name.split("__")
+        cells.setdefault(stem + "".join(f" ({m})" for m in middle), []).append(cell)
     weathers = list(result["datasets"])
     again = weather.summarise(cells, weathers, result["bound"])
     assert again["points"].keys() == result["points"].keys()
