@@ -115,6 +115,9 @@ def catalog_for(scenes, classes: int):
 @setting_option(GeneratorConfig, "rain_rate_mm_h", "--rain", "rain_rate_mm_h", metavar="MM_PER_H")
 @setting_option(GeneratorConfig, "beam_samples", metavar="Q")
 @setting_option(GeneratorConfig, "return_mode")
+@setting_option(
+    GeneratorConfig, "waveform_bin_ns", "--waveform-bin", "waveform_bin_ns", metavar="NS"
+)
 @scenes_option
 @click.option(
     "--batch-size",
@@ -159,6 +162,7 @@ def generate(
     rain_rate_mm_h,
     beam_samples,
     return_mode,
+    waveform_bin_ns,
     scenes,
     batch_size,
     workers,
@@ -204,6 +208,7 @@ def generate(
         rain_rate_mm_h=rain_rate_mm_h,
         beam_samples=beam_samples,
         return_mode=return_mode,
+        waveform_bin_ns=waveform_bin_ns,
     )
     start = time.perf_counter()
     written = generate_datasets(

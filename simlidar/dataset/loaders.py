@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 
 from simlidar.dataset.reader import SplitInfo, read_split
-from simlidar.dataset.schema import generated_schema
+from simlidar.dataset.schema import WAVEFORM_SCHEMA, generated_schema
 from simlidar.errors import ConfigError, DatasetError, shown
 from simlidar.settings import Range
 
@@ -48,7 +48,9 @@ def load_split(path: str | Path, split: str = "train", field: str = "delays"):
     """A whole split as numpy arrays (one file or its shards).
 
     returns : x (N, H, W) float32 (``field``: "delays" with noise, or "clean_delays" of a
-        generated dataset; H = 16 there), y (N,) int64 class labels
+        generated dataset; H = 16 there; another per-pixel field of a generated split, or
+        "waveform", (N, H, W, T) float32 watts, of one generated with ``--waveform-bin``),
+        y (N,) int64 class labels
     """
     info = _field_checked(split_info(path, split), field, PIXEL_FIELDS)
     arrays = info.read((field, "labels"))
@@ -61,7 +63,7 @@ PIXEL_FIELDS = tuple(
     name
     for name, (_, tail) in generated_schema("scan", receiver=True).items()
     if len(tail(1, 1)) == 2
-)
+) + tuple(WAVEFORM_SCHEMA)
 
 
 def _field_checked(info: SplitInfo, field, allowed: tuple[str, ...] = FIELDS) -> SplitInfo:

@@ -25,7 +25,7 @@ from simlidar.dataset.shards import find_split_files, shard_of
 from simlidar.dataset.version import (
     GENERATOR,
     PHYSICAL_VERSION,
-    RAIN_VERSION,
+    RAIN_WAVEFORM_VERSION,
     RETURNS_VERSION,
     SCAN_VERSION,
     SENSOR_VERSION,
@@ -171,7 +171,7 @@ def datasets_of(path: Path, f: h5py.File) -> tuple[dict[str, h5py.Dataset], list
     soft or external link (which would read another file's data) and, under a name the
     schemas use, a group."""
     datasets, problems = {}, []
-    names = set(generated_schema("scan", receiver=True, returns=2))
+    names = set(generated_schema("scan", receiver=True, returns=2, waveform_bins=1))
     names |= {n for s in CONVERTED_SCHEMAS.values() for n in s}
     for name in f:
         link = f.get(name, getlink=True)
@@ -328,18 +328,18 @@ def read_split_info(path: Path) -> SplitInfo:
 
 
 def written_version(attrs) -> str | None:
-    """The version this simlidar writes for a split like this one, when it is not its source's
-    current version: a split with a receiver is RAIN_VERSION (4.2.0) with rain (``rain_rate_mm_h``
-    in its configuration), RETURNS_VERSION (4.1.0) where its returns come from waveforms
-    (attribute ``return_mode``), else SENSOR_VERSION (4.0.0); a scan-timed split is
-    SCAN_VERSION (3.0.0); a generated split without a profile follows the physical rule, still
-    written as PHYSICAL_VERSION (1.0.0)."""
+    """The version this simlidar writes for a split like this one, when it is not its
+    source's current version: a split with a receiver is RAIN_WAVEFORM_VERSION (4.2.0) with
+    rain or a stored waveform (``rain_rate_mm_h``, ``waveform_bin_ns`` in its configuration),
+    RETURNS_VERSION (4.1.0) where its returns come from waveforms (attribute ``return_mode``),
+    else SENSOR_VERSION (4.0.0); a scan-timed split is SCAN_VERSION (3.0.0); a generated split
+    without a profile follows the physical rule, still written as PHYSICAL_VERSION (1.0.0)."""
     if split_source(attrs) != GENERATOR:
         return None
     if "receiver" in attrs:
         config = _decode(attrs.get("config", ""))
-        if isinstance(config, dict) and "rain_rate_mm_h" in config:
-            return RAIN_VERSION
+        if isinstance(config, dict) and {"rain_rate_mm_h", "waveform_bin_ns"} & config.keys():
+            return RAIN_WAVEFORM_VERSION
         return RETURNS_VERSION if "return_mode" in attrs else SENSOR_VERSION
     if _decode(attrs.get("timing", "flash")) == "scan":
         return SCAN_VERSION

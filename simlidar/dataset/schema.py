@@ -56,6 +56,13 @@ RETURNS_SCHEMA: dict[str, tuple[str, object]] = {
     "returns_intensity": ("uint8", lambda h, w, r: (h, w, r)),
     "returns_surface": ("uint8", lambda h, w, r: (h, w, r)),
 }
+# Stored besides RETURNS_SCHEMA by datasets that keep each pulse's waveform (attribute
+# `waveform_bins`, T) only: name -> (dtype, trailing shape given H, W and T). Its chunks hold one
+# sample each (WAVEFORM_CHUNK), a sample being H x W x T x 4 bytes
+WAVEFORM_SCHEMA: dict[str, tuple[str, object]] = {
+    "waveform": ("float32", lambda h, w, t: (h, w, t)),
+}
+WAVEFORM_CHUNK = 1
 # A sweep's frames file: its name, its `format` attribute and its datasets, name -> (dtype,
 # trailing shape given the lasers H and the cycles C of a rotation; SCHEMA's form, another
 # file's); beside them `emission_ns` (H, C) float64, the same for every frame. Its version:
@@ -202,6 +209,8 @@ ATTRIBUTES = {
     "materials_sha256": Text(),
     "return_mode": Choice(RETURN_MODES),
     "beam_samples": Range(1, 2**31, "an integer"),
+    "waveform_bin_ns": Range(0, 4, "ns", low_open=True),
+    "waveform_bins": Range(1, 2**31, "an integer"),
     "shard": Range(0, 2**31, "an integer"),
     "shards": Range(1, 2**31, "an integer"),
     "input_sha256": Text(),
@@ -252,11 +261,12 @@ def reported_returns(attrs) -> int:
 
 
 def generated_schema(
-    timing: str = "flash", receiver: bool = False, returns: int = 0
+    timing: str = "flash", receiver: bool = False, returns: int = 0, waveform_bins: int = 0
 ) -> dict[str, tuple[str, object]]:
     """:data:`SCHEMA`, with :data:`SCAN_SCHEMA` under scan timing, :data:`RECEIVER_SCHEMA`
-    under a receiver and :data:`RETURNS_SCHEMA` where a pulse reports ``returns`` > 0 returns
-    (their trailing shapes then given H and W alone)."""
+    under a receiver, :data:`RETURNS_SCHEMA` where a pulse reports ``returns`` > 0 returns and
+    :data:`WAVEFORM_SCHEMA` where it keeps ``waveform_bins`` > 0 samples of its waveform (their
+    trailing shapes then given H and W alone)."""
     schema = (
         SCHEMA | (SCAN_SCHEMA if timing == "scan" else {}) | (RECEIVER_SCHEMA if receiver else {})
     )
@@ -265,18 +275,31 @@ def generated_schema(
             name: (dtype, lambda h, w, tail=tail: tail(h, w, returns))
             for name, (dtype, tail) in RETURNS_SCHEMA.items()
         }
+    if waveform_bins:
+        schema |= {
+            name: (dtype, lambda h, w, tail=tail: tail(h, w, waveform_bins))
+            for name, (dtype, tail) in WAVEFORM_SCHEMA.items()
+        }
     return schema
 
 
 def generated_shapes(
-    height: int, width: int, timing: str = "flash", receiver: bool = False, returns: int = 0
+    height: int,
+    width: int,
+    timing: str = "flash",
+    receiver: bool = False,
+    returns: int = 0,
+    waveform_bins: int = 0,
 ) -> dict[str, tuple[str, tuple]]:
     """name -> (dtype, trailing shape) of a generated split of ``height`` rows (the sensor's
     beams) and ``width`` columns, of ``timing`` "flash" or "scan", with a receiver or not, and
-    ``returns`` reported returns a pulse (0: none stored)."""
+    ``returns`` reported returns a pulse (0: none stored), ``waveform_bins`` samples of its
+    waveform (0: none stored)."""
     return {
         name: (dtype, tail(height, width))
-        for name, (dtype, tail) in generated_schema(timing, receiver, returns).items()
+        for name, (dtype, tail) in generated_schema(
+            timing, receiver, returns, waveform_bins
+        ).items()
     }
 
 
@@ -298,13 +321,15 @@ def expected_shapes(
     timing: str = "flash",
     receiver: bool = False,
     returns: int = 0,
+    waveform_bins: int = 0,
 ) -> dict[str, tuple]:
     """name -> (dtype, full shape) of every dataset a split of ``source`` must hold
     (``timing``: a generated split's ``timing`` attribute, "flash" where it has none;
     ``receiver``: whether it has a ``receiver`` attribute; ``returns``: its
-    :func:`reported_returns`)."""
+    :func:`reported_returns`; ``waveform_bins``: its attribute of that name, 0 where it has
+    none)."""
     if source == GENERATOR:
-        shapes = generated_shapes(h, w, timing, receiver, returns)
+        shapes = generated_shapes(h, w, timing, receiver, returns, waveform_bins)
         return {name: (dtype, (n, *tail)) for name, (dtype, tail) in shapes.items()}
     if source not in CONVERTED_SCHEMAS:
         known = ", ".join([GENERATOR, *CONVERTED_SCHEMAS])

@@ -28,8 +28,10 @@ SENSOR_VERSION = "4.0.0"
 RETURNS_VERSION = "4.1.0"
 # Rain (``--rain R``, issue 41): the sensor profile's waveform path with the echoes of the drops
 # in each beam and their extinction; the records' fields are 4.1.0's, but the configuration gains
-# ``rain_rate_mm_h``, which a 4.1.0 reader does not know (a new MINOR); the others keep theirs.
-RAIN_VERSION = "4.2.0"
+# ``rain_rate_mm_h``, which a 4.1.0 reader does not know (a new MINOR); and stored waveforms
+# (``--waveform-bin``): the dataset ``waveform`` added (a MINOR too, released with rain); the
+# others keep theirs.
+RAIN_WAVEFORM_VERSION = "4.2.0"
 
 # Release dates are part of the published metadata (croissant.json's datePublished), so they are
 # constants too: a dataset's bytes never depend on the day it was generated.
@@ -95,21 +97,25 @@ RELEASE_NOTES: dict[str, str] = {
         "two-way extinction (Q_ext = 2) and the drops in each beam echo (water's Fresnel "
         "reflectance times the share of the beam a drop covers), their echoes joining the "
         "pulse's waveform; an echo the drops make is a return of surface 0. Rain datasets have "
-        "4.1.0's fields and a configuration key `rain_rate_mm_h`, hence a new MINOR. Datasets "
-        "without rain keep their versions and bytes; a card now lists the release notes up to "
-        "its own dataset's version."
+        "4.1.0's fields and a configuration key `rain_rate_mm_h`. Stored waveforms "
+        "(`--waveform-bin NS`): each pulse's received waveform, sampled every NS ns from its "
+        "emission to the maximum range's time of flight, in a new dataset `waveform` (N, H, W, "
+        "T) float32 watts, attributes `waveform_bin_ns` and `waveform_bins`. Fields added, "
+        "hence a new MINOR. Datasets without rain or a stored waveform keep their versions and "
+        "bytes; a card now lists the release notes up to its own dataset's version."
     ),
 }
 
 
 def dataset_version(config) -> str:
     """The version a generated dataset of ``config`` (a GeneratorConfig) carries:
-    RAIN_VERSION for rain, RETURNS_VERSION under a receiver whose returns come from waveforms,
-    SENSOR_VERSION under another receiver, SCAN_VERSION under scan timing, PHYSICAL_VERSION for
-    the physical pulse rule (its records are those of 1.0.0), else DATASET_VERSION."""
+    RAIN_WAVEFORM_VERSION for rain or a stored waveform, RETURNS_VERSION under a receiver whose
+    returns come from waveforms, SENSOR_VERSION under another receiver, SCAN_VERSION under scan
+    timing, PHYSICAL_VERSION for the physical pulse rule (its records are those of 1.0.0), else
+    DATASET_VERSION."""
     if config.receiver is not None:
-        if config.rain_rate_mm_h > 0.0:
-            return RAIN_VERSION
+        if config.rain_rate_mm_h > 0.0 or config.waveform_bin_ns > 0.0:
+            return RAIN_WAVEFORM_VERSION
         return RETURNS_VERSION if config.full_waveform else SENSOR_VERSION
     if config.timing == "scan":
         return SCAN_VERSION

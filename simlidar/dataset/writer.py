@@ -62,6 +62,7 @@ class SplitWriter:
         shuffled: frozenset[str] = frozenset(),
         chunk: int = CHUNK_SAMPLES,
         large_attrs: bool = False,
+        chunk_rows: dict[str, int] | None = None,
     ):
         self.size = size
         self.chunk = min(chunk, size)  # rows a chunk (full sweeps: one frame)
@@ -82,7 +83,7 @@ class SplitWriter:
                 name,
                 shape=shape,
                 dtype=dtype,
-                chunks=(self.chunk, *shape[1:]),
+                chunks=(min(self.chunk, (chunk_rows or {}).get(name, self.chunk)), *shape[1:]),
                 compression="gzip",
                 compression_opts=1,
                 shuffle=name in shuffled,

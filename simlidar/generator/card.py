@@ -64,7 +64,15 @@ _DOCS = {  # one line per dataset of a split file; the full table is docs/datase
     "returns_tof_ns": "time of flight of each reported return, ns (NaN = none)",
     "returns_intensity": "reflectivity byte of each reported return (0 = none)",
     "returns_surface": "surface label of each reported return (0 = none)",
+    "waveform": "each pulse's received waveform, W, sampled every `waveform_bin_ns` from its "
+    "emission",
 }
+
+
+def _schema(config: GeneratorConfig, attrs) -> dict:
+    """The datasets a generated split of ``config`` and ``attrs`` holds (generated_schema)."""
+    returns, bins = reported_returns(attrs), attrs.get("waveform_bins", 0)
+    return generated_schema(config.timing, "receiver" in attrs, returns, bins)
 
 
 def stored_config(info) -> GeneratorConfig:
@@ -84,9 +92,7 @@ def generated_front_matter(path: Path) -> dict:
     config = stored_config(splits["train"])
     features = [
         hf_feature(name, dtype, tail(height, width), attrs["class_names"])
-        for name, (dtype, tail) in generated_schema(
-            config.timing, "receiver" in attrs, reported_returns(attrs)
-        ).items()
+        for name, (dtype, tail) in _schema(config, attrs).items()
     ]
     title = f"{NAME}, {attrs['classes']} classes, noise {attrs['noise']}"
     config_name = f"noise{float(attrs['noise'])!r}"
@@ -157,6 +163,7 @@ def regenerate_command(
         "rain_rate_mm_h",
         "beam_samples",
         "return_mode",
+        "waveform_bin_ns",
     }
     other = {k for k, v in config.to_dict().items() if k not in cli_fields}
     shipped = config.profile is None or (
@@ -198,6 +205,8 @@ def regenerate_command(
         parts.append(f"--beam-samples {config.beam_samples}")
     if config.return_mode != "strongest":
         parts.append(f"--return-mode {config.return_mode}")
+    if config.waveform_bin_ns:
+        parts.append(f"--waveform-bin {config.waveform_bin_ns!r}")
     over = config.overrides
     if "shift_max" in over:
         parts.append(f"--shift {config.shift_max!r}")
@@ -351,7 +360,20 @@ def _beam_lines(attrs, config: GeneratorConfig) -> str:
         f"the threshold are the echoes (`echoes`), and the pulse reports {mode} "
         "(`returns_tof_ns`, `returns_intensity`, `returns_surface`, in that order). The "
         "per-pixel datasets (`delays`, `tof_ns`, `surface`, `intensity`, ...) hold the first "
-        "reported return to arrive.\n"
+        "reported return to arrive." + _waveform_line(attrs) + "\n"
+    )
+
+
+def _waveform_line(attrs) -> str:
+    """The sentence on the stored waveform (none where it is not stored)."""
+    if "waveform_bins" not in attrs:
+        return ""
+    bin_ns, bins = attrs["waveform_bin_ns"], attrs["waveform_bins"]
+    return (
+        f" Each pulse's waveform, every echo's and the weather's, is stored (`waveform`): "
+        f"{bins} samples, one every {bin_ns:g} ns from the pulse's emission to "
+        f"{(bins - 1) * bin_ns:g} ns, in watts (the detection threshold is "
+        f"{attrs['receiver']['threshold_w']:g} W)."
     )
 
 
@@ -398,9 +420,7 @@ def generated_card(path: str | Path) -> str:
             ["dataset", "dtype", "shape", "meaning"],
             [
                 [f"`{name}`", dtype, str(("N", *tail(height, width))).replace("'", ""), _DOCS[name]]
-                for name, (dtype, tail) in generated_schema(
-                    config.timing, "receiver" in attrs, reported_returns(attrs)
-                ).items()
+                for name, (dtype, tail) in _schema(config, attrs).items()
             ],
         )
         + "\n",

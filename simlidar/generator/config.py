@@ -11,8 +11,11 @@ from simlidar.sensor.footprint import MAX_RINGS
 from simlidar.sensor.model import Sensor, default_sensor
 from simlidar.sensor.rays import scan_window_ns
 from simlidar.sensor.receiver import RETURN_MODES
+from simlidar.sensor.waveform import BIN_NS
 from simlidar.sensor.weather import MAX_RAIN_MM_H
 from simlidar.settings import Choice, Range, check, setting
+
+MAX_WAVEFORM_BIN_NS = 4.0
 
 MAX_SPLIT_SIZE = 10**9  # samples per split
 TIMINGS = ("flash", "scan")
@@ -110,6 +113,15 @@ class GeneratorConfig:
         "profile with a receiver only (sensor).",
         Range(1, MAX_RINGS, "an integer", note="(1: one ray a pulse)"),
     )
+    # stored only when not 0, for the same reason
+    waveform_bin_ns: float = setting(
+        0.0,
+        "Store each pulse's received waveform (dataset `waveform`, watts, float32) sampled "
+        "every this many ns from its emission to the sensor's maximum range's time of flight: "
+        "0.25 (the waveform's own bins) to 4, a multiple of 0.25; 0: not stored; a profile "
+        "with a receiver only (sensor). The VLP-16's digitiser rate is not published.",
+        Range(0, MAX_WAVEFORM_BIN_NS, "ns", note="(0: not stored)"),
+    )
     return_mode: str = setting(
         "strongest",
         "Which returns a pulse reports (VLP-16 manual sec. 9.3.2): strongest, last, or dual "
@@ -154,10 +166,16 @@ class GeneratorConfig:
                 f"receiver (--profile sensor), not {self.profile_name!r}: without one every hit "
                 "returns, and rain would change nothing"
             )
+        if self.waveform_bin_ns and (self.waveform_bin_ns / BIN_NS) % 1.0:
+            raise ConfigError(
+                f"waveform_bin_ns={self.waveform_bin_ns!r} (--waveform-bin): expected a "
+                f"multiple of {BIN_NS} ns (the waveform's own bins), or 0"
+            )
         if self.full_waveform and self.receiver is None:
             raise ConfigError(
-                f"beam_samples={self.beam_samples!r}, return_mode={self.return_mode!r} "
-                f"(--beam-samples, --return-mode): expected a profile with a receiver "
+                f"beam_samples={self.beam_samples!r}, return_mode={self.return_mode!r}, "
+                f"waveform_bin_ns={self.waveform_bin_ns!r} (--beam-samples, --return-mode, "
+                "--waveform-bin): expected a profile with a receiver "
                 f"(--profile sensor), not {self.profile_name!r}: without one a pulse has no "
                 "waveform to take returns from"
             )
@@ -240,7 +258,16 @@ class GeneratorConfig:
             or self.return_mode != "strongest"
             or math.isfinite(self.fog_visibility_m)
             or self.rain_rate_mm_h > 0.0
+            or self.waveform_bin_ns > 0.0
         )
+
+    @property
+    def waveform_bins(self) -> int:
+        """Samples of each stored waveform (0: none stored): t = k waveform_bin_ns up to the
+        sensor's maximum range's time of flight."""
+        if not self.waveform_bin_ns:
+            return 0
+        return int(self.sensor.tof_max_ns // self.waveform_bin_ns) + 1
 
     @property
     def reported_returns(self) -> int:
@@ -274,6 +301,8 @@ class GeneratorConfig:
             del values["rain_rate_mm_h"]  # absent means no rain (same reason)
         if values["beam_samples"] == 1:
             del values["beam_samples"]  # absent means one ray a pulse (same reason)
+        if values["waveform_bin_ns"] == 0.0:
+            del values["waveform_bin_ns"]  # absent means no waveform stored (same reason)
         if values["return_mode"] == "strongest":
             del values["return_mode"]  # absent means the strongest return (same reason)
         return values

@@ -41,6 +41,10 @@ BATCH = 1024  # samples ray-cast together by default (does not change the data)
 # (physical profile, noise 0) to 5.5 (scan timing) over the shipped profiles; the noisy
 # delays, float32, barely compress
 DISK_BYTES_PER_PULSE = 4
+WAVEFORM_BATCH_BYTES = 256 * 2**20  # stored waveforms a batch holds in memory, at most
+# a stored waveform's bytes a pulse on disk: 30 measured (VLP-16, sensor profile, 1 ns bins,
+# 668 samples: gzip of a waveform that is zero but near its echoes), doubled as a margin
+WAVEFORM_DISK_BYTES_PER_PULSE = 64
 _SHARED: tuple | None = None  # (config, catalog) of the batches the worker processes simulate
 
 
@@ -129,10 +133,14 @@ class Written:
     splits: dict[str, int]
 
 
+def _bytes_per_pulse(config: GeneratorConfig) -> int:
+    return DISK_BYTES_PER_PULSE + (WAVEFORM_DISK_BYTES_PER_PULSE if config.waveform_bins else 0)
+
+
 def expected_bytes(config: GeneratorConfig, datasets: int = 1) -> int:
     """About the bytes that ``datasets`` dataset directories of ``config`` take on disk."""
     samples = config.train_size + config.test_size
-    return datasets * samples * config.sensor.beams * config.width * DISK_BYTES_PER_PULSE
+    return datasets * samples * config.sensor.beams * config.width * _bytes_per_pulse(config)
 
 
 def check_disk_space(config: GeneratorConfig, datasets: int, out: str | Path) -> None:
@@ -143,17 +151,17 @@ def check_disk_space(config: GeneratorConfig, datasets: int, out: str | Path) ->
         out,
         expected_bytes(config, datasets),
         f"{datasets} dataset(s) of {samples} samples of {config.sensor.beams} x "
-        f"{config.width} pulses ({DISK_BYTES_PER_PULSE} bytes a pulse)",
+        f"{config.width} pulses ({_bytes_per_pulse(config)} bytes a pulse)",
     )
 
 
 def generated_name(config: GeneratorConfig) -> str:
-    """``simlidar-<classes>c-noise<level>-<profile>[-<sensor>][-scan][-fog<V>][-rain<R>][-beam<Q>][-<mode>][-var<v>][-shift<s>]-v<version>``,
+    """``simlidar-<classes>c-noise<level>-<profile>[-<sensor>][-scan][-fog<V>][-rain<R>][-beam<Q>][-<mode>][-wave<ns>][-var<v>][-shift<s>]-v<version>``,
     numbers as Python's repr (0.2, 0.33); ``-<sensor>`` names a sensor other than the VLP-16,
     ``-scan`` scan timing, ``-fog`` a fog's visibility in metres, ``-rain`` a rain's rate in
-    mm/h, ``-beam`` a beam footprint's
-    rings of sub-rays, ``-last`` / ``-dual`` a return mode other than strongest, ``-var`` and
-    ``-shift`` values that differ from the profile's own."""
+    mm/h, ``-beam`` a beam footprint's rings of sub-rays, ``-last`` / ``-dual`` a return mode
+    other than strongest, ``-wave`` a stored waveform's bin in ns, ``-var`` and ``-shift``
+    values that differ from the profile's own."""
     over = config.overrides
     sensor = f"-{config.sensor.name}" if config.sensor.name != "vlp16" else ""
     sensor += "-scan" if config.timing == "scan" else ""
@@ -163,6 +171,7 @@ def generated_name(config: GeneratorConfig) -> str:
         sensor += f"-rain{float(config.rain_rate_mm_h)!r}"
     sensor += f"-beam{config.beam_samples}" if config.beam_samples != 1 else ""
     sensor += f"-{config.return_mode}" if config.return_mode != "strongest" else ""
+    sensor += f"-wave{float(config.waveform_bin_ns)!r}" if config.waveform_bin_ns else ""
     variation = f"-var{float(over['variation'])!r}" if "variation" in over else ""
     shift = f"-shift{float(over['shift_max'])!r}" if "shift_max" in over else ""
     return (
@@ -210,6 +219,9 @@ def generate(
     if config.receiver is not None:  # and its receiver fits the sensor and the catalog
         physics = receiver_physics(config.profile)
         check_physics(physics, config.sensor, catalog.surfaces, config.return_mode)
+    if config.waveform_bins:  # a batch's waveforms held at once: at most WAVEFORM_BATCH_BYTES
+        per_sample = config.sensor.beams * config.width * config.waveform_bins * 4
+        batch_size = max(1, min(batch_size, WAVEFORM_BATCH_BYTES // per_sample))
     out = Path(out)
     finals = [out / generated_name(c) for c in configs]
     if len(set(finals)) != len(finals):

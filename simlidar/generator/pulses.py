@@ -23,7 +23,7 @@ Conventions (``docs/sensor-model.md`` explains them):
 
 import numpy as np
 
-from simlidar.dataset.schema import RECEIVER_SCHEMA, RETURNS_SCHEMA, SCHEMA
+from simlidar.dataset.schema import RECEIVER_SCHEMA, RETURNS_SCHEMA, SCHEMA, WAVEFORM_SCHEMA
 from simlidar.sensor.model import Sensor, tof_ns
 
 NO_RETURN = 1.0
@@ -136,4 +136,6 @@ def split_rows(samples, config) -> dict[str, np.ndarray]:
         rows |= {name: getattr(samples, name) for name in RECEIVER_SCHEMA}
     if config.reported_returns:
         rows |= {name: getattr(samples, name) for name in RETURNS_SCHEMA}
+    if config.waveform_bins:
+        rows |= {name: getattr(samples, name) for name in WAVEFORM_SCHEMA}
     return rows | {name: getattr(samples, name) for name in SCHEMA if name not in rows}

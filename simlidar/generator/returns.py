@@ -48,7 +48,7 @@ from simlidar.sensor.receiver import (
     receiver_to_dict,
     reflectivity_byte,
 )
-from simlidar.sensor.waveform import BIN_NS, echoes, pulse_sigma_ns, reported
+from simlidar.sensor.waveform import BIN_NS, echoes, pulse_sigma_ns, reported, sampled
 from simlidar.sensor.weather import C_M_PER_NS, CROSSOVER_M, Rain, fog_table, rain
 
 # The child stream key of a sample's receiver draws (the issue's number: any constant will do,
@@ -165,6 +165,8 @@ class Returns:
     returns_range_m: np.ndarray | None = None
     returns_intensity: np.ndarray | None = None
     returns_surface: np.ndarray | None = None
+    # (n, H, W, T) float32 watts, the waveform sampled every waveform_bin_ns (on request)
+    waveform: np.ndarray | None = None
 
 
 def _surface_tables(streams, choices):
@@ -216,7 +218,7 @@ def receive_hits(
         return receive_beams(
             physics, choices, config.sensor, streams, range_m, surface, cos_incidence,
             weights, config.return_mode, config.extinction_per_m, config.fog_visibility_m,
-            config.rain_rate_mm_h,
+            config.rain_rate_mm_h, config.waveform_bin_ns, config.waveform_bins,
         )  # fmt: skip
     got = receive(
         physics, choices, config.sensor, streams, range_m, surface, cos_incidence,
@@ -278,6 +280,8 @@ def receive_beams(
     extinction_per_m: float = 0.0,
     visibility_m: float = math.inf,
     rain_rate_mm_h: float = 0.0,
+    waveform_bin_ns: float = 0.0,
+    waveform_bins: int = 0,
 ) -> Returns:
     """The returns of a block of beams sampled by S sub-rays, in a return mode
     (docs/sensor-model.md, "Beam footprint and returns"):
@@ -304,6 +308,9 @@ def receive_beams(
         its drops (:class:`simlidar.sensor.weather.Rain`) join the waveform, drawn from each
         sample's stream after the draws above; an echo the drops make is a return of surface
         0, as the fog's
+    waveform_bin_ns, waveform_bins : where ``waveform_bins`` > 0, each pulse's waveform (every
+        echo above, the weather's too) sampled at k ``waveform_bin_ns``, k < ``waveform_bins``
+        (:func:`simlidar.sensor.waveform.sampled`)
     """
     receiver = physics.receiver
     n, rows, cols, subrays = range_m.shape
@@ -334,10 +341,16 @@ def receive_beams(
     if drops is not None:
         drop_ns, drop_w = _drop_echoes(drops, streams, rows * cols, axis_m, extinction_per_m)
         all_times, all_power = np.hstack([times, drop_ns]), np.hstack([power, drop_w])
+    columns = None if fog is None else fog.column(axis_m)
     if fog is None:
         echo = echoes(all_times, all_power, sigma_ns)
     else:
-        echo = echoes(all_times, all_power, sigma_ns, BIN_NS, fog, fog.column(axis_m))
+        echo = echoes(all_times, all_power, sigma_ns, BIN_NS, fog, columns)
+    stored = None
+    if waveform_bins:
+        stored = sampled(
+            all_times, all_power, sigma_ns, waveform_bin_ns, waveform_bins, fog, columns
+        ).reshape(n, rows, cols, waveform_bins)
     pick = reported(echo, receiver.threshold_w, mode, receiver.dual_when_strongest_is_last)
     pulses = np.arange(len(pick))[:, None]
     found = pick >= 0
@@ -407,6 +420,7 @@ def receive_beams(
         returns_range_m=returned_m.reshape(shape + (reports,)),
         returns_intensity=intensity.reshape(shape + (reports,)).astype(np.uint8),
         returns_surface=labels.reshape(shape + (reports,)).astype(np.uint8),
+        waveform=stored,
     )
 
 

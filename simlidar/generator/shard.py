@@ -13,7 +13,13 @@ import h5py
 import numpy as np
 
 from simlidar import __version__
-from simlidar.dataset.schema import SHUFFLED, SPLITS, generated_shapes
+from simlidar.dataset.schema import (
+    SHUFFLED,
+    SPLITS,
+    WAVEFORM_CHUNK,
+    WAVEFORM_SCHEMA,
+    generated_shapes,
+)
 from simlidar.dataset.shards import shard_bounds, split_file_names
 from simlidar.dataset.version import dataset_version
 from simlidar.dataset.writer import SplitWriter
@@ -75,7 +81,12 @@ def write_shard(
     first = configs[0]
     receiver = first.receiver is not None
     shapes = generated_shapes(
-        first.sensor.beams, first.width, first.timing, receiver, first.reported_returns
+        first.sensor.beams,
+        first.width,
+        first.timing,
+        receiver,
+        first.reported_returns,
+        first.waveform_bins,
     )
     token = secrets.token_hex(4)  # two runs of one shard (a retried task) never share a file
     writers: list[SplitWriter] = []
@@ -85,7 +96,16 @@ def write_shard(
             if shard.count > 1:  # a shard's own attributes (a one-file split has none)
                 attrs |= {"shard": shard.index, "shards": shard.count}
             hidden = temp / f".{shard.name}.partial-{token}"
-            writers.append(SplitWriter(hidden, shard.stop - shard.first, shapes, attrs, SHUFFLED))
+            writers.append(
+                SplitWriter(
+                    hidden,
+                    shard.stop - shard.first,
+                    shapes,
+                    attrs,
+                    SHUFFLED,
+                    chunk_rows={name: WAVEFORM_CHUNK for name in WAVEFORM_SCHEMA},
+                )  # fmt: skip
+            )
         for _, start, stop in shard.batches(batch_size):
             samples = next(batches)
             for cfg, writer in zip(configs, writers):
@@ -155,4 +175,7 @@ def generated_split_attrs(config: GeneratorConfig, catalog: Catalog, split: str)
     if config.full_waveform:  # absent: one ray a pulse, its strongest return (4.0.0's bytes)
         attrs["beam_samples"] = config.beam_samples
         attrs["return_mode"] = config.return_mode
+    if config.waveform_bins:
+        attrs["waveform_bin_ns"] = config.waveform_bin_ns
+        attrs["waveform_bins"] = config.waveform_bins
     return attrs

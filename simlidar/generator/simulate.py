@@ -108,6 +108,8 @@ class Samples:
     returns_tof_ns: np.ndarray | None = None  # (n, H, W, R) float32, NaN: none
     returns_intensity: np.ndarray | None = None  # (n, H, W, R) uint8, 0: none
     returns_surface: np.ndarray | None = None  # (n, H, W, R) uint8, 0: none
+    # where a waveform is stored (GeneratorConfig.waveform_bins) only, else None:
+    waveform: np.ndarray | None = None  # (n, H, W, T) float32, watts
 
 
 def split_beams(hits: Hits, width: int) -> Hits:
@@ -291,6 +293,8 @@ def simulate(
                 "returns_intensity": got.returns_intensity,
                 "returns_surface": got.returns_surface,
             }
+            if got.waveform is not None:
+                received["waveform"] = got.waveform
         else:
             got = receive_hits(config, physics, choices, streams, hit_m, surface, cos_incidence)
         range_m, surface = got.range_m, got.surface

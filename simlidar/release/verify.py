@@ -66,7 +66,11 @@ def _check_split(
             timing = attrs.get("timing", "flash")
             receiver = "receiver" in attrs
             returns = reported_returns(attrs)
-            shapes = expected_shapes(source, size, height, width, events, timing, receiver, returns)
+            bins = attrs.get("waveform_bins", 0)
+            bins = bins if ATTRIBUTES["waveform_bins"].accepts(bins) else 0  # named above
+            shapes = expected_shapes(
+                source, size, height, width, events, timing, receiver, returns, bins
+            )
         except DatasetError as exc:  # an unknown source
             return problems + [f"{path}: {exc}"], None
         for name, (dtype, shape) in shapes.items():

@@ -174,3 +174,47 @@ def reported(echo: Echoes, threshold_w: float, mode: str, dual_rule: str = "seco
         other = np.where(any_found, np.argmax(found, axis=1), none)
     second = np.where(strongest == last, other, strongest)
     return np.stack([last, second], axis=1)
+
+
+def sampled(
+    times_ns: np.ndarray,
+    powers_w: np.ndarray,
+    sigma_ns: float,
+    bin_ns: float,
+    bins: int,
+    fog=None,
+    fog_columns: np.ndarray | None = None,
+) -> np.ndarray:
+    """Each pulse's waveform P(t) sampled at t = k ``bin_ns``, k = 0 .. ``bins`` - 1 (what a
+    dataset stores on request): (P, bins) float32, watts.
+
+    times_ns, powers_w : (P, S) as :func:`echoes` takes them (NaN time: no hit); each echo is
+        evaluated within ``REACH_SIGMAS`` sigmas of its time (beyond, under 3.4e-4 of its peak)
+    fog : a :class:`simlidar.sensor.weather.FogTable` whose bins (of :data:`BIN_NS`) fall on
+        every sample (``bin_ns`` a multiple of them), column ``fog_columns[p]`` for pulse p
+    """
+    times = np.asarray(times_ns, dtype=np.float64)
+    powers = np.where(np.isnan(times), 0.0, np.asarray(powers_w, dtype=np.float64))
+    pulses = len(times)
+    out = np.zeros((pulses, bins))
+    reach = int(math.ceil(REACH_SIGMAS * sigma_ns / bin_ns))
+    offsets = np.arange(-reach, reach + 1)
+    pulse, column = np.nonzero(~np.isnan(times))
+    rows = max(1, CHUNK_VALUES // len(offsets))
+    for lo in range(0, len(pulse), rows):
+        p, s = pulse[lo : lo + rows], column[lo : lo + rows]
+        t = times[p, s]
+        k = np.round(t / bin_ns).astype(np.int64)[:, None] + offsets
+        inside = (k >= 0) & (k < bins)
+        shape = np.exp(-((k * bin_ns - t[:, None]) ** 2) / (2.0 * sigma_ns**2))
+        value = powers[p, s][:, None] * shape
+        owner = np.broadcast_to(p[:, None], k.shape)
+        np.add.at(out, (owner[inside], k[inside]), value[inside])
+    if fog is not None:
+        step = int(round(bin_ns / fog.bin_ns))
+        k = np.arange(bins)
+        row = k * step - fog.first_bin
+        inside = (row >= 0) & (row < len(fog.watts))
+        foggy = np.flatnonzero(fog_columns >= 0)
+        out[np.ix_(foggy, k[inside])] += fog.watts[row[inside]][:, fog_columns[foggy]].T
+    return out.astype(np.float32)

@@ -141,3 +141,26 @@ def test_echoes_closer_than_the_pulse_merge_into_one_between_them():
 
 def test_the_waveform_is_sampled_at_helios_bin_size():
     assert BIN_NS == 0.25 and math.isclose(SIGMA, 4.0 / 2.3548200450309493)
+
+
+def test_the_stored_waveform_samples_the_formula_near_every_echo():
+    """sampled(): P(t) at t = k bin within 4 sigma of each echo (the formula, by waveform(),
+    less the tails of echoes farther than 4 sigma), 0 beyond; two echoes that overlap add."""
+    from simlidar.sensor.waveform import REACH_SIGMAS, sampled, waveform
+
+    sigma = pulse_sigma_ns(4.0)
+    times = np.array([[133.4, np.nan], [66.7, 70.0], [np.nan, np.nan]])
+    powers = np.array([[2e-7, 0.0], [1e-7, 5e-8], [0.0, 0.0]])
+    got = sampled(times, powers, sigma, 0.5, 400)
+    assert got.shape == (3, 400) and got.dtype == np.float32
+    t = np.arange(400) * 0.5
+    for p in range(3):
+        expected = waveform(times[p], powers[p], sigma, t)
+        hit = times[p][~np.isnan(times[p])]
+        near = (np.abs(t[:, None] - hit[None, :]) <= REACH_SIGMAS * sigma - 0.5).any(axis=1)
+        # an echo's tail beyond its 4 sigma is left out: at most exp(-8) of its peak
+        atol = math.exp(-(REACH_SIGMAS**2) / 2) * powers[p].max()
+        np.testing.assert_allclose(got[p][near], expected[near], rtol=1e-6, atol=atol)
+        far = ~(np.abs(t[:, None] - hit[None, :]) <= REACH_SIGMAS * sigma + 0.5).any(axis=1)
+        assert (got[p][far] == 0).all()
+    assert got[0].argmax() * 0.5 == pytest.approx(133.5)  # the bin nearest 2R/c of 20 m

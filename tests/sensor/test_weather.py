@@ -98,3 +98,26 @@ def test_the_fogs_echo_joins_the_modes(monkeypatch):
             pick = reported(echo, RECEIVER.threshold_w, mode)[0]
             got = [round(float(echo.time_ns[0, i]) * C / 2, 1) for i in pick]
             assert got == ranges, (crossover, mode)
+
+
+def test_a_stored_waveform_holds_the_fog_under_the_surfaces_echo():
+    """sampled() with fog: the surfaces' samples plus the fog table's column at every bin the
+    table covers (its bins fall on the stored ones), and a pulse without fog (column -1)
+    unchanged; where no surface echoes, the fog alone."""
+    from simlidar.sensor.waveform import sampled
+
+    table = _table(20.0)
+    times = np.array([[2 * 20.0 / C], [2 * 20.0 / C], [np.nan]])
+    powers = np.full((3, 1), 5 * RECEIVER.threshold_w)
+    columns = np.array([table.column(np.array([20.0]))[0], -1, table.column(np.array([np.nan]))[0]])
+    bare = sampled(times, powers, SIGMA, 1.0, 700)
+    foggy = sampled(times, powers, SIGMA, 1.0, 700, table, columns)
+    np.testing.assert_array_equal(foggy[1], bare[1])
+    k = np.arange(700)
+    row = 4 * k - table.first_bin
+    inside = (row >= 0) & (row < len(table.watts))
+    for p in (0, 2):
+        fog = np.zeros(700)
+        fog[inside] = table.watts[row[inside], columns[p]]
+        np.testing.assert_allclose(foggy[p], (bare[p] + fog).astype(np.float32), rtol=1e-6)
+        assert fog.max() > 0.1 * RECEIVER.threshold_w  # fog of 20 m: 0.6 of the threshold

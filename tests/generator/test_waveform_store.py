@@ -1,0 +1,129 @@
+"""Stored waveforms (issue 41, item 3: "on request, the received waveform"): the dataset
+`waveform` holds each pulse's waveform as the receiver formed it, its records leave every other
+field as the dataset without it has them, the same bytes whatever the batches and workers, and
+verify, the card and load_split know it."""
+
+import hashlib
+
+import h5py
+import numpy as np
+import pytest
+
+from simlidar.dataset.loaders import load_split
+from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.generate import generate
+from simlidar.generator.profiles import load_profile
+from simlidar.sensor.receiver import load_receiver
+from simlidar.sensor.waveform import pulse_sigma_ns
+
+SIZES = dict(train_size=64, test_size=32)
+RECEIVER = load_receiver("vlp16")
+
+
+def _generate(out, catalog, **options):
+    run = {k: options.pop(k) for k in ("batch_size", "workers") if k in options}
+    config = GeneratorConfig.from_profile(load_profile("sensor"), **SIZES, **options)
+    (written,) = generate(config, [0.1], catalog, out, progress=False, preview=False, **run)
+    return written.path
+
+
+def _read(path, split="train"):
+    with h5py.File(path / f"{split}.h5") as f:
+        return {name: f[name][:] for name in f}, dict(f.attrs)
+
+
+@pytest.fixture(scope="module")
+def made(tmp_path_factory, catalog):
+    out = tmp_path_factory.mktemp("waveforms")
+    return {
+        "last": _generate(out / "a", catalog, return_mode="last"),
+        "last, stored": _generate(out / "b", catalog, return_mode="last", waveform_bin_ns=1.0),
+        "rain, stored": _generate(out / "c", catalog, rain_rate_mm_h=200.0, waveform_bin_ns=0.5),
+    }
+
+
+def test_the_waveform_is_a_field_added_to_the_same_records(made):
+    plain, _ = _read(made["last"])
+    stored, attrs = _read(made["last, stored"])
+    assert made["last, stored"].name == "simlidar-32c-noise0.1-sensor-last-wave1.0-v4.2.0"
+    assert set(stored) - set(plain) == {"waveform"}
+    for name, values in plain.items():
+        np.testing.assert_array_equal(stored[name], values, err_msg=name)
+    # 0 to 667 ns (100 m) every 1 ns; one sample a chunk
+    assert attrs["waveform_bin_ns"] == 1.0 and attrs["waveform_bins"] == 668
+    assert stored["waveform"].shape == (64, 16, 16, 668)
+    with h5py.File(made["last, stored"] / "train.h5") as f:
+        assert f["waveform"].chunks == (1, 16, 16, 668) and f["waveform"].dtype == np.float32
+
+
+def test_the_stored_waveform_is_the_one_the_returns_come_from(made):
+    """A pulse's reported return lies on a peak of its stored waveform at or above the
+    threshold (sampled within half a bin of the peak: at least exp(-0.5^2 / (2 sigma^2)) of
+    it); a pulse that hit nothing has a waveform of zeros; every sample is finite and >= 0."""
+    rows, attrs = _read(made["last, stored"])
+    wave, tof = rows["waveform"], rows["returns_tof_ns"][..., 0]
+    assert np.isfinite(wave).all() and (wave >= 0).all()
+    returned = ~np.isnan(tof)
+    assert returned.sum() > 1000
+    at = np.clip(np.round(tof[returned]).astype(int), 0, 667)
+    near = np.take_along_axis(wave[returned], at[:, None], axis=1)[:, 0]
+    sigma = pulse_sigma_ns(RECEIVER.pulse_width_ns)
+    # the range noise moves a return by a few cm (0.2 ns), the quantisation by 2 mm
+    floor = RECEIVER.threshold_w * np.exp(-((0.5 + 0.3) ** 2) / (2 * sigma**2))
+    assert (near >= floor).mean() > 0.99
+    nothing = np.isnan(rows["reflectance"])  # no hit within the sensor's range
+    assert nothing.any() and (wave[nothing] == 0).all()
+
+
+def test_rain_and_a_finer_bin(made):
+    rows, attrs = _read(made["rain, stored"])
+    assert attrs["waveform_bins"] == 1335 and attrs["waveform_bin_ns"] == 0.5
+    drops = (rows["surface"] == 0) & ~np.isnan(rows["tof_ns"])
+    assert drops.any()
+    at = np.round(rows["tof_ns"][drops] / 0.5).astype(int)
+    near = np.take_along_axis(rows["waveform"][drops], at[:, None], axis=1)[:, 0]
+    assert (near > 0.5 * RECEIVER.threshold_w).all()  # the drops' echoes are in the waveform
+
+
+def _digest(path):
+    files = ("train.h5", "test.h5", "README.md")
+    return hashlib.sha256(b"".join((path / n).read_bytes() for n in files)).hexdigest()
+
+
+def test_the_same_bytes_whatever_the_batches_and_workers(made, tmp_path, catalog):
+    options = dict(rain_rate_mm_h=200.0, waveform_bin_ns=0.5)
+    again = _generate(tmp_path / "a", catalog, batch_size=5, **options)
+    pool = _generate(tmp_path / "b", catalog, workers=2, **options)
+    assert _digest(again) == _digest(pool) == _digest(made["rain, stored"])
+
+
+def test_verify_the_card_and_load_split_know_the_waveform(made, tmp_path, cli):
+    path = made["last, stored"]
+    card = (path / "README.md").read_text()
+    assert "--waveform-bin 1.0" in card and "`waveform` | float32 | (N, 16, 16, 668)" in card
+    assert "668 samples, one every 1 ns" in card
+    assert cli("verify", path).exit_code == 0
+    x, y = load_split(path, "test", field="waveform")
+    assert x.shape == (32, 16, 16, 668) and len(y) == 32
+    copy = tmp_path / "d"
+    copy.mkdir()
+    for item in path.iterdir():
+        (copy / item.name).write_bytes(item.read_bytes())
+    with h5py.File(copy / "test.h5", "a") as f:
+        del f["waveform"]
+    result = cli("verify", copy)
+    assert result.exit_code == 1 and "dataset 'waveform' missing" in result.output
+
+
+@pytest.mark.parametrize(
+    "options, expected",
+    [
+        (("--profile", "physical", "--waveform-bin", "1"), "expected a profile with a receiver"),
+        (("--profile", "sensor", "--waveform-bin", "0.3"), "expected a multiple of 0.25 ns"),
+        (("--profile", "sensor", "--waveform-bin", "8"), "not in the range 0<=x<=4"),
+    ],
+)
+def test_a_wrong_bin_is_one_line_and_writes_nothing(tmp_path, cli, options, expected):
+    result = cli("generate", *options, "--out", tmp_path / "o")
+    assert result.exit_code == 2 and expected in result.output, result.output
+    assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
