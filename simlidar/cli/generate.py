@@ -275,6 +275,8 @@ class ExportFormats(click.ParamType):
     GeneratorConfig, "fog_visibility_m", "--fog", "fog_visibility_m", metavar="VISIBILITY_M"
 )
 @setting_option(GeneratorConfig, "rain_rate_mm_h", "--rain", "rain_rate_mm_h", metavar="MM_PER_H")
+@setting_option(GeneratorConfig, "beam_samples", metavar="Q")
+@setting_option(GeneratorConfig, "return_mode")
 @click.option(
     "--export",
     "exports",
@@ -296,6 +298,8 @@ def sweep(
     profile,
     fog_visibility_m,
     rain_rate_mm_h,
+    beam_samples,
+    return_mode,
     exports,
     out,
     force,
@@ -311,6 +315,7 @@ def sweep(
     fields = dict(classes=classes, seed=seed, sensor=chosen_sensor)
     if profile is None:
         fields |= dict(fog_visibility_m=fog_visibility_m, rain_rate_mm_h=rain_rate_mm_h)
+        fields |= dict(beam_samples=beam_samples, return_mode=return_mode)
         config = GeneratorConfig(variation=variation, **fields)
     else:
         try:
@@ -328,6 +333,8 @@ def sweep(
             variation=variation,
             fog_visibility_m=fog_visibility_m,
             rain_rate_mm_h=rain_rate_mm_h,
+            beam_samples=beam_samples,
+            return_mode=return_mode,
             **fields,
         )
     start = time.perf_counter()

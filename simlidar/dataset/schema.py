@@ -81,6 +81,15 @@ SWEEP_SCHEMA: dict[str, tuple[str, object]] = {
     "object_points": ("int32", lambda h, c: ()),
     "phase": ("float64", lambda h, c: ()),
 }
+# Stored besides SWEEP_SCHEMA by sweeps of a beam footprint or a return mode other than
+# strongest (attribute `return_mode`) only: name -> (dtype, trailing shape given H, C and the
+# returns R a pulse reports, 2 in dual mode, else 1)
+SWEEP_RETURNS_SCHEMA: dict[str, tuple[str, object]] = {
+    "echoes": ("uint8", lambda h, c, r: (h, c)),
+    "returns_range_m": ("float32", lambda h, c, r: (h, c, r)),
+    "returns_intensity": ("float32", lambda h, c, r: (h, c, r)),
+    "returns_surface": ("uint8", lambda h, c, r: (h, c, r)),
+}
 # A frame's returns as a point cloud (simlidar.generator.frames.frame_points), every field of
 # which the PLY and PCD exports write
 POINT_DTYPE = np.dtype(
@@ -94,6 +103,24 @@ POINT_DTYPE = np.dtype(
         ("t_ns", "<f8"),
     ]
 )
+# ... and of a sweep that stores every reported return: each return a point, numbered in order
+# of arrival (1: the nearest), with the pulse's count of distinct returns (as LAS numbers them)
+RETURN_POINT_DTYPE = np.dtype(
+    POINT_DTYPE.descr + [("return_number", "u1"), ("number_of_returns", "u1")]
+)
+
+
+def sweep_schema(returns: int = 0) -> dict[str, tuple[str, object]]:
+    """:data:`SWEEP_SCHEMA`, and :data:`SWEEP_RETURNS_SCHEMA` where a pulse reports ``returns``
+    > 0 returns (their trailing shapes then given H and C alone)."""
+    if not returns:
+        return dict(SWEEP_SCHEMA)
+    return SWEEP_SCHEMA | {
+        name: (dtype, lambda h, c, tail=tail: tail(h, c, returns))
+        for name, (dtype, tail) in SWEEP_RETURNS_SCHEMA.items()
+    }
+
+
 # The shuffle filter helps gzip on the noisy delays (random mantissas) and hurts it on the
 # quantised clean delays and times of flight (measured: smaller and faster without it).
 SHUFFLED = {"delays", "phase", "shift", "object_pose", "reflectance", "power_w", "returns_tof_ns"}

@@ -130,6 +130,10 @@ SWEEP_VERSION = "1.1.0"
 # the |cos| proxy (attributes ``receiver``, ``materials``); other sweeps keep 1.1.0 and bytes.
 # Fog and rain sweeps (``--fog``, ``--rain``) are 1.2.0 too: their fields are the same.
 SWEEP_RECEIVER_VERSION = "1.2.0"
+# Sweeps of a beam footprint or a return mode other than strongest (``--beam-samples``,
+# ``--return-mode``): every reported return is stored (``echoes``, ``returns_*``; attributes
+# ``return_mode``, ``beam_samples``) and exported, each with its return number: fields added
+SWEEP_RETURNS_VERSION = "1.3.0"
 
 
 def major(version: str) -> int:

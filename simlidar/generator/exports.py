@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 
 from simlidar.dataset.kitti import LABEL_COLUMNS, SCAN_DTYPE
-from simlidar.dataset.schema import POINT_DTYPE
 from simlidar.errors import ConfigError
 from simlidar.generator.frames import check_frame, frame_points
 
@@ -76,8 +75,10 @@ def export_frame(path: str | Path, frame: int, out: str | Path, fmt: str) -> lis
     ``labels/NNNNNN.label``: uint32 surface index a point, SemanticKITTI's; and the object
     benchmark's ``label_2/NNNNNN.txt`` and ``calib/NNNNNN.txt``, :func:`kitti_label`, so that
     ``simlidar convert kitti`` reads the folder), ``ply``
-    (``ply/NNNNNN.ply``, binary little endian, every field of :data:`POINT_DTYPE`) or ``pcd``
-    (``pcd/NNNNNN.pcd``, PCD 0.7 binary, the same fields). Returns the files written."""
+    (``ply/NNNNNN.ply``, binary little endian, every field of :data:`POINT_DTYPE`, or of
+    :data:`RETURN_POINT_DTYPE` for a sweep that stores every reported return: one point a
+    return, with its return number) or ``pcd`` (``pcd/NNNNNN.pcd``, PCD 0.7 binary, the same
+    fields). Returns the files written."""
     points = frame_points(path, frame)
     out, stem = Path(out), f"{frame:06d}"
     if fmt == "kitti":
@@ -87,16 +88,17 @@ def export_frame(path: str | Path, frame: int, out: str | Path, fmt: str) -> lis
     elif fmt == "ply":
         header = ["ply", "format binary_little_endian 1.0", f"element vertex {len(points)}"]
         header += [
-            f"property {_PLY_TYPES[POINT_DTYPE[k].str.lstrip('|')]} {k}" for k in POINT_DTYPE.names
+            f"property {_PLY_TYPES[points.dtype[k].str.lstrip('|')]} {k}"
+            for k in points.dtype.names
         ]
         files = [out / "ply" / f"{stem}.ply"]
         blobs = ["\n".join([*header, "end_header"]).encode() + b"\n" + points.tobytes()]
     elif fmt == "pcd":
-        kinds = [_PCD_TYPES[POINT_DTYPE[k].str.lstrip("|")] for k in POINT_DTYPE.names]
+        kinds = [_PCD_TYPES[points.dtype[k].str.lstrip("|")] for k in points.dtype.names]
         header = [
             "# .PCD v0.7 - Point Cloud Data file format",
             "VERSION 0.7",
-            "FIELDS " + " ".join(POINT_DTYPE.names),
+            "FIELDS " + " ".join(points.dtype.names),
             "SIZE " + " ".join(size for size, _ in kinds),
             "TYPE " + " ".join(kind for _, kind in kinds),
             "COUNT " + " ".join("1" for _ in kinds),

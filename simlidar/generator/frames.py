@@ -9,7 +9,14 @@ from pathlib import Path
 
 import numpy as np
 
-from simlidar.dataset.schema import POINT_DTYPE, SWEEP_FILE, SWEEP_FORMAT, SWEEP_SCHEMA
+from simlidar.dataset.schema import (
+    POINT_DTYPE,
+    RETURN_POINT_DTYPE,
+    SWEEP_FILE,
+    SWEEP_FORMAT,
+    reported_returns,
+    sweep_schema,
+)
 from simlidar.errors import ConfigError
 from simlidar.sensor.model import Sensor, row_order
 from simlidar.sensor.rays import sweep_rays
@@ -27,36 +34,66 @@ def check_frame(f, path: str | Path, frame: int) -> Sensor:
 
 
 def read_frame(path: str | Path, frame: int) -> tuple[Sensor, dict, np.ndarray]:
-    """The sensor, the per-frame values and the emission times of frame ``frame`` of a sweep
+    """The sensor, the per-frame values (every dataset of the file's schema, the reported
+    returns too where it stores them) and the emission times of frame ``frame`` of a sweep
     file."""
     import h5py
 
     with h5py.File(path, "r") as f:
         sensor = check_frame(f, path, frame)
-        values = {name: f[name][frame] for name in SWEEP_SCHEMA}
+        schema = sweep_schema(reported_returns(dict(f.attrs)))
+        values = {name: f[name][frame] for name in schema}
         return sensor, values, f["emission_ns"][:]
 
 
 def frame_points(path: str | Path, frame: int) -> np.ndarray:
     """The returns of one frame as a point cloud (:data:`POINT_DTYPE`), in firing order, in
     the sensor's frame (x forward, y left, z up from the rotation axis' reference point):
-    position, intensity proxy, surface label, laser id and emission time (ns from the
-    rotation's first firing)."""
+    position, intensity (the receiver's byte, or the |cos| proxy), surface label, laser id and
+    emission time (ns from the rotation's first firing). A sweep that stores every reported
+    return (``returns_*``) gives one point a distinct return (:data:`RETURN_POINT_DTYPE`), a
+    pulse's in order of arrival, numbered from 1, with its count of returns (an echo reported
+    twice, dual mode's single echo, is one point)."""
     sensor, values, emission = read_frame(path, frame)
     origins, directions = sweep_rays(sensor, np.array([values["phase"]]))
-    r = values["range_m"].astype(np.float64)
+    if "returns_range_m" in values:
+        slots = values["returns_range_m"].shape[-1]
+        r = values["returns_range_m"].reshape(-1, slots).astype(np.float64)
+        intensity = values["returns_intensity"].reshape(-1, slots)
+        surface = values["returns_surface"].reshape(-1, slots)
+    else:
+        r = values["range_m"].reshape(-1, 1).astype(np.float64)
+        intensity = values["intensity"].reshape(-1, 1)
+        surface = values["surface"].reshape(-1, 1)
+    # an echo reported twice (the same range in two slots) is one return
+    for k in range(1, r.shape[1]):
+        same = (r[:, :k] == r[:, k : k + 1]).any(axis=1)
+        r[same, k] = np.nan
+    arrival = np.argsort(np.where(np.isnan(r), np.inf, r), axis=1, kind="stable")
+    r, intensity, surface = (
+        np.take_along_axis(a, arrival, axis=1) for a in (r, intensity, surface)
+    )
+    counts = (~np.isnan(r)).sum(axis=1)
     order = np.argsort(emission, axis=None, kind="stable")  # firing order
-    keep = order[~np.isnan(r.reshape(-1)[order])]
+    pulse = np.repeat(order, counts[order])
+    slot = np.arange(len(pulse)) - np.repeat(
+        np.cumsum(counts[order]) - counts[order], counts[order]
+    )
+    distances = r[pulse, slot]
     xyz = (
-        origins[0].reshape(-1, 3)[keep]
-        + r.reshape(-1)[keep, None] * directions[0].reshape(-1, 3)[keep]
+        origins[0].reshape(-1, 3)[pulse] + distances[:, None] * directions[0].reshape(-1, 3)[pulse]
     )
     xyz[:, 2] -= sensor.mount_height_m
-    points = np.empty(len(keep), POINT_DTYPE)
+    returns = "returns_range_m" in values
+    points = np.empty(len(pulse), RETURN_POINT_DTYPE if returns else POINT_DTYPE)
     points["x"], points["y"], points["z"] = xyz.T
-    points["intensity"] = values["intensity"].reshape(-1)[keep]
-    points["surface"] = values["surface"].reshape(-1)[keep]
+    points["intensity"] = intensity[pulse, slot]
+    points["surface"] = surface[pulse, slot]
     lasers = np.asarray(row_order(sensor), dtype=np.uint8)
-    points["laser"] = np.broadcast_to(lasers[:, None], r.shape).reshape(-1)[keep]
-    points["t_ns"] = emission.reshape(-1)[keep]
+    shape = values["range_m"].shape
+    points["laser"] = np.broadcast_to(lasers[:, None], shape).reshape(-1)[pulse]
+    points["t_ns"] = emission.reshape(-1)[pulse]
+    if returns:
+        points["return_number"] = slot + 1
+        points["number_of_returns"] = counts[pulse]
     return points

@@ -38,8 +38,8 @@ import numpy as np
 
 from simlidar import __version__
 from simlidar.atomic import building
-from simlidar.dataset.schema import SWEEP_FILE, SWEEP_FORMAT, SWEEP_SCHEMA
-from simlidar.dataset.version import SWEEP_RECEIVER_VERSION, SWEEP_VERSION
+from simlidar.dataset.schema import SWEEP_FILE, SWEEP_FORMAT, reported_returns, sweep_schema
+from simlidar.dataset.version import SWEEP_RECEIVER_VERSION, SWEEP_RETURNS_VERSION, SWEEP_VERSION
 from simlidar.dataset.writer import SplitWriter
 from simlidar.errors import ConfigError
 from simlidar.generator.bev import draw_bev
@@ -57,12 +57,15 @@ from simlidar.generator.returns import (
 from simlidar.generator.simulate import (
     FIXED_COLUMNS,
     SPLIT_IDS,
+    axis_hits,
     class_plan,
     factors,
     sample_stream,
+    split_beams,
 )
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
+from simlidar.sensor.footprint import subray_directions
 from simlidar.sensor.model import row_order
 from simlidar.sensor.raycast import MAX_BATCH, cast
 from simlidar.sensor.rays import cycles_per_rotation, sweep_emission_ns, sweep_rays
@@ -103,6 +106,11 @@ class Frames:
     object_box: np.ndarray
     object_points: np.ndarray  # (n,) int32, returns from the labelled object
     phase: np.ndarray  # (n,) float64, rotation phase in azimuth steps
+    # with a beam footprint or a return mode other than strongest (SWEEP_RETURNS_SCHEMA) only:
+    echoes: np.ndarray | None = None  # (n, H, C) uint8, echoes detected in the waveform
+    returns_range_m: np.ndarray | None = None  # (n, H, C, R) float32, NaN: none
+    returns_intensity: np.ndarray | None = None  # (n, H, C, R) float32, 0: none
+    returns_surface: np.ndarray | None = None  # (n, H, C, R) uint8, 0: none
 
 
 def simulate_frames(config: GeneratorConfig, catalog: Catalog, start: int, stop: int) -> Frames:
@@ -121,6 +129,16 @@ def simulate_frames(config: GeneratorConfig, catalog: Catalog, start: int, stop:
     lc = catalog.layout_columns
     u = np.stack([g.random(FIXED_COLUMNS + lc + catalog.object_columns) for g in streams])
     origins, directions = sweep_rays(sensor, u[:, 0])
+    beams = stores_returns(config)
+    if beams:  # every sub-ray, cast with the others; sub-ray 0 is the beam's axis
+        receiver = receiver_physics(config.profile).receiver
+        directions, weights = subray_directions(
+            directions, receiver.divergence_h_mrad, receiver.divergence_v_mrad,
+            config.beam_samples,
+        )  # fmt: skip
+        origins = np.broadcast_to(origins[..., None, :], directions.shape)
+        origins, directions = (a.reshape(len(index), sensor.beams, -1, 3)
+                               for a in (origins, directions))  # fmt: skip
     scene = build_batch(
         catalog,
         layout,
@@ -129,13 +147,24 @@ def simulate_frames(config: GeneratorConfig, catalog: Catalog, start: int, stop:
         u[:, FIXED_COLUMNS + lc :],
     )
     hits = cast(scene, origins, directions, index % MAX_BATCH, sensor.max_range_m, incidence=True)
+    cycles = cycles_per_rotation(sensor)
+    beam_hits, hits = (hits, axis_hits(hits, cycles)) if beams else (None, hits)
     r = quantise_range(hits.range_m, sensor)
     returned = ~np.isnan(r)
     intensity = np.where(returned, hits.cos_incidence, 0.0)
     surface = np.where(returned, hits.surface, 0)
+    more = {}
     if config.receiver is not None:
-        r, surface, intensity = received(config, catalog, index, hits, r)
+        got = received(config, catalog, index, hits, r, beam_hits, weights if beams else None)
+        r, surface, intensity = got.range_m, got.surface, got.intensity
         returned = ~np.isnan(r)
+        if beams:
+            more = {
+                "echoes": got.echoes,
+                "returns_range_m": got.returns_range_m.astype(np.float32),
+                "returns_intensity": got.returns_intensity.astype(np.float32),
+                "returns_surface": got.returns_surface,
+            }
     return Frames(
         range_m=r.astype(np.float32),
         surface=surface.astype(np.uint8),
@@ -147,20 +176,46 @@ def simulate_frames(config: GeneratorConfig, catalog: Catalog, start: int, stop:
         object_box=object_boxes(scene).astype(np.float32),
         object_points=(hits.on_object & returned).sum(axis=(1, 2)).astype(np.int32),
         phase=u[:, 0],
+        **more,
     )
 
 
-def received(config: GeneratorConfig, catalog: Catalog, index: np.ndarray, hits, range_m):
-    """Frames' hits through the profile's receiver (one ray a pulse, its strongest return;
-    :func:`simlidar.generator.returns.receive_hits`): (range m, NaN: no return; surface; the
-    reflectivity byte), each (n, H, C)."""
+def stores_returns(config: GeneratorConfig) -> bool:
+    """Whether a sweep of ``config`` stores every reported return (SWEEP_RETURNS_SCHEMA): a
+    receiver with a beam footprint or a return mode other than strongest (fog and rain alone
+    keep one return a pulse, as sweeps of version 1.2.0 do)."""
+    return config.receiver is not None and (
+        config.beam_samples != 1 or config.return_mode != "strongest"
+    )
+
+
+def received(
+    config: GeneratorConfig,
+    catalog: Catalog,
+    index: np.ndarray,
+    hits,
+    range_m,
+    beam_hits=None,
+    weights=None,
+):
+    """Frames' hits through the profile's receiver (:func:`simlidar.generator.returns.
+    receive_hits`; ``beam_hits`` (n, H, C x S) the sub-rays' hits where the beam has a
+    footprint or the mode is not strongest, of ``weights``): its Returns, (n, H, C) and the
+    reported returns (n, H, C, R)."""
     physics = receiver_physics(config.profile)
     choices = check_physics(physics, config.sensor, catalog.surfaces, config.return_mode)
     streams = [receiver_stream(config.seed, SPLIT_IDS["sweep"], i) for i in index]
+    if beam_hits is not None:  # as simulate does for windows: hits within range, per sub-ray
+        got = split_beams(beam_hits, cycles_per_rotation(config.sensor))
+        inside = ~np.isnan(quantise_range(got.range_m, config.sensor))
+        hit_m = np.where(inside, got.range_m, np.nan)
+        surface = np.where(inside, got.surface, 0).astype(np.uint8)
+        return receive_hits(
+            config, physics, choices, streams, hit_m, surface, got.cos_incidence, weights
+        )
     hit_m = np.where(np.isnan(range_m), np.nan, hits.range_m)  # unquantised, within range
     surface = np.where(np.isnan(range_m), 0, hits.surface).astype(np.uint8)
-    got = receive_hits(config, physics, choices, streams, hit_m, surface, hits.cos_incidence)
-    return got.range_m, got.surface, got.intensity
+    return receive_hits(config, physics, choices, streams, hit_m, surface, hits.cos_incidence)
 
 
 def object_boxes(scene) -> np.ndarray:
@@ -187,12 +242,15 @@ def object_boxes(scene) -> np.ndarray:
 
 
 def sweep_version(config: GeneratorConfig) -> str:
-    """SWEEP_RECEIVER_VERSION through a receiver, else SWEEP_VERSION."""
+    """SWEEP_RETURNS_VERSION where every reported return is stored, SWEEP_RECEIVER_VERSION
+    through a receiver, else SWEEP_VERSION."""
+    if stores_returns(config):
+        return SWEEP_RETURNS_VERSION
     return SWEEP_RECEIVER_VERSION if config.receiver is not None else SWEEP_VERSION
 
 
 def sweep_name(config: GeneratorConfig, sweep: SweepConfig) -> str:
-    """``simlidar-sweep-<classes>c-<sensor>-<frames>f-seed<seed>[-<profile>][-fog<V>][-rain<R>][-var<v>]-v<version>``;
+    """``simlidar-sweep-<classes>c-<sensor>-<frames>f-seed<seed>[-<profile>][-fog<V>][-rain<R>][-beam<Q>][-<mode>][-var<v>]-v<version>``;
     ``-<profile>`` names a profile with a receiver (``-sensor``)."""
     variation = f"-var{float(config.variation)!r}" if config.variation != 1.0 else ""
     receiver = f"-{config.profile_name}" if config.receiver is not None else ""
@@ -200,6 +258,8 @@ def sweep_name(config: GeneratorConfig, sweep: SweepConfig) -> str:
         receiver += f"-fog{float(config.fog_visibility_m)!r}"
     if config.rain_rate_mm_h:
         receiver += f"-rain{float(config.rain_rate_mm_h)!r}"
+    receiver += f"-beam{config.beam_samples}" if config.beam_samples != 1 else ""
+    receiver += f"-{config.return_mode}" if config.return_mode != "strongest" else ""
     return (
         f"simlidar-sweep-{config.classes}c-{config.sensor.name}-{sweep.frames}f-seed"
         f"{config.seed}{receiver}{variation}-v{sweep_version(config)}"
@@ -243,14 +303,16 @@ def sweep(
         "cycles": c,
     }
     if config.receiver is not None:  # absent: every hit in range returns (1.1.0's bytes)
-        if config.beam_samples != 1 or config.return_mode != "strongest":
+        if config.waveform_bin_ns:
             raise ConfigError(
-                f"beam_samples={config.beam_samples}, return_mode={config.return_mode!r}: "
-                "expected one ray a pulse and its strongest return in a sweep (its footprints "
-                "and returns are not modelled yet)"
+                f"waveform_bin_ns={config.waveform_bin_ns!r}: a sweep stores no waveforms "
+                f"({sensor.beams} x {c} pulses a frame); expected 0 (generate --waveform-bin "
+                "stores them for windows)"
             )
+        if stores_returns(config):
+            attrs |= {"return_mode": config.return_mode, "beam_samples": config.beam_samples}
         physics = receiver_physics(config.profile)
-        check_physics(physics, sensor, catalog.surfaces)
+        check_physics(physics, sensor, catalog.surfaces, config.return_mode)
         receiver, materials = physics.receiver_dict(), physics.materials_dict()
         attrs |= {
             "receiver": json.dumps(receiver, sort_keys=True),
@@ -258,7 +320,8 @@ def sweep(
             "materials": json.dumps(materials, sort_keys=True),
             "materials_sha256": fingerprint(materials),
         }
-    shapes = {name: (dtype, tail(h, c)) for name, (dtype, tail) in SWEEP_SCHEMA.items()}
+    schema = sweep_schema(reported_returns(attrs))
+    shapes = {name: (dtype, tail(h, c)) for name, (dtype, tail) in schema.items()}
     name = sweep_name(config, sweep_config)
     with building(out, name, force) as folder:
         writer = SplitWriter(folder / SWEEP_FILE, n, shapes, attrs, frozenset(), chunk=1)
@@ -267,7 +330,7 @@ def sweep(
             bar = tqdm(total=n, desc="sweep", unit="frame", disable=not progress)
             for first in range(0, n, batch):
                 frames = simulate_frames(config, catalog, first, min(first + batch, n))
-                writer.append({name: getattr(frames, name) for name in SWEEP_SCHEMA})
+                writer.append({name: getattr(frames, name) for name in schema})
                 bar.update(len(frames.labels))
             bar.close()
             writer.close()

@@ -308,10 +308,58 @@ def test_a_sweep_through_the_receiver_keeps_the_scenes_and_reports_its_bytes(tmp
     assert len(points) == int(returned[0].sum())
 
 
-def test_a_sweep_refuses_footprints_and_return_modes_in_one_line(tmp_path, catalog):
+def test_a_sweep_stores_every_reported_return_and_exports_each_with_its_number(tmp_path, catalog):
+    """--beam-samples 2 --return-mode dual with rain (issue 41, item 5): version 1.3.0, the
+    plain sensor sweep's frames (labels, phases, boxes, as the axes judge them), the per-pulse
+    fields the first reported return; every reported return stored, and exported once each,
+    numbered in order of arrival with its pulse's count (PLY and KITTI agree); the same bytes
+    for any batch."""
+    options = dict(beam_samples=2, return_mode="dual", rain_rate_mm_h=200.0)
+    path = _sensor_sweep(tmp_path / "d", catalog, **options)
+    assert path.name == "simlidar-sweep-32c-vlp16-6f-seed0-sensor-rain200.0-beam2-dual-v1.3.0"
+    plain = _sensor_sweep(tmp_path / "s", catalog) / "frames.h5"
+    with h5py.File(plain) as a, h5py.File(path / "frames.h5") as b:
+        for name in ("labels", "layout", "object", "phase", "object_box"):
+            assert np.array_equal(a[name][:], b[name][:], equal_nan=True), name
+        assert b.attrs["return_mode"] == "dual" and b.attrs["beam_samples"] == 2
+        assert b.attrs["sweep_version"] == "1.3.0"
+        returns = b["returns_range_m"][:]
+        assert returns.shape == b["range_m"].shape + (2,)
+        first = np.fmin(returns[..., 0], returns[..., 1])
+        np.testing.assert_array_equal(first, b["range_m"][:])
+        two = ~np.isnan(returns[..., 0]) & (returns[..., 0] != returns[..., 1])
+        assert two.sum() > 20  # edges and drops
+        assert (b["echoes"][:][two] >= 2).all()
+        drops = b["returns_surface"][:] == 0
+        assert (drops & ~np.isnan(returns)).any()  # the rain's returns near the sensor
+    points = frame_points(path / "frames.h5", 0)
+    with h5py.File(path / "frames.h5") as b:
+        r = b["returns_range_m"][0]
+    distinct = (~np.isnan(r[..., 0])).sum() + (two[0]).sum()
+    assert len(points) == distinct
+    assert set(np.unique(points["return_number"])) == {1, 2}
+    assert (points["return_number"] <= points["number_of_returns"]).all()
+    assert (points["number_of_returns"] == 2).sum() == 2 * two[0].sum()
+    second = points["return_number"] == 2
+    first_of_pair = np.flatnonzero(second) - 1
+    far = np.linalg.norm([points[k] for k in "xyz"], axis=0)
+    assert (far[second] > far[first_of_pair]).all()  # in order of arrival
+    files = export_frame(path / "frames.h5", 0, tmp_path / "x", "ply")
+    files += export_frame(path / "frames.h5", 0, tmp_path / "x", "kitti")
+    import trimesh
+
+    cloud = trimesh.load(files[0])
+    assert len(cloud.vertices) == len(points)
+    scan = np.fromfile(tmp_path / "x/velodyne/000000.bin", "<f4").reshape(-1, 4)
+    assert len(scan) == len(points)
+    again = _sensor_sweep(tmp_path / "again", catalog, batch=4, **options)
+    assert (again / "frames.h5").read_bytes() == (path / "frames.h5").read_bytes()
+
+
+def test_a_sweep_refuses_waveforms_in_one_line(tmp_path, catalog):
     from simlidar.generator.profiles import load_profile
 
-    config = GeneratorConfig.from_profile(load_profile("sensor"), beam_samples=2)
-    with pytest.raises(ConfigError, match=r"beam_samples=2, return_mode='strongest': expected"):
+    config = GeneratorConfig.from_profile(load_profile("sensor"), waveform_bin_ns=1.0)
+    with pytest.raises(ConfigError, match=r"waveform_bin_ns=1.0: a sweep stores no waveforms"):
         sweep(config, SweepConfig(frames=1), catalog, tmp_path, progress=False)
     assert not any(tmp_path.iterdir())
