@@ -102,7 +102,8 @@ RELEASE_NOTES: dict[str, str] = {
         "emission to the maximum range's time of flight, in a new dataset `waveform` (N, H, W, "
         "T) float32 watts, attributes `waveform_bin_ns` and `waveform_bins`. Fields added, "
         "hence a new MINOR. Datasets without rain or a stored waveform keep their versions and "
-        "bytes; a card now lists the release notes up to its own dataset's version."
+        "bytes; a card now lists the release notes up to its own dataset's version (4.1.0 for "
+        "older datasets, as their cards did), so a later release leaves it as it was."
     ),
 }
 
@@ -141,10 +142,19 @@ def major(version: str) -> int:
     return int(str(version).split(".")[0])
 
 
-def notes_until(notes: dict[str, str], version: str) -> dict[str, str]:
-    """The release notes of ``version`` and the versions before it (a dataset's card lists
-    these, so that a later release leaves the card of an earlier dataset as it was); all of
-    them where ``version`` is not MAJOR.MINOR.PATCH."""
+# Until 4.1.0 a card listed every release note simlidar knew, so each release rewrote every
+# card; since, a card lists the notes up to its own version, and those up to 4.1.0 where its
+# version is older (what it listed then), so that no card written before changes either
+CARD_NOTES_SINCE = "4.1.0"
+
+
+def notes_until(
+    notes: dict[str, str], version: str, since: str = CARD_NOTES_SINCE
+) -> dict[str, str]:
+    """The release notes a dataset's card lists: those of ``version`` and the versions before
+    it, or up to ``since`` where ``version`` is older (the converters' lines have no version
+    that late: all of theirs), so that a later release leaves the card of an earlier dataset
+    as it was; all of them where ``version`` is not MAJOR.MINOR.PATCH."""
 
     def key(text: str) -> tuple[int, ...] | None:
         parts = str(text).split(".")
@@ -153,6 +163,7 @@ def notes_until(notes: dict[str, str], version: str) -> dict[str, str]:
     top = key(version)
     if top is None:
         return dict(notes)
+    top = max(top, key(since))
     return {v: n for v, n in notes.items() if key(v) is None or key(v) <= top}
 
 

@@ -196,25 +196,30 @@ def sampled(
     times = np.asarray(times_ns, dtype=np.float64)
     powers = np.where(np.isnan(times), 0.0, np.asarray(powers_w, dtype=np.float64))
     pulses = len(times)
-    out = np.zeros((pulses, bins))
+    out = np.zeros((pulses, bins), np.float32)
     reach = int(math.ceil(REACH_SIGMAS * sigma_ns / bin_ns))
     offsets = np.arange(-reach, reach + 1)
-    pulse, column = np.nonzero(~np.isnan(times))
-    rows = max(1, CHUNK_VALUES // len(offsets))
-    for lo in range(0, len(pulse), rows):
-        p, s = pulse[lo : lo + rows], column[lo : lo + rows]
+    pulse, column = np.nonzero(~np.isnan(times))  # in pulse order
+    if fog is not None:
+        step = int(round(bin_ns / fog.bin_ns))
+        row = np.arange(bins) * step - fog.first_bin
+        covered = np.flatnonzero((row >= 0) & (row < len(fog.watts)))
+    block = max(1, CHUNK_VALUES // bins)  # pulses summed at once, in float64
+    for lo in range(0, pulses, block):
+        hi = min(lo + block, pulses)
+        a, b = np.searchsorted(pulse, [lo, hi])
+        p, s = pulse[a:b], column[a:b]
         t = times[p, s]
         k = np.round(t / bin_ns).astype(np.int64)[:, None] + offsets
         inside = (k >= 0) & (k < bins)
         shape = np.exp(-((k * bin_ns - t[:, None]) ** 2) / (2.0 * sigma_ns**2))
         value = powers[p, s][:, None] * shape
-        owner = np.broadcast_to(p[:, None], k.shape)
-        np.add.at(out, (owner[inside], k[inside]), value[inside])
-    if fog is not None:
-        step = int(round(bin_ns / fog.bin_ns))
-        k = np.arange(bins)
-        row = k * step - fog.first_bin
-        inside = (row >= 0) & (row < len(fog.watts))
-        foggy = np.flatnonzero(fog_columns >= 0)
-        out[np.ix_(foggy, k[inside])] += fog.watts[row[inside]][:, fog_columns[foggy]].T
-    return out.astype(np.float32)
+        flat = (p[:, None] - lo) * bins + k
+        values = np.bincount(flat[inside], value[inside], minlength=(hi - lo) * bins)
+        values = values.reshape(hi - lo, bins)
+        if fog is not None:
+            mine = fog_columns[lo:hi]
+            foggy = np.flatnonzero(mine >= 0)
+            values[np.ix_(foggy, covered)] += fog.watts[row[covered]][:, mine[foggy]].T
+        out[lo:hi] = values
+    return out
