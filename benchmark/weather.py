@@ -108,6 +108,17 @@ def datasets(
     return found
 
 
+def _alive(pid: str) -> bool:
+    """Whether the process ``pid`` (a partial folder's suffix) still runs."""
+    try:
+        os.kill(int(pid), 0)
+    except (ValueError, ProcessLookupError):
+        return False
+    except PermissionError:  # another user's
+        return True
+    return True
+
+
 def mixed_dataset(sets: dict[str, Path], root: Path) -> Path:
     """The mixed train split beside the clear test split: a copy of the clear dataset whose
     train rows i are weather i mod K's (every per-pixel dataset the two share), made where
@@ -119,8 +130,10 @@ def mixed_dataset(sets: dict[str, Path], root: Path) -> Path:
     path = root / f"{sets['clear'].name}-mixed-{'-'.join(names[1:])}"
     if path.is_dir():
         return path
+    for stale in root.glob(f".{path.name}.partial-*"):  # of a run that died building it
+        if not _alive(stale.name.rsplit("-", 1)[1]):
+            shutil.rmtree(stale, ignore_errors=True)
     building = root / f".{path.name}.partial-{os.getpid()}"
-    shutil.rmtree(building, ignore_errors=True)
     building.mkdir(parents=True)
     for split in ("train.h5", "test.h5"):
         shutil.copyfile(sets["clear"] / split, building / split)
@@ -129,7 +142,12 @@ def mixed_dataset(sets: dict[str, Path], root: Path) -> Path:
         for k, name in enumerate(names[1:], start=1):
             rows = np.arange(k, n, len(names))
             with h5py.File(sets[name] / "train.h5", "r") as theirs:
-                assert np.array_equal(theirs["labels"][:], mine["labels"][:])  # the same scenes
+                if not np.array_equal(theirs["labels"][:], mine["labels"][:]):
+                    shutil.rmtree(building)
+                    raise SystemExit(
+                        f"{sets[name]}: its train labels differ from {sets['clear']}'s; "
+                        "expected the same seed and sizes (the same scenes)"
+                    )
                 for field, data in mine.items():
                     if field in theirs and theirs[field].shape == data.shape and len(data) == n:
                         values = data[:]
@@ -145,14 +163,27 @@ def mixed_dataset(sets: dict[str, Path], root: Path) -> Path:
         )  # fmt: skip
         + "\n"
     )
-    os.replace(building, path)
+    try:
+        os.replace(building, path)
+    except OSError:  # another run made it meanwhile: theirs is the same
+        if not path.is_dir():
+            raise
+        shutil.rmtree(building)
     return path
 
 
-def cell(recipe_name: str, seed: int, trained_on: str, sets: dict[str, str], path: str) -> str:
+def cell(
+    recipe_name: str,
+    seed: int,
+    trained_on: str,
+    sets: dict[str, str],
+    path: str,
+    had: dict | None = None,
+) -> str:
     """Train ``recipe_name`` on the train split of the dataset ``trained_on`` (the clear one,
     or the mixed one, whose test split is the clear one), score it on every test split of
-    ``sets``; write the JSON atomically."""
+    ``sets``; write the JSON atomically. ``had``: the scores an earlier run of the same cell
+    gave (trained on the same data): a RuntimeError, and nothing written, if one changed."""
     import torch
 
     torch.set_num_threads(1)
@@ -173,6 +204,9 @@ def cell(recipe_name: str, seed: int, trained_on: str, sets: dict[str, str], pat
         if weather == "clear":  # the training run's own test predictions, read again
             assert np.array_equal(predicted, result.test_predictions)
         accuracy[weather] = float((predicted == y).mean())
+    changed = {w: (v, accuracy[w]) for w, v in (had or {}).items() if accuracy.get(w, v) != v}
+    if changed:  # training is deterministic: the same data must give the same scores
+        raise RuntimeError(f"{path}: trained again, its scores changed: {changed}")
     record = {
         "recipe": recipe_name,
         "seed": seed,
@@ -237,35 +271,34 @@ def main(argv=None) -> int:
         middle = "" if training == "clear" else f"{training}__"
         return cells / f"{Path(model).stem}__{middle}seed{seed}.json"
 
-    before = {}  # the scores of cells trained again for a weather they lack
     todo = []
     for s in args.seeds:
         for training in TRAININGS:
             for m in models:
-                path = cell_path(m, training, s)
-                if path.is_file():
-                    had = json.loads(path.read_text())["test_accuracy"]
-                    if set(sets) <= set(had):
-                        continue
-                    before[str(path)] = had
-                todo.append((m, s, str(train_on[training]), {w: str(p) for w, p in sets.items()},
-                             str(path)))  # fmt: skip
+                path, data = cell_path(m, training, s), train_on[training]
+                had = None
+                if path.is_file():  # kept if trained on this data and scored on every set
+                    old = json.loads(path.read_text())
+                    if old["trained_on"] == data.name:
+                        if set(sets) <= set(old["test_accuracy"]):
+                            continue
+                        had = old["test_accuracy"]  # trained again: these must hold
+                sets_ = {w: str(p) for w, p in sets.items()}
+                todo.append((m, s, str(data), sets_, str(path), had))
     if todo:
         from tqdm import tqdm
 
-        if args.jobs == 1:  # here, in this process
-            for job in tqdm(todo, desc="cells"):
-                cell(*job)
-        else:
-            with ProcessPoolExecutor(args.jobs) as pool:
-                futures = [pool.submit(cell, *job) for job in todo]
-                for future in tqdm(as_completed(futures), total=len(futures), desc="cells"):
-                    future.result()
-    for path, had in before.items():  # training is deterministic: the old scores must hold
-        now = json.loads(Path(path).read_text())["test_accuracy"]
-        changed = {w: (v, now[w]) for w, v in had.items() if w in now and now[w] != v}
-        if changed:
-            raise SystemExit(f"{path}: trained again, its scores changed: {changed}")
+        try:
+            if args.jobs == 1:  # here, in this process
+                for job in tqdm(todo, desc="cells"):
+                    cell(*job)
+            else:
+                with ProcessPoolExecutor(args.jobs) as pool:
+                    futures = [pool.submit(cell, *job) for job in todo]
+                    for future in tqdm(as_completed(futures), total=len(futures), desc="cells"):
+                        future.result()
+        except RuntimeError as exc:
+            raise SystemExit(str(exc)) from None
     found = {
         label(m, training): [json.loads(cell_path(m, training, s).read_text()) for s in args.seeds]
         for training in TRAININGS

@@ -457,7 +457,7 @@ def test_weather_scores_models_trained_in_clear_air_on_every_weather(tmp_path):
     # a cell without a weather is trained again; a score that changes stops the run
     path = out / "cells/cnn__seed0.json"
     cell = json.loads(path.read_text())
-    kept = dict(cell["test_accuracy"])
+    kept = kept_clear = dict(cell["test_accuracy"])
     del cell["test_accuracy"]["rain100"]
     path.write_text(json.dumps(cell))
     assert weather.main(args) == 0
@@ -466,6 +466,16 @@ def test_weather_scores_models_trained_in_clear_air_on_every_weather(tmp_path):
     path.write_text(json.dumps(cell))
     with pytest.raises(SystemExit, match="trained again, its scores changed"):
         weather.main(args)
+    assert json.loads(path.read_text())["test_accuracy"]["50"] == 2.0  # nothing overwritten
+    # a cell trained on other data (another mixture) is trained again, without the check
+    mixed = out / "cells/cnn__mixed__seed0.json"
+    cell = json.loads(mixed.read_text())
+    kept = dict(cell["test_accuracy"])
+    cell["trained_on"], cell["test_accuracy"]["50"] = "another-mixture", 2.0
+    mixed.write_text(json.dumps(cell))
+    path.write_text(json.dumps(json.loads(path.read_text()) | {"test_accuracy": kept_clear}))
+    assert weather.main(args) == 0
+    assert json.loads(mixed.read_text())["test_accuracy"] == kept
     assert (out / "weather.png").stat().st_size > 0
     assert "| cnn (mixed) |" in (out / "weather.md").read_text()
 

@@ -139,6 +139,12 @@ def check_attributes(path: Path, attrs: dict) -> list[str]:
             problems.append(f"{path}: attribute 'sensor': {exc}")
     if "receiver" in attrs and split_source(attrs) == GENERATOR:
         problems += _receiver_problems(path, attrs, bad)
+    waveform = [name for name in ("waveform_bin_ns", "waveform_bins") if name in attrs]
+    if waveform and (len(waveform) == 1 or "return_mode" not in attrs):
+        problems.append(
+            f"{path}: attribute(s) {waveform}: expected 'waveform_bin_ns' and 'waveform_bins' "
+            "together, in a split whose returns come from waveforms ('return_mode')"
+        )
     return problems
 
 

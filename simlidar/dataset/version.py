@@ -129,11 +129,12 @@ SWEEP_VERSION = "1.1.0"
 # Sweeps through a receiver (``simlidar sweep --profile sensor``, issue 41): returns are what the
 # receiver detects, with its range noise, and ``intensity`` is its reflectivity byte instead of
 # the |cos| proxy (attributes ``receiver``, ``materials``); other sweeps keep 1.1.0 and bytes.
-# Fog and rain sweeps (``--fog``, ``--rain``) are 1.2.0 too: their fields are the same.
+# Fog sweeps (``--fog``) are 1.2.0 too: their fields and configuration keys are the same.
 SWEEP_RECEIVER_VERSION = "1.2.0"
 # Sweeps of a beam footprint or a return mode other than strongest (``--beam-samples``,
 # ``--return-mode``): every reported return is stored (``echoes``, ``returns_*``; attributes
-# ``return_mode``, ``beam_samples``) and exported, each with its return number: fields added
+# ``return_mode``, ``beam_samples``) and exported, each with its return number: fields added;
+# and rain sweeps (``--rain``), whose configuration gains ``rain_rate_mm_h``
 SWEEP_RETURNS_VERSION = "1.3.0"
 
 

@@ -5,6 +5,7 @@ import math
 from dataclasses import asdict, dataclass, fields, replace
 
 from simlidar.content import key_error
+from simlidar.dataset.reader import MAX_CHUNK_BYTES
 from simlidar.errors import ConfigError, shown
 from simlidar.generator.profiles import PHYSICAL_RULE, Profile, checked_profile
 from simlidar.sensor.footprint import MAX_RINGS
@@ -170,6 +171,14 @@ class GeneratorConfig:
             raise ConfigError(
                 f"waveform_bin_ns={self.waveform_bin_ns!r} (--waveform-bin): expected a "
                 f"multiple of {BIN_NS} ns (the waveform's own bins), or 0"
+            )
+        sample_bytes = self.sensor.beams * self.width * self.waveform_bins * 4
+        if sample_bytes > MAX_CHUNK_BYTES:  # one sample a chunk: a reader would refuse it
+            raise ConfigError(
+                f"waveform_bin_ns={self.waveform_bin_ns!r} (--waveform-bin): a sample's "
+                f"waveforms take {sample_bytes} bytes ({self.sensor.beams} x {self.width} x "
+                f"{self.waveform_bins} float32), over the {MAX_CHUNK_BYTES} a chunk may hold; "
+                "expected a coarser bin or fewer columns"
             )
         if self.full_waveform and self.receiver is None:
             raise ConfigError(

@@ -42,7 +42,7 @@ BATCH = 1024  # samples ray-cast together by default (does not change the data)
 # delays, float32, barely compress
 DISK_BYTES_PER_PULSE = 4
 WAVEFORM_BATCH_BYTES = 256 * 2**20  # stored waveforms a batch holds in memory, at most
-# a stored waveform's bytes a pulse on disk: 30 measured (VLP-16, sensor profile, 1 ns bins,
+# a stored waveform's bytes a pulse on disk: 32 measured (VLP-16, sensor profile, 1 ns bins,
 # 668 samples: gzip of a waveform that is zero but near its echoes), doubled as a margin
 WAVEFORM_DISK_BYTES_PER_PULSE = 64
 _SHARED: tuple | None = None  # (config, catalog) of the batches the worker processes simulate

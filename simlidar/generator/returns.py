@@ -49,7 +49,7 @@ from simlidar.sensor.receiver import (
     reflectivity_byte,
 )
 from simlidar.sensor.waveform import BIN_NS, echoes, pulse_sigma_ns, reported, sampled
-from simlidar.sensor.weather import C_M_PER_NS, CROSSOVER_M, Rain, fog_table, rain
+from simlidar.sensor.weather import C_M_PER_NS, Rain, fog_table, rain
 
 # The child stream key of a sample's receiver draws (the number: any constant will do,
 # as long as no other stream of a sample uses it)
@@ -337,15 +337,15 @@ def receive_beams(
         receiver.threshold_w, receiver.divergence_h_mrad, receiver.divergence_v_mrad,
         rain_rate_mm_h,
     )  # fmt: skip
-    all_times, all_power = times, power
+    all_times, all_power, drop_ns, drop_w = times, power, None, None
     if drops is not None:
         drop_ns, drop_w = _drop_echoes(drops, streams, rows * cols, axis_m, extinction_per_m)
         all_times, all_power = np.hstack([times, drop_ns]), np.hstack([power, drop_w])
     columns = None if fog is None else fog.column(axis_m)
-    if fog is None:
-        echo = echoes(all_times, all_power, sigma_ns)
+    if fog is None and drops is None:
+        echo = echoes(times, power, sigma_ns)
     else:
-        echo = echoes(all_times, all_power, sigma_ns, BIN_NS, fog, columns)
+        echo = echoes(times, power, sigma_ns, BIN_NS, fog, columns, drop_ns, drop_w)
     stored = None
     if waveform_bins:
         stored = sampled(
@@ -434,7 +434,7 @@ def _drop_echoes(drops: Rain, streams, pixels: int, axis_m: np.ndarray, extincti
         pulse.append(p + i * pixels), range_m.append(r), diameter.append(d)
     pulse, range_m, diameter = (np.concatenate(a) for a in (pulse, range_m, diameter))
     blocked = np.nan_to_num(axis_m[pulse], nan=np.inf)
-    seen = (range_m > CROSSOVER_M[0]) & (range_m < blocked)
+    seen = (range_m > drops.nearest_m) & (range_m < blocked)
     pulse, range_m, diameter = pulse[seen], range_m[seen], diameter[seen]
     count = np.bincount(pulse, minlength=len(axis_m))
     most = int(count.max()) if len(count) else 0

@@ -242,9 +242,10 @@ def object_boxes(scene) -> np.ndarray:
 
 
 def sweep_version(config: GeneratorConfig) -> str:
-    """SWEEP_RETURNS_VERSION where every reported return is stored, SWEEP_RECEIVER_VERSION
-    through a receiver, else SWEEP_VERSION."""
-    if stores_returns(config):
+    """SWEEP_RETURNS_VERSION where every reported return is stored or with rain (a
+    configuration key 1.2.0 does not know), SWEEP_RECEIVER_VERSION through a receiver, else
+    SWEEP_VERSION."""
+    if stores_returns(config) or config.rain_rate_mm_h:
         return SWEEP_RETURNS_VERSION
     return SWEEP_RECEIVER_VERSION if config.receiver is not None else SWEEP_VERSION
 

@@ -86,6 +86,8 @@ def echoes(
     bin_ns=BIN_NS,
     fog=None,
     fog_columns: np.ndarray | None = None,
+    extra_times_ns: np.ndarray | None = None,
+    extra_powers_w: np.ndarray | None = None,
 ) -> Echoes:
     """Every local maximum of each pulse's sampled waveform, with its Gaussian fit.
 
@@ -94,13 +96,21 @@ def echoes(
         ``fog_columns[p]`` (-1: no fog) adds to pulse p's waveform. Where the pulse's
         surfaces add nothing (beyond 4 sigma of every hit) the waveform is that column alone,
         whose peaks are found once for every pulse that shares it.
+    extra_times_ns, extra_powers_w : (P, D) more echoes (the rain's drops; NaN: none), added
+        to the sub-rays' sum one column after the other, so that the padding of a block's
+        widest pulse adds exactly nothing (a pulse's waveform does not depend on its block)
     """
     times = np.asarray(times_ns, dtype=np.float64)
     powers = np.where(np.isnan(times), 0.0, np.asarray(powers_w, dtype=np.float64))
+    extra = np.empty((len(times), 0)) if extra_times_ns is None else extra_times_ns
+    extra = np.asarray(extra, dtype=np.float64)
+    extra_w = np.zeros(extra.shape) if extra_powers_w is None else extra_powers_w
+    extra_w = np.where(np.isnan(extra), 0.0, np.asarray(extra_w, dtype=np.float64))
     pulses = len(times)
-    hit = ~np.isnan(times).all(axis=1)
+    every = np.hstack([times, extra])
+    hit = ~np.isnan(every).all(axis=1)
     reach = REACH_SIGMAS * sigma_ns
-    seen = np.where(hit[:, None], times, 0.0)  # a pulse without hits: zeros, no NaN warning
+    seen = np.where(hit[:, None], every, 0.0)  # a pulse without hits: zeros, no NaN warning
     first = np.where(hit, np.floor((np.nanmin(seen, axis=1) - reach) / bin_ns), 0)
     last = np.where(hit, np.ceil((np.nanmax(seen, axis=1) + reach) / bin_ns), -1)
     bins = (last - first + 1).astype(np.int64)  # 0 for a pulse without hits
@@ -114,6 +124,9 @@ def echoes(
         p, tt = pulse[lo : lo + rows], t[lo : lo + rows]
         gap = tt[:, None] - np.nan_to_num(times[p], nan=0.0)
         values[lo : lo + rows] = (powers[p] * np.exp(-(gap**2) / (2.0 * sigma_ns**2))).sum(axis=1)
+        for d in range(extra.shape[1]):
+            gap = tt - np.nan_to_num(extra[p, d], nan=0.0)
+            values[lo : lo + rows] += extra_w[p, d] * np.exp(-(gap**2) / (2.0 * sigma_ns**2))
     if fog is not None:  # the fog under the surfaces' echoes
         row, column = k - fog.first_bin, fog_columns[pulse]
         inside = (row >= 0) & (row < len(fog.watts)) & (column >= 0)
@@ -197,7 +210,8 @@ def sampled(
     powers = np.where(np.isnan(times), 0.0, np.asarray(powers_w, dtype=np.float64))
     pulses = len(times)
     out = np.zeros((pulses, bins), np.float32)
-    reach = int(math.ceil(REACH_SIGMAS * sigma_ns / bin_ns))
+    # every sample within 4 sigma of an echo: from the nearest sample, half a bin more
+    reach = int(math.ceil(REACH_SIGMAS * sigma_ns / bin_ns + 0.5))
     offsets = np.arange(-reach, reach + 1)
     pulse, column = np.nonzero(~np.isnan(times))  # in pulse order
     if fog is not None:

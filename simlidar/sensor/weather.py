@@ -216,6 +216,7 @@ class Rain:
     reach_m: float  # r <= reach_m sqrt(D / mm)
     smallest_mm: float
     mean_per_pulse: float
+    nearest_m: float  # the crossover's r_1: no drop nearer is seen
 
     def draw(self, g: np.random.Generator, pulses: int):
         """One sample's drops in its ``pulses`` beams: (pulse index, range m, diameter mm),
@@ -262,4 +263,4 @@ def rain(
     smallest = (CROSSOVER_M[0] / reach) ** 2
     moment = gamma(_GAMMA_SHAPE) * gammaincc(_GAMMA_SHAPE, slope * smallest) / slope**_GAMMA_SHAPE
     mean = math.pi / 12.0 * solid * RAIN_N0_PER_M3_MM * reach**3 * moment
-    return Rain(rate_mm_h, slope, full_w, solid, reach, smallest, float(mean))
+    return Rain(rate_mm_h, slope, full_w, solid, reach, smallest, float(mean), CROSSOVER_M[0])

@@ -127,3 +127,29 @@ def test_a_wrong_bin_is_one_line_and_writes_nothing(tmp_path, cli, options, expe
     result = cli("generate", *options, "--out", tmp_path / "o")
     assert result.exit_code == 2 and expected in result.output, result.output
     assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
+
+
+def test_a_waveform_too_big_for_a_chunk_is_refused():
+    """One sample a chunk: 64 x 200 pulses x 2,669 samples of 0.25 ns x 4 bytes = 136.7 MB,
+    over the 128 MiB a reader accepts, is refused before anything is made."""
+    from simlidar.errors import ConfigError
+    from simlidar.sensor.model import load_sensor
+
+    with pytest.raises(ConfigError, match=r"waveform_bin_ns=0.25 \(--waveform-bin\): a sample"):
+        GeneratorConfig.from_profile(
+            load_profile("sensor"), sensor=load_sensor("hdl64e"), width=200, waveform_bin_ns=0.25
+        )
+
+
+def test_a_waveform_attribute_alone_is_one_line_in_verify_and_card(made, tmp_path, cli):
+    copy = tmp_path / "d"
+    copy.mkdir()
+    for item in made["last, stored"].iterdir():
+        (copy / item.name).write_bytes(item.read_bytes())
+    for split in ("train", "test"):
+        with h5py.File(copy / f"{split}.h5", "a") as f:
+            del f.attrs["waveform_bin_ns"]
+    for command in ("verify", "card"):
+        result = cli(command, copy)
+        assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+        assert "expected 'waveform_bin_ns' and 'waveform_bins' together" in result.output

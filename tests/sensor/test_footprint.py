@@ -144,8 +144,9 @@ def test_the_waveform_is_sampled_at_helios_bin_size():
 
 
 def test_the_stored_waveform_samples_the_formula_near_every_echo():
-    """sampled(): P(t) at t = k bin within 4 sigma of each echo (the formula, by waveform(),
-    less the tails of echoes farther than 4 sigma), 0 beyond; two echoes that overlap add."""
+    """sampled(): P(t) at every t = k bin within 4 sigma of an echo (the formula, by
+    waveform(), less the tails of echoes farther than 4 sigma), 0 beyond 4 sigma and two bins;
+    two echoes that overlap add."""
     from simlidar.sensor.waveform import REACH_SIGMAS, sampled, waveform
 
     sigma = pulse_sigma_ns(4.0)
@@ -157,10 +158,10 @@ def test_the_stored_waveform_samples_the_formula_near_every_echo():
     for p in range(3):
         expected = waveform(times[p], powers[p], sigma, t)
         hit = times[p][~np.isnan(times[p])]
-        near = (np.abs(t[:, None] - hit[None, :]) <= REACH_SIGMAS * sigma - 0.5).any(axis=1)
+        near = (np.abs(t[:, None] - hit[None, :]) <= REACH_SIGMAS * sigma).any(axis=1)
         # an echo's tail beyond its 4 sigma is left out: at most exp(-8) of its peak
         atol = math.exp(-(REACH_SIGMAS**2) / 2) * powers[p].max()
         np.testing.assert_allclose(got[p][near], expected[near], rtol=1e-6, atol=atol)
-        far = ~(np.abs(t[:, None] - hit[None, :]) <= REACH_SIGMAS * sigma + 0.5).any(axis=1)
+        far = ~(np.abs(t[:, None] - hit[None, :]) <= REACH_SIGMAS * sigma + 2 * 0.5).any(axis=1)
         assert (got[p][far] == 0).all()
     assert got[0].argmax() * 0.5 == pytest.approx(133.5)  # the bin nearest 2R/c of 20 m
