@@ -79,6 +79,30 @@ def peak_bins(values: np.ndarray, stretch: np.ndarray) -> np.ndarray:
     return np.flatnonzero(peak & (values > 0.0))
 
 
+def _windows(times: np.ndarray, reach_ns: float, bin_ns: float):
+    """The bins a pulse's waveform is evaluated on, without fog: a window from reach_ns before
+    to reach_ns after each run of its echoes, a run ending where the next echo is more than two
+    windows' reach away. Returns each window's pulse, first and last bin, in order of pulse
+    and time. The waveform is the same sum of every echo of the pulse on every bin; what is
+    skipped, a gap more than 4 sigma from every echo, holds no peak (every Gaussian is convex
+    there, and so is their sum), so the echoes are those of one window from the first echo to
+    the last, bit for bit. A pulse with one run (one surface) has the window it always had."""
+    if times.shape[1] == 1:  # one echo a pulse: one window each
+        p = np.flatnonzero(~np.isnan(times[:, 0]))
+        t = times[p, 0]
+        return p, np.floor((t - reach_ns) / bin_ns), np.ceil((t + reach_ns) / bin_ns)
+    ordered = np.sort(times, axis=1)  # each pulse's echoes in time order, NaN last
+    p, c = np.nonzero(~np.isnan(ordered))
+    t = ordered[p, c]
+    new = np.ones(len(p), bool)
+    new[1:] = (p[1:] != p[:-1]) | (t[1:] - t[:-1] > 2.0 * reach_ns + 2.0 * bin_ns)
+    starts = np.flatnonzero(new)
+    ends = np.r_[starts[1:], len(t)] - 1
+    first = np.floor((t[starts] - reach_ns) / bin_ns)
+    last = np.ceil((t[ends] + reach_ns) / bin_ns)
+    return p[starts], first, last
+
+
 def echoes(
     times_ns: np.ndarray,
     powers_w: np.ndarray,
@@ -110,13 +134,18 @@ def echoes(
     every = np.hstack([times, extra])
     hit = ~np.isnan(every).all(axis=1)
     reach = REACH_SIGMAS * sigma_ns
-    seen = np.where(hit[:, None], every, 0.0)  # a pulse without hits: zeros, no NaN warning
-    first = np.where(hit, np.floor((np.nanmin(seen, axis=1) - reach) / bin_ns), 0)
-    last = np.where(hit, np.ceil((np.nanmax(seen, axis=1) + reach) / bin_ns), -1)
+    if fog is None:  # a window around each run of echoes (see _windows)
+        owner, first, last = _windows(every, reach, bin_ns)
+    else:  # one window a pulse, from its first echo to its last (the fog fills the gaps)
+        seen = np.where(hit[:, None], every, 0.0)  # a pulse without hits: zeros, no warning
+        owner = np.arange(pulses)
+        first = np.where(hit, np.floor((np.nanmin(seen, axis=1) - reach) / bin_ns), 0)
+        last = np.where(hit, np.ceil((np.nanmax(seen, axis=1) + reach) / bin_ns), -1)
     bins = (last - first + 1).astype(np.int64)  # 0 for a pulse without hits
-    pulse = np.repeat(np.arange(pulses), bins)
+    window = np.repeat(np.arange(len(owner)), bins)
+    pulse = owner[window]
     start = np.cumsum(bins) - bins
-    k = (first[pulse] + np.arange(len(pulse)) - start[pulse]).astype(np.int64)
+    k = (first[window] + np.arange(len(window)) - start[window]).astype(np.int64)
     t = k * bin_ns
     values = np.empty(len(pulse))
     rows = max(1, CHUNK_VALUES // max(1, times.shape[1]))
@@ -131,7 +160,7 @@ def echoes(
         row, column = k - fog.first_bin, fog_columns[pulse]
         inside = (row >= 0) & (row < len(fog.watts)) & (column >= 0)
         values[inside] += fog.watts[row[inside], column[inside]]
-    at = peak_bins(values, pulse)
+    at = peak_bins(values, window)
     shift, top = fit_peaks(values, at)
     owner, peak_t, peak_w = pulse[at], t[at] + shift * bin_ns, top
     if fog is not None:  # and the fog alone, away from them: its column's own peaks

@@ -165,3 +165,26 @@ def test_the_stored_waveform_samples_the_formula_near_every_echo():
         far = ~(np.abs(t[:, None] - hit[None, :]) <= REACH_SIGMAS * sigma + 2 * 0.5).any(axis=1)
         assert (got[p][far] == 0).all()
     assert got[0].argmax() * 0.5 == pytest.approx(133.5)  # the bin nearest 2R/c of 20 m
+
+
+def test_echoes_apart_are_found_on_their_own_windows_bit_for_bit():
+    """Without fog, a pulse's waveform is evaluated around each run of its echoes, not across
+    the gap between runs: the echoes are those of one window from the first echo to the last
+    (the fog path's, with no fog), bit for bit, for sub-rays and extra columns alike."""
+    from simlidar.sensor.weather import FogTable
+
+    g = np.random.default_rng(3)
+    pulses = 400
+    times = np.where(g.random((pulses, 3)) < 0.7, g.uniform(10, 600, (pulses, 3)), np.nan)
+    times[:, 1] = np.where(g.random(pulses) < 0.5, times[:, 0] + g.uniform(0, 12, pulses), np.nan)
+    powers = 10 ** g.uniform(-9, -5, (pulses, 3))
+    extra = np.where(g.random((pulses, 2)) < 0.3, g.uniform(10, 60, (pulses, 2)), np.nan)
+    extra_w = 10 ** g.uniform(-9, -6, (pulses, 2))
+    sigma = pulse_sigma_ns(4.0)
+    apart = echoes(times, powers, sigma, BIN_NS, None, None, extra, extra_w)
+    no_fog = FogTable(0, np.zeros((1, 1)), 0.0, BIN_NS)
+    whole = echoes(times, powers, sigma, BIN_NS, no_fog, np.full(pulses, -1), extra, extra_w)
+    assert apart.time_ns.shape[1] >= 3  # pulses with several runs of echoes
+    np.testing.assert_array_equal(apart.time_ns, whole.time_ns)
+    np.testing.assert_array_equal(apart.power_w, whole.power_w)
+    np.testing.assert_array_equal(apart.count, whole.count)
