@@ -133,13 +133,18 @@ def main(argv=None) -> int:
         "dataset_hahner_sliders": dataset(args.samples, HAHNER_SLIDERS),
         "samples": args.samples,
     }
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "fog.json").write_text(json.dumps(result, indent=1) + "\n")
-    text = report(result)
-    (args.out / "fog.md").write_text(text)
-    plot(result, args.out / "fog.png")
-    print(text)
+    write_results(args.out, "fog", result, report, plot)
     return 0
+
+
+def write_results(out: Path, stem: str, result: dict, report, plot) -> None:
+    """``stem``.json, .md (``report(result)``, also printed) and .png (``plot``) under ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"{stem}.json").write_text(json.dumps(result, indent=1) + "\n")
+    text = report(result)
+    (out / f"{stem}.md").write_text(text)
+    plot(result, out / f"{stem}.png")
+    print(text)
 
 
 def report(result: dict) -> str:

@@ -22,14 +22,13 @@ Writes rain.md, rain.json and rain.png under ``--out``.
 """
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from fog_check import weather_rows
+from fog_check import weather_rows, write_results
 
 import simlidar.sensor.weather as weather
 from simlidar.generator.profiles import load_profile
@@ -87,12 +86,7 @@ def main(argv=None) -> int:
         "dataset": weather_rows(args.samples, "rain_rate_mm_h", RATES),
         "samples": args.samples,
     }
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "rain.json").write_text(json.dumps(result, indent=1) + "\n")
-    text = report(result)
-    (args.out / "rain.md").write_text(text)
-    plot(result, args.out / "rain.png")
-    print(text)
+    write_results(args.out, "rain", result, report, plot)
     return 0
 
 

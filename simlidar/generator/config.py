@@ -271,6 +271,20 @@ class GeneratorConfig:
         )
 
     @property
+    def receiver_tag(self) -> str:
+        """What a dataset's or sweep's name says of the receiver's options:
+        ``[-fog<V>][-rain<R>][-beam<Q>][-<mode>][-wave<ns>]``, numbers as Python's repr."""
+        tag = ""
+        if math.isfinite(self.fog_visibility_m):
+            tag += f"-fog{float(self.fog_visibility_m)!r}"
+        if self.rain_rate_mm_h:
+            tag += f"-rain{float(self.rain_rate_mm_h)!r}"
+        tag += f"-beam{self.beam_samples}" if self.beam_samples != 1 else ""
+        tag += f"-{self.return_mode}" if self.return_mode != "strongest" else ""
+        tag += f"-wave{float(self.waveform_bin_ns)!r}" if self.waveform_bin_ns else ""
+        return tag
+
+    @property
     def waveform_bins(self) -> int:
         """Samples of each stored waveform (0: none stored): t = k waveform_bin_ns up to the
         sensor's maximum range's time of flight."""

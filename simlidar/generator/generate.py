@@ -7,7 +7,6 @@ built under a hidden temporary name beside its final one and renamed into place 
 on any failure the temporary folders are removed and nothing appears under a final name.
 """
 
-import math
 import multiprocessing
 import os
 from collections import deque
@@ -164,14 +163,7 @@ def generated_name(config: GeneratorConfig) -> str:
     values that differ from the profile's own."""
     over = config.overrides
     sensor = f"-{config.sensor.name}" if config.sensor.name != "vlp16" else ""
-    sensor += "-scan" if config.timing == "scan" else ""
-    if math.isfinite(config.fog_visibility_m):
-        sensor += f"-fog{float(config.fog_visibility_m)!r}"
-    if config.rain_rate_mm_h:
-        sensor += f"-rain{float(config.rain_rate_mm_h)!r}"
-    sensor += f"-beam{config.beam_samples}" if config.beam_samples != 1 else ""
-    sensor += f"-{config.return_mode}" if config.return_mode != "strongest" else ""
-    sensor += f"-wave{float(config.waveform_bin_ns)!r}" if config.waveform_bin_ns else ""
+    sensor += ("-scan" if config.timing == "scan" else "") + config.receiver_tag
     variation = f"-var{float(over['variation'])!r}" if "variation" in over else ""
     shift = f"-shift{float(over['shift_max'])!r}" if "shift_max" in over else ""
     return (

@@ -48,7 +48,7 @@ from simlidar.sensor.receiver import (
     receiver_to_dict,
     reflectivity_byte,
 )
-from simlidar.sensor.waveform import BIN_NS, echoes, pulse_sigma_ns, reported, sampled
+from simlidar.sensor.waveform import BIN_NS, by_row, echoes, pulse_sigma_ns, reported, sampled
 from simlidar.sensor.weather import C_M_PER_NS, Rain, fog_table, rain
 
 # The child stream key of a sample's receiver draws (the number: any constant will do,
@@ -436,11 +436,10 @@ def _drop_echoes(drops: Rain, streams, pixels: int, axis_m: np.ndarray, extincti
     blocked = np.nan_to_num(axis_m[pulse], nan=np.inf)
     seen = (range_m > drops.nearest_m) & (range_m < blocked)
     pulse, range_m, diameter = pulse[seen], range_m[seen], diameter[seen]
-    count = np.bincount(pulse, minlength=len(axis_m))
-    most = int(count.max()) if len(count) else 0
-    rank = np.arange(len(pulse)) - (np.cumsum(count) - count)[pulse]
-    times = np.full((len(axis_m), most), np.nan)
-    power = np.zeros((len(axis_m), most))
-    times[pulse, rank] = tof_ns(range_m)
-    power[pulse, rank] = drops.echo_w(range_m, diameter, extinction_per_m)
+    (times, power), _ = by_row(
+        pulse,
+        len(axis_m),
+        (tof_ns(range_m), np.nan),
+        (drops.echo_w(range_m, diameter, extinction_per_m), 0.0),
+    )
     return times, power

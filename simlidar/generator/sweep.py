@@ -30,7 +30,6 @@ little. That is the catalog's extent, not the sweep's.
 """
 
 import json
-import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -255,12 +254,7 @@ def sweep_name(config: GeneratorConfig, sweep: SweepConfig) -> str:
     ``-<profile>`` names a profile with a receiver (``-sensor``)."""
     variation = f"-var{float(config.variation)!r}" if config.variation != 1.0 else ""
     receiver = f"-{config.profile_name}" if config.receiver is not None else ""
-    if math.isfinite(config.fog_visibility_m):
-        receiver += f"-fog{float(config.fog_visibility_m)!r}"
-    if config.rain_rate_mm_h:
-        receiver += f"-rain{float(config.rain_rate_mm_h)!r}"
-    receiver += f"-beam{config.beam_samples}" if config.beam_samples != 1 else ""
-    receiver += f"-{config.return_mode}" if config.return_mode != "strongest" else ""
+    receiver += config.receiver_tag  # a sweep refuses waveforms: no -wave
     return (
         f"simlidar-sweep-{config.classes}c-{config.sensor.name}-{sweep.frames}f-seed"
         f"{config.seed}{receiver}{variation}-v{sweep_version(config)}"

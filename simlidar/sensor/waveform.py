@@ -177,14 +177,22 @@ def echoes(
         peak_w = np.r_[peak_w, w_fog[index][away]]
         order = np.lexsort((peak_t, owner))
         owner, peak_t, peak_w = owner[order], peak_t[order], peak_w[order]
-    count = np.bincount(owner, minlength=pulses)
-    most = int(count.max()) if pulses else 0
-    rank = np.arange(len(owner)) - (np.cumsum(count) - count)[owner]
-    time = np.full((pulses, most), np.nan)
-    power = np.full((pulses, most), np.nan)
-    time[owner, rank] = peak_t
-    power[owner, rank] = peak_w
+    (time, power), count = by_row(owner, pulses, (peak_t, np.nan), (peak_w, np.nan))
     return Echoes(time, power, count)
+
+
+def by_row(owner: np.ndarray, rows: int, *columns):
+    """Values of rows ``owner`` (sorted, in each row's order) laid out as (rows, most) arrays,
+    padded: ``columns`` are (values, fill) pairs. Returns the arrays and each row's count."""
+    count = np.bincount(owner, minlength=rows)
+    most = int(count.max()) if rows else 0
+    rank = np.arange(len(owner)) - (np.cumsum(count) - count)[owner]
+    laid = []
+    for values, fill in columns:
+        out = np.full((rows, most), fill, dtype=np.float64)
+        out[owner, rank] = values
+        laid.append(out)
+    return laid, count
 
 
 def reported(echo: Echoes, threshold_w: float, mode: str, dual_rule: str = "second_strongest"):

@@ -4,61 +4,45 @@ the dual mode stores the manual's two returns, the same seed gives the same byte
 batches and workers, and a wrong option is one line."""
 
 import dataclasses
-import hashlib
 
 import h5py
 import numpy as np
 import pytest
 
 from simlidar.errors import ConfigError
-from simlidar.generator.config import GeneratorConfig
-from simlidar.generator.generate import generate
 from simlidar.generator.profiles import load_profile
 from simlidar.generator.returns import check_physics, receiver_physics
 from simlidar.sensor.model import load_sensor
 
-SIZES = dict(train_size=64, test_size=32)
 PIXELS = ("delays", "clean_delays", "tof_ns", "surface", "intensity", "reflectance", "power_w")
 SCENE = ("labels", "layout", "object", "object_pose", "object_hits", "attempts", "phase")
 
 
-def _generate(out, catalog, **options):
-    run = {k: options.pop(k) for k in ("batch_size", "workers") if k in options}
-    config = GeneratorConfig.from_profile(load_profile("sensor"), **SIZES, **options)
-    (written,) = generate(config, [0.1], catalog, out, progress=False, preview=False, **run)
-    return written.path
-
-
-def _read(path, split="train"):
-    with h5py.File(path / f"{split}.h5") as f:
-        return {name: f[name][:] for name in f}, dict(f.attrs)
-
-
 @pytest.fixture(scope="module")
-def made(tmp_path_factory, catalog):
+def made(tmp_path_factory, sensor_dataset):
     out = tmp_path_factory.mktemp("beams")
     return {
-        "one ray": _generate(out / "a", catalog),
-        "one ray, dual": _generate(out / "b", catalog, return_mode="dual"),
-        "one ray, last": _generate(out / "c", catalog, return_mode="last"),
-        "footprint, dual": _generate(out / "d", catalog, beam_samples=2, return_mode="dual"),
+        "one ray": sensor_dataset(out / "a"),
+        "one ray, dual": sensor_dataset(out / "b", return_mode="dual"),
+        "one ray, last": sensor_dataset(out / "c", return_mode="last"),
+        "footprint, dual": sensor_dataset(out / "d", beam_samples=2, return_mode="dual"),
     }
 
 
-def test_one_ray_through_the_waveform_gives_the_single_rays_records(made):
+def test_one_ray_through_the_waveform_gives_the_single_rays_records(made, read_split):
     """A lone Gaussian's fitted peak is the ray's own time and power, so every per-pixel field
     of the last and dual modes is 4.0.0's, bit for bit."""
-    base, attrs = _read(made["one ray"])
+    base, attrs = read_split(made["one ray"])
     assert made["one ray"].name == "simlidar-32c-noise0.1-sensor-v4.0.0"
     assert "return_mode" not in attrs and "echoes" not in base
     for name in ("one ray, dual", "one ray, last"):
-        data, attrs = _read(made[name])
+        data, attrs = read_split(made[name])
         assert made[name].name.endswith(f"-sensor-{attrs['return_mode']}-v4.1.0")
         for field in PIXELS + SCENE:
             assert np.array_equal(data[field], base[field], equal_nan=True), (name, field)
         assert set(np.unique(data["echoes"])) <= {0, 1}  # one ray: at most one echo
         assert np.array_equal(data["echoes"] == 1, ~np.isnan(base["tof_ns"]))
-    dual, _ = _read(made["one ray, dual"])
+    dual, _ = read_split(made["one ray, dual"])
     assert dual["returns_tof_ns"].shape == base["tof_ns"].shape + (2,)
     for field in ("returns_tof_ns", "returns_intensity", "returns_surface"):
         # one echo is reported twice (the manual: the block pairs are then identical)
@@ -66,11 +50,11 @@ def test_one_ray_through_the_waveform_gives_the_single_rays_records(made):
     assert np.array_equal(dual["returns_tof_ns"][..., 0], base["tof_ns"], equal_nan=True)
 
 
-def test_a_footprint_keeps_the_scenes_and_reports_the_first_return(made):
+def test_a_footprint_keeps_the_scenes_and_reports_the_first_return(made, read_split):
     """The scene is judged by each beam's axis, as with one ray, so the samples are the same;
     the per-pixel fields hold the first of the reported returns."""
-    base, _ = _read(made["one ray"])
-    data, attrs = _read(made["footprint, dual"])
+    base, _ = read_split(made["one ray"])
+    data, attrs = read_split(made["footprint, dual"])
     assert attrs["beam_samples"] == 2 and attrs["return_mode"] == "dual"
     assert made["footprint, dual"].name == "simlidar-32c-noise0.1-sensor-beam2-dual-v4.1.0"
     for field in SCENE:
@@ -90,17 +74,12 @@ def test_a_footprint_keeps_the_scenes_and_reports_the_first_return(made):
     assert agree.mean() > 0.95
 
 
-def _digest(path):
-    files = ("train.h5", "test.h5", "README.md")
-    return hashlib.sha256(b"".join((path / n).read_bytes() for n in files)).hexdigest()
-
-
 def test_the_same_seed_gives_the_same_bytes_whatever_the_batches_and_workers(
-    made, tmp_path, catalog
+    made, tmp_path, sensor_dataset, dataset_digest
 ):
-    again = _generate(tmp_path / "a", catalog, beam_samples=2, return_mode="dual", batch_size=5)
-    pool = _generate(tmp_path / "b", catalog, beam_samples=2, return_mode="dual", workers=2)
-    assert _digest(again) == _digest(pool) == _digest(made["footprint, dual"])
+    again = sensor_dataset(tmp_path / "a", beam_samples=2, return_mode="dual", batch_size=5)
+    pool = sensor_dataset(tmp_path / "b", beam_samples=2, return_mode="dual", workers=2)
+    assert dataset_digest(again) == dataset_digest(pool) == dataset_digest(made["footprint, dual"])
 
 
 def test_the_card_and_verify_know_the_returns(made, tmp_path, cli):

@@ -2,54 +2,35 @@
 returns of surface 0 and whose extinction only takes returns away from the clear-air twin, the
 same bytes whatever the batches and workers, a card that says so, and one-line errors."""
 
-import hashlib
-
-import h5py
 import numpy as np
 import pytest
 
-from simlidar.generator.config import GeneratorConfig
-from simlidar.generator.generate import generate
-from simlidar.generator.profiles import load_profile
 from simlidar.sensor.weather import CROSSOVER_M, rain
 
-SIZES = dict(train_size=64, test_size=32)
 C_M_PER_NS = 0.299792458
 
 
-def _generate(out, catalog, **options):
-    run = {k: options.pop(k) for k in ("batch_size", "workers") if k in options}
-    config = GeneratorConfig.from_profile(load_profile("sensor"), **SIZES, **options)
-    (written,) = generate(config, [0.1], catalog, out, progress=False, preview=False, **run)
-    return written.path
-
-
-def _read(path, split="train"):
-    with h5py.File(path / f"{split}.h5") as f:
-        return {name: f[name][:] for name in f}, dict(f.attrs)
-
-
 @pytest.fixture(scope="module")
-def made(tmp_path_factory, catalog):
+def made(tmp_path_factory, sensor_dataset):
     out = tmp_path_factory.mktemp("rain")
     return {
-        "clear": _generate(out / "a", catalog),
-        "rain": _generate(out / "b", catalog, rain_rate_mm_h=200.0),
+        "clear": sensor_dataset(out / "a"),
+        "rain": sensor_dataset(out / "b", rain_rate_mm_h=200.0),
     }
 
 
-def test_rain_is_a_dataset_version_of_its_own(made):
+def test_rain_is_a_dataset_version_of_its_own(made, read_split):
     assert made["clear"].name == "simlidar-32c-noise0.1-sensor-v4.0.0"
     assert made["rain"].name == "simlidar-32c-noise0.1-sensor-rain200.0-v4.2.0"
-    _, attrs = _read(made["rain"])
+    _, attrs = read_split(made["rain"])
     assert '"rain_rate_mm_h": 200.0' in attrs["config"] and attrs["dataset_version"] == "4.2.0"
-    _, clear = _read(made["clear"])
+    _, clear = read_split(made["clear"])
     assert "rain_rate_mm_h" not in clear["config"]
 
 
-def test_the_drops_make_near_returns_and_the_extinction_takes_far_ones(made):
-    rainy, _ = _read(made["rain"])
-    clear, _ = _read(made["clear"])
+def test_the_drops_make_near_returns_and_the_extinction_takes_far_ones(made, read_split):
+    rainy, _ = read_split(made["rain"])
+    clear, _ = read_split(made["clear"])
     np.testing.assert_array_equal(rainy["labels"], clear["labels"])  # the same scenes
     surface = rainy["returns_surface"][..., 0]
     range_m = rainy["returns_tof_ns"][..., 0] * C_M_PER_NS / 2
@@ -69,17 +50,12 @@ def test_the_drops_make_near_returns_and_the_extinction_takes_far_ones(made):
     assert hard_rain.sum() < ((clear["surface"] > 0) & far).sum()  # the extinction's losses
 
 
-def _digest(path):
-    files = ("train.h5", "test.h5", "README.md")
-    return hashlib.sha256(b"".join((path / n).read_bytes() for n in files)).hexdigest()
-
-
 def test_the_same_seed_gives_the_same_bytes_whatever_the_batches_and_workers(
-    made, tmp_path, catalog
+    made, tmp_path, sensor_dataset, dataset_digest
 ):
-    again = _generate(tmp_path / "a", catalog, rain_rate_mm_h=200.0, batch_size=5)
-    pool = _generate(tmp_path / "b", catalog, rain_rate_mm_h=200.0, workers=2)
-    assert _digest(again) == _digest(pool) == _digest(made["rain"])
+    again = sensor_dataset(tmp_path / "a", rain_rate_mm_h=200.0, batch_size=5)
+    pool = sensor_dataset(tmp_path / "b", rain_rate_mm_h=200.0, workers=2)
+    assert dataset_digest(again) == dataset_digest(pool) == dataset_digest(made["rain"])
 
 
 def test_the_card_says_rain_and_lists_the_notes_up_to_its_version(made, cli):

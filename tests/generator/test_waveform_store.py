@@ -3,48 +3,32 @@
 field as the dataset without it has them, the same bytes whatever the batches and workers, and
 verify, the card and load_split know it."""
 
-import hashlib
-
 import h5py
 import numpy as np
 import pytest
 
 from simlidar.dataset.loaders import load_split
 from simlidar.generator.config import GeneratorConfig
-from simlidar.generator.generate import generate
 from simlidar.generator.profiles import load_profile
 from simlidar.sensor.receiver import load_receiver
 from simlidar.sensor.waveform import pulse_sigma_ns
 
-SIZES = dict(train_size=64, test_size=32)
 RECEIVER = load_receiver("vlp16")
 
 
-def _generate(out, catalog, **options):
-    run = {k: options.pop(k) for k in ("batch_size", "workers") if k in options}
-    config = GeneratorConfig.from_profile(load_profile("sensor"), **SIZES, **options)
-    (written,) = generate(config, [0.1], catalog, out, progress=False, preview=False, **run)
-    return written.path
-
-
-def _read(path, split="train"):
-    with h5py.File(path / f"{split}.h5") as f:
-        return {name: f[name][:] for name in f}, dict(f.attrs)
-
-
 @pytest.fixture(scope="module")
-def made(tmp_path_factory, catalog):
+def made(tmp_path_factory, sensor_dataset):
     out = tmp_path_factory.mktemp("waveforms")
     return {
-        "last": _generate(out / "a", catalog, return_mode="last"),
-        "last, stored": _generate(out / "b", catalog, return_mode="last", waveform_bin_ns=1.0),
-        "rain, stored": _generate(out / "c", catalog, rain_rate_mm_h=200.0, waveform_bin_ns=0.5),
+        "last": sensor_dataset(out / "a", return_mode="last"),
+        "last, stored": sensor_dataset(out / "b", return_mode="last", waveform_bin_ns=1.0),
+        "rain, stored": sensor_dataset(out / "c", rain_rate_mm_h=200.0, waveform_bin_ns=0.5),
     }
 
 
-def test_the_waveform_is_a_field_added_to_the_same_records(made):
-    plain, _ = _read(made["last"])
-    stored, attrs = _read(made["last, stored"])
+def test_the_waveform_is_a_field_added_to_the_same_records(made, read_split):
+    plain, _ = read_split(made["last"])
+    stored, attrs = read_split(made["last, stored"])
     assert made["last, stored"].name == "simlidar-32c-noise0.1-sensor-last-wave1.0-v4.2.0"
     assert set(stored) - set(plain) == {"waveform"}
     for name, values in plain.items():
@@ -56,11 +40,11 @@ def test_the_waveform_is_a_field_added_to_the_same_records(made):
         assert f["waveform"].chunks == (1, 16, 16, 668) and f["waveform"].dtype == np.float32
 
 
-def test_the_stored_waveform_is_the_one_the_returns_come_from(made):
+def test_the_stored_waveform_is_the_one_the_returns_come_from(made, read_split):
     """A pulse's reported return lies on a peak of its stored waveform at or above the
     threshold (sampled within half a bin of the peak: at least exp(-0.5^2 / (2 sigma^2)) of
     it); a pulse that hit nothing has a waveform of zeros; every sample is finite and >= 0."""
-    rows, attrs = _read(made["last, stored"])
+    rows, attrs = read_split(made["last, stored"])
     wave, tof = rows["waveform"], rows["returns_tof_ns"][..., 0]
     assert np.isfinite(wave).all() and (wave >= 0).all()
     returned = ~np.isnan(tof)
@@ -75,8 +59,8 @@ def test_the_stored_waveform_is_the_one_the_returns_come_from(made):
     assert nothing.any() and (wave[nothing] == 0).all()
 
 
-def test_rain_and_a_finer_bin(made):
-    rows, attrs = _read(made["rain, stored"])
+def test_rain_and_a_finer_bin(made, read_split):
+    rows, attrs = read_split(made["rain, stored"])
     assert attrs["waveform_bins"] == 1335 and attrs["waveform_bin_ns"] == 0.5
     drops = (rows["surface"] == 0) & ~np.isnan(rows["tof_ns"])
     assert drops.any()
@@ -85,16 +69,13 @@ def test_rain_and_a_finer_bin(made):
     assert (near > 0.5 * RECEIVER.threshold_w).all()  # the drops' echoes are in the waveform
 
 
-def _digest(path):
-    files = ("train.h5", "test.h5", "README.md")
-    return hashlib.sha256(b"".join((path / n).read_bytes() for n in files)).hexdigest()
-
-
-def test_the_same_bytes_whatever_the_batches_and_workers(made, tmp_path, catalog):
+def test_the_same_bytes_whatever_the_batches_and_workers(
+    made, tmp_path, sensor_dataset, dataset_digest
+):
     options = dict(rain_rate_mm_h=200.0, waveform_bin_ns=0.5)
-    again = _generate(tmp_path / "a", catalog, batch_size=5, **options)
-    pool = _generate(tmp_path / "b", catalog, workers=2, **options)
-    assert _digest(again) == _digest(pool) == _digest(made["rain, stored"])
+    again = sensor_dataset(tmp_path / "a", batch_size=5, **options)
+    pool = sensor_dataset(tmp_path / "b", workers=2, **options)
+    assert dataset_digest(again) == dataset_digest(pool) == dataset_digest(made["rain, stored"])
 
 
 def test_verify_the_card_and_load_split_know_the_waveform(made, tmp_path, cli):
