@@ -36,7 +36,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from paper_table import EPOCHS as EPOCH_COUNT
-from paper_table import JOBS, NOISE, ROOT, SEEDS, check_recipes, run_cells
+from paper_table import JOBS, NOISE, ROOT, SEEDS, check_recipes, interval, run_cells
 
 from simlidar.script_args import choices, command_line, run
 
@@ -189,17 +189,6 @@ def summarise(cells: dict[str, list[dict]], curves: dict) -> list[dict]:
                 row["gap_arrived"] = bound_at(curve, row["arrived_median"])[0] - row["accuracy"]
         rows.append(row)
     return rows
-
-
-def interval(accuracy: np.ndarray) -> list[float] | None:
-    """The 95 % confidence interval of the mean of the seeds' accuracies (Student's t, n - 1
-    degrees of freedom); None for one seed."""
-    if len(accuracy) < 2:
-        return None
-    from scipy.stats import t
-
-    half = t.ppf(0.975, len(accuracy) - 1) * accuracy.std(ddof=1) / np.sqrt(len(accuracy))
-    return [float(accuracy.mean() - half), float(accuracy.mean() + half)]
 
 
 def low_end(row: dict) -> float:

@@ -23,8 +23,17 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from early_objectives import interval
-from paper_table import EPOCHS, JOBS, PENALTIES, ROOT, SEEDS, datasets, done, run_cells
+from paper_table import (
+    EPOCHS,
+    JOBS,
+    PENALTIES,
+    ROOT,
+    SEEDS,
+    datasets,
+    done,
+    interval,
+    run_cells,
+)
 
 from simlidar.script_args import command_line, run
 

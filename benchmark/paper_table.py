@@ -46,6 +46,17 @@ PENALTIES = numbers(PENALTY.low, PENALTY.high)  # the training option early_pena
 NOISE = numbers(0, 1, one=True)  # a dataset's noise level, as `simlidar generate --noise`
 
 
+def interval(accuracy: np.ndarray) -> list[float] | None:
+    """The 95 % confidence interval of the mean of the seeds' accuracies (Student's t, n - 1
+    degrees of freedom); None for one seed."""
+    if len(accuracy) < 2:
+        return None
+    from scipy.stats import t
+
+    half = t.ppf(0.975, len(accuracy) - 1) * accuracy.std(ddof=1) / np.sqrt(len(accuracy))
+    return [float(accuracy.mean() - half), float(accuracy.mean() + half)]
+
+
 def recipe_epochs(text: str) -> dict[str, int]:
     """An argparse type: ``RECIPE=N,...``, each N an epoch count (the recipes are checked with
     :func:`check_recipes`)."""
@@ -183,9 +194,12 @@ def summarise(cells: list[dict], paper: list[float]) -> dict:
                     "accuracy": [round(a, 2) for a in acc],
                     "mean": round(float(acc.mean()), 2),
                     "std": round(float(acc.std(ddof=1)), 2) if len(acc) > 1 else None,
+                    "ci95": [round(v, 2) for v in interval(acc)] if len(acc) > 1 else None,
                     "difference": round(float(acc.mean()) - reported, 2),
                     "epochs": [c["epochs"] for c in mine],
-                    "minutes": round(float(np.mean([c["seconds"] for c in mine])) / 60, 1),
+                    "minutes": [  # the fewest and the most: runs differ by machine and code
+                        round(float(f([c["seconds"] for c in mine])) / 60, 1) for f in (min, max)
+                    ],
                     "input_spikes": {
                         "p10": float(np.percentile(spikes, 10)),
                         "median": float(np.median(spikes)),
@@ -206,7 +220,8 @@ def summarise(cells: list[dict], paper: list[float]) -> dict:
 def markdown(table: dict, command: str) -> str:
     lines = [
         f"Made by `{command}`. Accuracy in percent on the 600 test samples, mean and sample "
-        "standard deviation over training seeds (last epoch); input spikes consumed before "
+        "standard deviation over training seeds (last epoch) [95 % interval of the mean, "
+        "Student's t]; input spikes consumed before "
         "the decision over every test sample of every seed (the paper: as few as 13-16, "
         "never more than 180 of 256).",
         "",
@@ -221,15 +236,24 @@ def markdown(table: dict, command: str) -> str:
         ]
         for r in rows:
             std = f" ± {r['std']:.2f}" if r["std"] is not None else ""
+            if r.get("ci95"):
+                std += " [{:.2f}, {:.2f}]".format(*r["ci95"])
             s = r["input_spikes"]
             lines.append(
                 f"| {r['noise']} | {r['paper']:.2f} | {r['mean']:.2f}{std} | "
                 f"{r['difference']:+.2f} | {len(r['seeds'])} | {s['median']:.0f} ({s['p10']:.0f} "
                 f"/ {s['p90']:.0f}, {s['max']}) of {s['total']:.0f} | "
-                f"{'/'.join(map(str, sorted(set(r['epochs']))))} | {r['minutes']} |"
+                f"{'/'.join(map(str, sorted(set(r['epochs']))))} | {minutes(r['minutes'])} |"
             )
         lines.append("")
     return "\n".join(lines)
+
+
+def minutes(span) -> str:
+    """A row's minutes a run: one figure, or the fewest and the most (older tables: a mean)."""
+    if not isinstance(span, list):
+        return str(span)
+    return str(span[0]) if span[0] == span[1] else f"{span[0]}-{span[1]}"
 
 
 def plot(table: dict, cells: list[dict], path: Path) -> None:

@@ -49,8 +49,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from early_objectives import interval, low_end
-from paper_table import JOBS, ROOT, SEEDS, check_recipes, run_cells
+from early_objectives import low_end
+from paper_table import JOBS, ROOT, SEEDS, check_recipes, interval, run_cells
 from scan_timing import twin_datasets
 
 from simlidar.script_args import command_line, integers, run

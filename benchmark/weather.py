@@ -39,8 +39,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from early_objectives import interval
-from paper_table import JOBS, SEEDS, check_recipes
+from paper_table import JOBS, SEEDS, check_recipes, interval
 
 from simlidar.script_args import command_line, integers, run
 
