@@ -481,7 +481,7 @@ def test_weather_scores_models_trained_in_clear_air_on_every_weather(tmp_path):
 
 
 def test_the_committed_weather_table_recomputes_from_its_cells():
-    """benchmark/results/weather: every mean of weather.json is its cells' (3 seeds a model,
+    """benchmark/results/weather: every mean of weather.json is its cells' (5 seeds a model,
     trained in clear air and on mixed weather), the bound is each weather's every-spike row of
     the bound's runs, and no model is above the bound of the weather it is tested in (by the
     mean)."""
@@ -502,7 +502,7 @@ def test_the_committed_weather_table_recomputes_from_its_cells():
             assert mine["accuracy"] == pytest.approx(theirs["accuracy"])
             assert mine["accuracy_ci95"] == pytest.approx(theirs["accuracy_ci95"])
     assert {m: len(c) for m, c in cells.items()} == {
-        m + t: 3 for m in ("cnn", "snn_simlidar_tuned", "snntorch_lif") for t in ("", " (mixed)")
+        m + t: 5 for m in ("cnn", "snn_simlidar_tuned", "snntorch_lif") for t in ("", " (mixed)")
     }
     assert list(result["datasets"]) == [
         "clear",
