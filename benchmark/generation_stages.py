@@ -30,6 +30,7 @@ from simlidar.dataset.writer import SplitWriter  # noqa: E402
 from simlidar.generator import shard as shard_module  # noqa: E402
 from simlidar.generator.config import MAX_SPLIT_SIZE, GeneratorConfig  # noqa: E402
 from simlidar.generator.generate import generate  # noqa: E402
+from simlidar.generator.streams import Streams  # noqa: E402
 from simlidar.scene.recipe import load_catalog  # noqa: E402
 from simlidar.script_args import integers, run  # noqa: E402
 from simlidar.sensor import embree  # noqa: E402
@@ -71,7 +72,8 @@ def main() -> None:
     print(f"shared Embree buffers: {'on' if embree.shared_buffers() else 'off'}")
     with tempfile.TemporaryDirectory() as tmp:
         generate(config, [0.2], catalog, f"{tmp}/warm", progress=False, preview=False)
-        simulate.sample_stream = timed("random streams (SeedSequence)", simulate.sample_stream)
+        for method in ("__init__", "random", "random_float32"):  # made and drawn, batched
+            setattr(Streams, method, timed("random streams", getattr(Streams, method)))
         simulate.window_rays = timed("window rays", simulate.window_rays)
         simulate.build_batch = timed("scene building (numpy)", simulate.build_batch)
         raycast.visible_triangles = timed("back-face culling", raycast.visible_triangles)

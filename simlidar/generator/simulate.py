@@ -4,9 +4,10 @@ Randomness: every sample has its own stream, ``SeedSequence(seed, spawn_key=(spl
 read in a fixed order: 2 variates for the class factor not fixed by the label, the noise
 variates (H x W, H the sensor's beams), then one block of parameters per attempt. A sample's
 content therefore depends on (seed, split, index, config, catalog) only, never on the batch
-it was made in. A profile with a receiver (``sensor``) draws its own variates from a second
-stream of the sample (:mod:`simlidar.generator.returns`), after the scene is accepted; the
-stream above is read exactly as under the other profiles.
+it was made in (the streams of a batch are made and drawn together, numpy's numbers bit for
+bit: :mod:`simlidar.generator.streams`). A profile with a receiver (``sensor``) draws its own
+variates from a second stream of the sample (:mod:`simlidar.generator.returns`), after the
+scene is accepted; the stream above is read exactly as under the other profiles.
 """
 
 from dataclasses import dataclass
@@ -22,6 +23,7 @@ from simlidar.generator.returns import (
     receiver_physics,
     receiver_stream,
 )
+from simlidar.generator.streams import Streams
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.footprint import subray_count, subray_directions
@@ -130,6 +132,8 @@ def axis_hits(hits: Hits, width: int) -> Hits:
 
 
 def sample_stream(seed: int, split: str, index: int) -> np.random.Generator:
+    """A sample's random stream, the numpy way: the definition :class:`~simlidar.generator.
+    streams.Streams` reproduces for a batch (and its tests compare with)."""
     seq = np.random.SeedSequence(seed, spawn_key=(SPLIT_IDS[split], int(index)))
     return np.random.Generator(np.random.PCG64(seq))
 
@@ -181,9 +185,9 @@ def simulate(
     index = np.arange(start, stop)
     n = len(index)
     labels = index % plan.classes
-    streams = [sample_stream(config.seed, split, i) for i in index]
-    free = np.stack([g.random(2) for g in streams])
-    noise_u = np.stack([g.random((sensor.beams, width), dtype=np.float32) for g in streams])
+    streams = Streams(config.seed, SPLIT_IDS[split], index)  # sample_stream's, batched
+    free = streams.random(2)
+    noise_u = streams.random_float32((sensor.beams, width))
     layout, obj = factors(plan, labels, free, len(catalog.layouts), len(catalog.objects))
 
     lc, oc = catalog.layout_columns, catalog.object_columns
@@ -207,7 +211,7 @@ def simulate(
     pending = np.arange(n)
     while len(pending):
         attempts[pending] += 1
-        u = np.stack([streams[r].random(columns) for r in pending])
+        u = streams.random(columns, pending)
         origins, directions = window_rays(sensor, width, config.fov_deg, u[:, 0])
         if beams:  # every sub-ray, cast with the others; sub-ray 0 is the beam's axis
             directions, weights = subray_directions(

@@ -59,9 +59,9 @@ from simlidar.generator.simulate import (
     axis_hits,
     class_plan,
     factors,
-    sample_stream,
     split_beams,
 )
+from simlidar.generator.streams import Streams
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.footprint import subray_directions
@@ -122,11 +122,11 @@ def simulate_frames(config: GeneratorConfig, catalog: Catalog, start: int, stop:
     plan = class_plan(catalog, config.classes)
     index = np.arange(start, stop)
     labels = index % plan.classes
-    streams = [sample_stream(config.seed, "sweep", i) for i in index]
-    free = np.stack([g.random(2) for g in streams])
+    streams = Streams(config.seed, SPLIT_IDS["sweep"], index)  # sample_stream's, batched
+    free = streams.random(2)
     layout, obj = factors(plan, labels, free, len(catalog.layouts), len(catalog.objects))
     lc = catalog.layout_columns
-    u = np.stack([g.random(FIXED_COLUMNS + lc + catalog.object_columns) for g in streams])
+    u = streams.random(FIXED_COLUMNS + lc + catalog.object_columns)
     origins, directions = sweep_rays(sensor, u[:, 0])
     beams = stores_returns(config)
     if beams:  # every sub-ray, cast with the others; sub-ray 0 is the beam's axis
