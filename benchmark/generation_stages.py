@@ -1,13 +1,16 @@
 """Where generation spends its time: microseconds per sample for each stage, on one core.
 
-    python benchmark/generation_stages.py [--samples 6144]
+    python benchmark/generation_stages.py [--samples 6144] [--profile paper]
 
-Runs ``generate`` end to end (16 x 16 samples, 32 classes, the default catalog, HDF5 writing
-included, no preview) with timers around the pipeline's stages, after one untimed warm-up run,
-and prints each stage's share. "Other" is the whole run less the timed stages: the per-sample
-random draws, the visibility checks and redraw bookkeeping, pulses, noise, the card. The
-timers add a few microseconds a sample; ``benchmark/generation_speed.py`` gives the untimed
-throughput.
+Runs what ``simlidar generate --classes 32 --noise 0.2`` runs (the profile ``--profile``, by
+default the command's own, ``paper``; 16 x 16 samples, the default catalog, HDF5 writing, the
+preview, card, Croissant file and checksums included) with timers around the pipeline's
+stages, after one untimed warm-up run, and prints each stage's share and the mean draws a
+sample (the splits' ``attempts``). "Other" is the whole run less the timed stages: the
+visibility checks and redraw bookkeeping, the numpy around the cast, pulses, claiming and
+installing the folder. The timers add a few microseconds a sample;
+``benchmark/generation_speed.py`` gives the untimed throughput. The process's start-up imports
+are not in the run (``python -X importtime -m simlidar.cli --version`` shows them).
 """
 
 import os
@@ -23,13 +26,17 @@ import time  # noqa: E402
 from collections import defaultdict  # noqa: E402
 
 import embreex.rtcore_scene as rtcs  # noqa: E402
+import h5py  # noqa: E402
+import numpy as np  # noqa: E402
 
+import simlidar.generator.generate as generate_module  # noqa: E402
 import simlidar.generator.simulate as simulate  # noqa: E402
 import simlidar.sensor.raycast as raycast  # noqa: E402
 from simlidar.dataset.writer import SplitWriter  # noqa: E402
 from simlidar.generator import shard as shard_module  # noqa: E402
 from simlidar.generator.config import MAX_SPLIT_SIZE, GeneratorConfig  # noqa: E402
 from simlidar.generator.generate import generate  # noqa: E402
+from simlidar.generator.profiles import load_profile  # noqa: E402
 from simlidar.generator.streams import Streams  # noqa: E402
 from simlidar.scene.recipe import load_catalog  # noqa: E402
 from simlidar.script_args import integers, run  # noqa: E402
@@ -65,8 +72,13 @@ def main() -> None:
     parser.add_argument(  # a sixth of them the test split: at least one of each of 32 classes
         "--samples", type=integers(192, MAX_SPLIT_SIZE, one=True), default=6144, help="train + test"
     )
+    parser.add_argument("--profile", default="paper", help="as simlidar generate --profile")
     args = parser.parse_args()
-    config = GeneratorConfig(train_size=args.samples * 5 // 6, test_size=args.samples // 6)
+    config = GeneratorConfig.from_profile(
+        load_profile(args.profile),
+        train_size=args.samples * 5 // 6,
+        test_size=args.samples // 6,
+    )
     n = config.train_size + config.test_size
     catalog = load_catalog()
     print(f"shared Embree buffers: {'on' if embree.shared_buffers() else 'off'}")
@@ -81,11 +93,23 @@ def main() -> None:
         rtcs.EmbreeScene = TimedScene
         shard_module.split_rows = timed("profile and noise", shard_module.split_rows)
         SplitWriter.append = timed("HDF5 writing", SplitWriter.append)
+        SplitWriter.close = timed("HDF5 writing", SplitWriter.close)  # the last chunks
+        generate_module.write_preview = timed("preview.png", generate_module.write_preview)
+        for name in ("write_croissant", "generated_croissant", "write_card", "generated_card",
+                     "write_sums"):  # fmt: skip
+            stage = timed("card, Croissant, checksums", getattr(generate_module, name))
+            setattr(generate_module, name, stage)
         start = time.perf_counter()
-        generate(config, [0.2], catalog, f"{tmp}/timed", progress=False, preview=False)
+        (written,) = generate(config, [0.2], catalog, f"{tmp}/timed", progress=False)
         total = time.perf_counter() - start
+        attempts = np.concatenate(
+            [h5py.File(path)["attempts"][:] for path in sorted(written.path.glob("*.h5"))]
+        )
     SPENT["other"] = total - sum(SPENT.values())
-    print(f"{n} samples in {total:.2f} s: {n / total:.0f} samples/s with the timers")
+    print(
+        f"{n} samples ({args.profile}) in {total:.2f} s: {n / total:.0f} samples/s with the "
+        f"timers; {attempts.mean():.3f} draws a sample"
+    )
     for stage, seconds in sorted(SPENT.items(), key=lambda kv: -kv[1]):
         print(f"  {stage:32s} {1e6 * seconds / n:6.1f} us/sample  {100 * seconds / total:4.1f} %")
 

@@ -29,7 +29,9 @@ def test_generation_stages_times_every_stage():
     lines = run_script("generation_stages.py", "--samples", "192", timeout=300).splitlines()
     if sys.platform.startswith("linux"):
         assert lines[0] == "shared Embree buffers: on"
-    assert "192 samples in" in lines[1]
+    assert "192 samples (paper) in" in lines[1]  # the users' command's profile
+    draws = float(lines[1].split("; ")[1].split()[0])
+    assert 1.0 <= draws < 2.0 and lines[1].endswith("draws a sample")
     stages = {line[:34].strip(): float(line[34:].split()[0]) for line in lines[2:]}
     assert set(stages) == {
         "Embree BVH build + ray queries",
@@ -38,9 +40,11 @@ def test_generation_stages_times_every_stage():
         "profile and noise",
         "scene building (numpy)",
         "back-face culling",
-        "random streams (SeedSequence)",
+        "random streams",
         "window rays",
         "Embree geometry",
+        "preview.png",
+        "card, Croissant, checksums",
     }
     assert all(us > 0 for name, us in stages.items() if name != "other")
 
