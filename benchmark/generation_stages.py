@@ -102,9 +102,11 @@ def main() -> None:
         start = time.perf_counter()
         (written,) = generate(config, [0.2], catalog, f"{tmp}/timed", progress=False)
         total = time.perf_counter() - start
-        attempts = np.concatenate(
-            [h5py.File(path)["attempts"][:] for path in sorted(written.path.glob("*.h5"))]
-        )
+        attempts = []
+        for path in sorted(written.path.glob("*.h5")):
+            with h5py.File(path, "r") as split:
+                attempts.append(split["attempts"][:])
+        attempts = np.concatenate(attempts)
     SPENT["other"] = total - sum(SPENT.values())
     print(
         f"{n} samples ({args.profile}) in {total:.2f} s: {n / total:.0f} samples/s with the "
