@@ -47,3 +47,29 @@ def dataset_digest():
         return hashlib.sha256(b"".join((path / n).read_bytes() for n in files)).hexdigest()
 
     return digest
+
+
+@pytest.fixture(scope="session")
+def copy_dataset():
+    """copy(path, to): ``to`` made, holding a copy of the dataset folder's files (to tamper
+    with)."""
+
+    def copy(path, to):
+        to.mkdir()
+        for item in path.iterdir():
+            (to / item.name).write_bytes(item.read_bytes())
+        return to
+
+    return copy
+
+
+@pytest.fixture(scope="session")
+def refused():
+    """check(result, out, expected): a CLI run refused with exit code 2, ``expected`` in its
+    output, one line on stderr and nothing written at ``out``."""
+
+    def check(result, out, expected):
+        assert result.exit_code == 2 and expected in result.output, result.output
+        assert len(result.stderr.strip().splitlines()) == 1 and not out.exists()
+
+    return check

@@ -202,19 +202,17 @@ def test_a_bad_receiver_key_is_one_line_and_writes_nothing(tmp_path, cli, extra,
     assert "Traceback" not in result.output and not (tmp_path / "out").exists()
 
 
-def test_a_receiver_of_another_sensor_is_refused_before_writing(tmp_path, cli):
+def test_a_receiver_of_another_sensor_is_refused_before_writing(tmp_path, cli, refused):
     result = cli("generate", "--profile", "sensor", "--sensor", "hdl64e", "--out", tmp_path / "o")
-    assert result.exit_code == 2 and "receiver 'vlp16' with sensor 'hdl64e'" in result.output
-    assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
+    refused(result, tmp_path / "o", "receiver 'vlp16' with sensor 'hdl64e'")
 
 
-def test_verify_wants_the_receiver_fields_and_reads_old_datasets(twins, tmp_path, cli):
+def test_verify_wants_the_receiver_fields_and_reads_old_datasets(
+    twins, tmp_path, cli, copy_dataset
+):
     assert cli("verify", twins["sensor"]).exit_code == 0
     assert cli("verify", twins["physical"]).exit_code == 0
-    copy = tmp_path / "d"
-    copy.mkdir()
-    for item in twins["sensor"].iterdir():
-        (copy / item.name).write_bytes(item.read_bytes())
+    copy = copy_dataset(twins["sensor"], tmp_path / "d")
     with h5py.File(copy / "train.h5", "a") as f:
         del f["intensity"]
     result = cli("verify", copy)
