@@ -153,46 +153,37 @@ def test_a_file_write_killed_midway_is_cleaned_as_a_dead_runs_temporary(tmp_path
     assert list(tmp_path.iterdir()) == []
 
 
-def _full_disk_after(monkeypatch, writes: int):
-    """Make the n-th HDF5 dataset write fail with ENOSPC, as a full disk does."""
-    import errno
-
-    import h5py
-
-    calls = {"n": 0}
-    original = h5py.Dataset.__setitem__
-
-    def write(self, key, value):
-        calls["n"] += 1
-        if calls["n"] > writes:
-            raise OSError(errno.ENOSPC, "Can't synchronously write data (file write failed)")
-        return original(self, key, value)
-
-    monkeypatch.setattr(h5py.Dataset, "__setitem__", write)
-    return calls
-
-
 def test_a_full_disk_stops_generate_at_the_first_error_and_leaves_nothing(
     tmp_path, monkeypatch, cli
 ):
+    """A real write error (a file-size limit: EFBIG, as a full disk's ENOSPC) in the train
+    split, while the preview's process draws the test split: one line, the run stops at the
+    first failed chunk, nothing is left."""
+    from simlidar.dataset.writer import SplitWriter
 
-    calls = _full_disk_after(monkeypatch, 30)
+    calls = []
+    original = SplitWriter._write
+
+    def counting(self, name, rows):
+        try:
+            original(self, name, rows)
+        except Exception:
+            calls.append("failed")
+            raise
+        calls.append("written")
+
+    monkeypatch.setattr(SplitWriter, "_write", counting)
     out = tmp_path / "out"
-    result = cli(
-        "generate",
-        "--out",
-        str(out),
-        "--noise",
-        "0.1,0.3",
-        "--train-size",
-        "2048",
-        "--batch-size",
-        "256",
-    )
+    args = ["generate", "--out", str(out), "--noise", "0.1,0.3", "--train-size", "2048"]
+    with _file_size_limit(1_000_000):  # the test split fits (600 samples); train does not
+        result = cli(*args, "--batch-size", "256")
     assert result.exit_code == 1
-    assert "cannot write (No space left on device)" in result.stderr
+    assert "cannot write (File too large)" in result.stderr
     assert "Traceback" not in result.output and result.stderr.count("Error") == 1
-    assert calls["n"] == 31  # stopped at the first failed write
+    assert calls.count("failed") == 1 and calls[-1] == "failed"  # stopped at the first
+    # the test split written whole first: 3 chunks of 256 rows (600 samples) of 12 datasets,
+    # for each noise level
+    assert calls.count("written") >= 3 * 12 * 2
     assert not out.exists()  # created by the run, left empty: removed
 
 

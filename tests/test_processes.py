@@ -77,7 +77,7 @@ def test_workers_are_capped_at_the_batches_and_the_cores(tmp_path, monkeypatch, 
     assert done.exit_code == 0, done.output
     batches, cores = 3, usable_cores()  # train 2 + test 1
     expected = min(batches, cores)
-    assert sizes == ([expected] if expected > 1 else [])
+    assert sizes == ([expected] if expected > 1 else []) + [1]  # and the preview's process
     (line,) = [w for w in done.stderr.splitlines() if w.startswith("Warning:")]
     assert line == (
         f"Warning: --workers 999: starting {expected} worker process(es), as many as there "

@@ -6,7 +6,9 @@ for ~1 %.
 """
 
 import os
+import zlib
 from contextlib import contextmanager
+from functools import cache
 from pathlib import Path
 
 import h5py
@@ -31,6 +33,40 @@ def attrs_fit(attrs: dict) -> bool:
     return True
 
 
+GZIP_LEVEL = 1
+
+
+def deflated(chunk: np.ndarray, shuffle: bool) -> bytes:
+    """One whole chunk as HDF5's filters store it: its bytes shuffled (every value's first
+    byte, then every second byte, ...: the shuffle filter) where ``shuffle``, then compressed
+    by zlib at :data:`GZIP_LEVEL` (the deflate filter calls zlib's ``compress2``)."""
+    raw = np.ascontiguousarray(chunk).view(np.uint8).reshape(chunk.size, chunk.itemsize)
+    return zlib.compress((raw.T if shuffle else raw).tobytes(), GZIP_LEVEL)
+
+
+@cache
+def deflate_matches_hdf5() -> bool:
+    """Whether :func:`deflated` gives the bytes HDF5's own filters store, tried once a process
+    on a probe written through them in a file held in memory (both use zlib, but not
+    necessarily the same build: h5py's wheel may carry its own). Where they differ, the
+    writer leaves the filters to HDF5, so a file's bytes never depend on which one ran."""
+    probe = np.random.default_rng(0).random((64, 16, 16), dtype=np.float32)
+    probe[probe > 0.7] = 1.0  # runs of one value, as the "no return" delays make
+    with h5py.File("deflate_probe", "w", driver="core", backing_store=False) as file:
+        for shuffle in (False, True):
+            data = file.create_dataset(
+                f"probe{shuffle}",
+                data=probe,
+                chunks=probe.shape,
+                compression="gzip",
+                compression_opts=GZIP_LEVEL,
+                shuffle=shuffle,
+            )
+            if data.id.read_direct_chunk((0, 0, 0)) != (0, deflated(probe, shuffle)):
+                return False
+    return True
+
+
 class SplitWriter:
     """Appends blocks of rows to the datasets of one HDF5 file; peak memory is a block plus
     one chunk.
@@ -51,6 +87,11 @@ class SplitWriter:
     attributes beyond the 64 KB an object header message holds; the earliest format refuses
     them. Chosen by itself when ``attrs`` need it; pass ``not attrs_fit(...)`` for attributes
     set after the rows. Only then, so that every file whose attributes fit keeps its bytes.
+
+    Each whole chunk is shuffled and compressed here (:func:`deflated`) and written with
+    ``write_direct_chunk``, the bytes HDF5's filters would store (checked once a process by
+    :func:`deflate_matches_hdf5`, else HDF5 filters them): h5py's own path copied each chunk
+    through HDF5's type conversion and filter pipeline, 1.2x the time.
     """
 
     def __init__(
@@ -77,6 +118,8 @@ class SplitWriter:
             rdcc_nbytes=0,
         )
         self.datasets = {}
+        self.shuffled = shuffled
+        self.direct = deflate_matches_hdf5()
         for name, (dtype, tail) in shapes.items():
             shape = (size, *tail)
             self.datasets[name] = self.file.create_dataset(
@@ -103,10 +146,30 @@ class SplitWriter:
             for name, parts in self.pending.items():
                 block = np.concatenate(parts)
                 with self._failing():
-                    self.datasets[name][self.written : self.written + rows] = block[:rows]
+                    self._write(name, block[:rows])
                 self.pending[name] = [block[rows:]]
             self.written += rows
             ready -= rows
+
+    def _write(self, name: str, rows: np.ndarray) -> None:
+        """Write ``rows`` of dataset ``name`` from row ``self.written``: whole chunks (the last
+        of the dataset padded with zeros, HDF5's fill value, as HDF5 stores it)."""
+        data = self.datasets[name]
+        step = data.chunks[0]
+        if not self.direct or self.written % step:
+            data[self.written : self.written + len(rows)] = rows
+            return
+        rows = np.asarray(rows, dtype=data.dtype)
+        tail = (0,) * (rows.ndim - 1)
+        for first in range(0, len(rows), step):
+            chunk = rows[first : first + step]
+            if len(chunk) < step:
+                chunk = np.concatenate(
+                    [chunk, np.zeros((step - len(chunk), *chunk.shape[1:]), chunk.dtype)]
+                )
+            data.id.write_direct_chunk(
+                (self.written + first, *tail), deflated(chunk, name in self.shuffled)
+            )
 
     def add_rows(self, name: str, values: np.ndarray, dtype: str, chunk: int = 65_536) -> None:
         """A whole dataset with its own number of rows (e.g. one per event), written at once."""

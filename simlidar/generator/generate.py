@@ -18,6 +18,7 @@ from itertools import islice
 from pathlib import Path
 
 from simlidar.atomic import Temporary, claim_folder, install
+from simlidar.dataset.reader import read_split
 from simlidar.dataset.shards import SHARD_SAMPLES
 from simlidar.dataset.version import dataset_version
 from simlidar.errors import ConfigError, DatasetError
@@ -30,7 +31,7 @@ from simlidar.processes import capped_workers, die_with_parent, one_blas_thread
 from simlidar.release.card import write_card
 from simlidar.release.checksums import write_sums
 from simlidar.release.croissant import write_croissant
-from simlidar.release.preview import write_preview
+from simlidar.release.preview import draw_preview, write_preview
 from simlidar.resources import check_disk
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.raycast import MAX_BATCH
@@ -57,6 +58,44 @@ def _start_worker(parent: int) -> None:
 def _simulate_job(job: tuple[str, int, int]):
     config, catalog = _SHARED
     return simulate(config, catalog, *job)
+
+
+def _draw_preview(temp: Path, title: str) -> None:
+    draw_preview(read_split(temp, "test"), "test", temp / "preview.png", title)
+
+
+class Previews:
+    """Every dataset's preview.png (its test split, :func:`draw_preview`), drawn
+    by a forked process of its own from the moment it is made: :func:`generate` writes the
+    test split first and makes this object before the train split, so the drawing (0.7 s,
+    most of it matplotlib's import and layout, a fixed cost that was the serial tail's
+    largest part) overlaps the train split's simulation wherever a second core is free.
+    Fork it while no HDF5 file is open. ``wait`` raises the drawing's error, or a
+    DatasetError where the process died; ``close`` stops it."""
+
+    def __init__(self, temps: list[Path], titles: list[str]):
+        self.pool = ProcessPoolExecutor(
+            1,
+            mp_context=multiprocessing.get_context("fork"),
+            initializer=_start_worker,
+            initargs=(os.getpid(),),
+        )
+        self.futures = [
+            self.pool.submit(_draw_preview, temp, title) for temp, title in zip(temps, titles)
+        ]
+
+    def wait(self) -> None:
+        try:
+            for future in self.futures:
+                future.result()
+        except BrokenProcessPool:
+            raise DatasetError(
+                "the process drawing preview.png died (killed, or out of memory); nothing was "
+                "kept: run the command again"
+            ) from None
+
+    def close(self) -> None:
+        self.pool.shutdown(wait=True, cancel_futures=True)
 
 
 class Batches:
@@ -223,6 +262,9 @@ def generate(
         raise DatasetError(f"{existing[0]} already exists: pass --force to overwrite it")
     check_disk_space(config, len(configs), out)
     shards = split_shards(config, shard_samples)
+    if scheduler is None:  # the test split first: its preview is drawn while train is written
+        shards = sorted(shards, key=lambda shard: shard.split != "test")
+    previews = None
     with ExitStack() as stack:
         if scheduler is not None:
             from simlidar.cluster import LOCAL, connect
@@ -255,13 +297,20 @@ def generate(
                     client, config, noise_levels, catalog, shards, temps, batch_size, bar
                 )
             else:
+                last_test = [shard for shard in shards if shard.split == "test"][-1]
                 for shard in shards:
                     write_shard(configs, catalog, shard, temps, batches, batch_size, bar.update)
+                    if preview and shard is last_test:  # no file is open now
+                        previews = stack.enter_context(
+                            closing(Previews(temps, [final.name for final in finals]))
+                        )
                 batches.close()
             bar.close()
+            if previews is not None:
+                previews.wait()
             for temp, final in zip(temps, finals):
                 remove_partials(temp)
-                if preview:
+                if preview and previews is None:
                     write_preview(temp, temp / "preview.png", title=final.name)
                 write_croissant(temp, generated_croissant(temp, final.name))
                 write_card(temp, generated_card(temp))

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from simlidar.atomic import write_file
-from simlidar.dataset.reader import dataset_splits
+from simlidar.dataset.reader import SplitInfo, dataset_splits
 from simlidar.dataset.version import GENERATOR
 
 
@@ -22,10 +22,16 @@ def first_of_each_class(labels: np.ndarray, classes: int) -> np.ndarray:
 def write_preview(
     dataset: str | Path, out: str | Path, split: str = "test", title: str | None = None
 ) -> Path:
-    """Draw the first ``split`` sample of every class into the PNG file ``out``."""
+    """Draw the first ``split`` sample of every class of the dataset directory ``dataset``
+    (checked whole, every split) into the PNG file ``out``."""
+    return draw_preview(dataset_splits(dataset)[split], split, out, title or Path(dataset).name)
+
+
+def draw_preview(info: SplitInfo, split: str, out: str | Path, title: str) -> Path:
+    """Draw the first sample of every class of ``info``, the split named ``split``, into the
+    PNG file ``out``; the generator draws its test split while it writes the train split."""
     from matplotlib.figure import Figure
 
-    info = dataset_splits(dataset)[split]
     names = info.attrs["class_names"]
     labels = info.read(("labels",))["labels"]
     rows = first_of_each_class(labels, len(names))
@@ -64,7 +70,7 @@ def write_preview(
             f"noisy delays (black = 0, white = 1), a missing return written as "
             f"{missing:g} plus noise, noise {info.attrs['noise']}"
         )
-    fig.suptitle(f"{title or Path(dataset).name}: {split} split, {what}", fontsize=9)
+    fig.suptitle(f"{title}: {split} split, {what}", fontsize=9)
     return write_file(
         out, lambda tmp: fig.savefig(tmp, format="png", dpi=80, metadata={"Software": None})
     )

@@ -137,6 +137,59 @@ def test_a_killed_worker_ends_the_run_with_an_error_not_a_wait(tmp_path, catalog
     assert list(tmp_path.iterdir()) == []
 
 
+def test_the_preview_is_drawn_by_a_process_of_its_own_and_is_the_test_splits(
+    tmp_path, catalog, monkeypatch
+):
+    """preview.png is drawn while the train split is written, by a forked process (the test
+    split is written first), and is the picture ``write_preview`` draws of the finished
+    dataset."""
+    import os
+
+    import simlidar.generator.generate as gen
+
+    real, pids = gen.draw_preview, tmp_path / "pids"
+
+    def recording(info, split, out, title):
+        with open(pids, "a") as file:
+            file.write(f"{os.getpid()}\n")
+        return real(info, split, out, title)
+
+    monkeypatch.setattr(gen, "draw_preview", recording)
+    config = GeneratorConfig(train_size=40, test_size=32, classes=8)
+    written = generate(config, [0.1, 0.2], catalog, tmp_path / "out", progress=False)
+    drawn = pids.read_text().split()
+    assert len(drawn) == 2 and str(os.getpid()) not in drawn
+    for dataset in written:
+        again = gen.write_preview(dataset.path, tmp_path / "again.png")  # the dataset whole
+        assert (dataset.path / "preview.png").read_bytes() == again.read_bytes()
+
+
+@pytest.mark.parametrize(
+    ("failure", "error", "message"),
+    [
+        ("raise", RuntimeError, "drawing failed"),
+        ("die", DatasetError, "the process drawing preview.png died"),
+    ],
+)
+def test_a_failed_preview_ends_the_run_and_leaves_nothing(
+    tmp_path, catalog, monkeypatch, failure, error, message
+):
+    import os
+
+    import simlidar.generator.generate as gen
+
+    def failing(info, split, out, title):
+        if failure == "die":
+            os._exit(9)  # as if killed
+        raise RuntimeError("drawing failed")
+
+    monkeypatch.setattr(gen, "draw_preview", failing)
+    config = GeneratorConfig(train_size=16, test_size=8, classes=4)
+    with pytest.raises(error, match=message):
+        generate(config, [0.1], catalog, tmp_path, batch_size=4, progress=False)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_bad_worker_count_is_refused(tmp_path, catalog):
     from simlidar.errors import ConfigError
 
