@@ -186,7 +186,8 @@ def cell(
     import torch
 
     torch.set_num_threads(1)
-    from simlidar.bench.train import predictions, train
+    from simlidar.bench.scoring import predictions
+    from simlidar.bench.train import train
     from simlidar.dataset.loaders import load_split
     from simlidar.models.registry import load_recipe
 

@@ -202,16 +202,17 @@ def _file_size_limit(size: int):
 
 
 def test_a_full_disk_while_saving_a_checkpoint_leaves_no_partial_file(tmp_path, datasets):
-    from simlidar.bench import train as training
+    from simlidar.bench import checkpoints
+    from simlidar.bench.train import train
     from simlidar.models.registry import load_recipe
 
-    result = training.train(load_recipe("mlp"), datasets[0.1], epochs=1, progress=False)
+    result = train(load_recipe("mlp"), datasets[0.1], epochs=1, progress=False)
     (tmp_path / "runs").mkdir()
     with (
         _file_size_limit(64 * 1024),  # the MLP's weights take about 450 KB
         pytest.raises(DatasetError) as caught,
     ):
-        training.save_checkpoint(result, tmp_path / "runs" / "mlp.pt")
+        checkpoints.save_checkpoint(result, tmp_path / "runs" / "mlp.pt")
     assert str(caught.value) == (
         f"{tmp_path / 'runs' / 'mlp.pt'}: cannot write the checkpoint (File too large)"
     )
@@ -219,7 +220,8 @@ def test_a_full_disk_while_saving_a_checkpoint_leaves_no_partial_file(tmp_path, 
 
 
 def test_outputs_written_through_a_temporary_get_the_mode_of_every_other(tmp_path, datasets):
-    from simlidar.bench import train as training
+    from simlidar.bench import checkpoints
+    from simlidar.bench.train import train
     from simlidar.models.registry import load_recipe
     from simlidar.release.preview import write_preview
 
@@ -228,11 +230,11 @@ def test_outputs_written_through_a_temporary_get_the_mode_of_every_other(tmp_pat
 
     generated = datasets[0.1]
     assert mode(generated / "preview.png") == mode(generated / "train.h5")
-    result = training.train(load_recipe("mlp"), generated, epochs=1, progress=False)
+    result = train(load_recipe("mlp"), generated, epochs=1, progress=False)
     before = os.umask(0o027)
     try:
         picture = write_preview(generated, tmp_path / "grid.png")
-        checkpoint = training.save_checkpoint(result, tmp_path / "mlp.pt")
+        checkpoint = checkpoints.save_checkpoint(result, tmp_path / "mlp.pt")
         plain = tmp_path / "plain.txt"
         plain.write_text("as Python writes any file")
     finally:

@@ -12,7 +12,7 @@ on this data, as far as the learner is strong enough.
 The learner: simlidar's MLP (:func:`simlidar.models.conventional.mlp`, two hidden layers of
 256 by default) trained with Adam on the view, the epoch with the best validation accuracy
 kept (ties: the lower validation loss; the rows of
-:func:`simlidar.bench.train.validation_split`), stopped after ``patience`` epochs without
+:func:`simlidar.bench.selection.validation_split`), stopped after ``patience`` epochs without
 improvement: the first bound. The bound of issue 42 (:data:`LEARNERS`, :func:`bound`'s
 ``learners``) trains two families (that MLP and a wide one) with the networks' advantages
 (fresh noise every epoch, every training row: :attr:`BoundConfig.fresh_noise`) and takes,
@@ -42,7 +42,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from simlidar.bench.train import SELECTION, better_score, validation_split
+from simlidar.bench.selection import SELECTION, better_score, validation_split
 from simlidar.models import ttfs
 from simlidar.models.conventional import mlp
 
@@ -237,7 +237,7 @@ def bound(
     splits' (N, ...) emission times in delay units, read by the sensor's clock
     (:func:`arrived`, near first only: far first reverses time, and a clock with it).
     ``fresh``: with :attr:`BoundConfig.fresh_noise`, ``fresh(seed)`` gives a function that
-    draws the train split's delays anew (:func:`simlidar.bench.train.fresh_noise`).
+    draws the train split's delays anew (:func:`simlidar.bench.augment.fresh_noise`).
 
     learners : name -> configuration of several learner families (:data:`LEARNERS`); each row
         then holds every family's per-seed accuracies and the accuracy of its seeds' ensemble
@@ -485,7 +485,7 @@ def dataset_bound(
         options.update(emission=(e_train, e_test), scale=scale)
     configs = [options.get("config", BoundConfig()), *options.get("learners", {}).values()]
     if any(c.fresh_noise for c in [*configs, options.get("per_sample") or BoundConfig()]):
-        from simlidar.bench.train import fresh_noise
+        from simlidar.bench.augment import fresh_noise
 
         rows = np.arange(len(train[1]))
         options["fresh"] = lambda seed: fresh_noise(dataset, attrs, seed, rows)

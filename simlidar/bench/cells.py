@@ -7,8 +7,8 @@ import json
 import math
 from pathlib import Path
 
+from simlidar.bench.selection import selection_rule
 from simlidar.bench.suite import BUDGET_KEYS
-from simlidar.bench.train import selection_rule
 from simlidar.errors import DatasetError
 from simlidar.models.registry import builder_source, load_recipe, model_name
 from simlidar.models.training import TrainingConfig

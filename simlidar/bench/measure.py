@@ -8,11 +8,12 @@ import numpy as np
 import torch
 
 from simlidar.bench import metrics
+from simlidar.bench.checkpoints import load_checkpoint
 from simlidar.bench.early import early_decisions
 from simlidar.bench.outdir import claim, collect, read_cell, write_json
+from simlidar.bench.scoring import predictions
 from simlidar.bench.stepped import stepped_decisions
 from simlidar.bench.suite import Suite
-from simlidar.bench.train import load_checkpoint, predictions
 from simlidar.dataset.loaders import load_split, spike_threshold
 from simlidar.dataset.reader import dataset_splits
 from simlidar.errors import DatasetError

@@ -26,16 +26,14 @@ from simlidar.bench.cells import (
     recorded_rules,
     training_rules,
 )
+from simlidar.bench.checkpoints import save_checkpoint
+from simlidar.bench.checks import probe_model
 from simlidar.bench.hardware import DEFAULT_THREADS, check_threads, resolve_device, threads
 from simlidar.bench.measure import measure
 from simlidar.bench.outdir import claim, collect, machine, write_json
+from simlidar.bench.selection import validation_count
 from simlidar.bench.suite import BUDGET_KEYS, Suite
-from simlidar.bench.train import (
-    probe_model,
-    save_checkpoint,
-    train,
-    validation_count,
-)
+from simlidar.bench.train import train
 from simlidar.dataset.reader import dataset_splits
 from simlidar.dataset.version import GENERATOR
 from simlidar.errors import ConfigError, DatasetError
@@ -177,7 +175,7 @@ def sample_shapes(suite: Suite, dataset: Path | None) -> set[tuple[int, int, int
 
 def check_models(suite: Suite, models: list[str], dataset: Path | None) -> None:
     """Build every model for the run's sample shapes and check its output on two samples
-    (:func:`~simlidar.bench.train.probe_model`), before anything is written: a model refused
+    (:func:`~simlidar.bench.checks.probe_model`), before anything is written: a model refused
     once its cell has started would leave ``suite.json`` and ``cells/`` behind."""
     for model in models:
         recipe = load_recipe(model)

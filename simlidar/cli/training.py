@@ -75,7 +75,7 @@ def _device(value: str):
 
 def _chosen(result) -> str:
     """Which epoch a ``simlidar train`` run kept, and why it stopped, in words."""
-    from simlidar.bench.train import ANNEALED
+    from simlidar.bench.selection import ANNEALED
 
     if result.stopped == "own-fit":
         return (
@@ -133,9 +133,10 @@ def train(
     held-out validation part of it (the last epoch of a cosine schedule), score that once on
     the test split, save a checkpoint."""
     need_torch("train")
+    from simlidar.bench.checkpoints import check_writable, save_checkpoint
     from simlidar.bench.hardware import threads as using_threads
-    from simlidar.bench.train import ANNEALED, check_writable, save_checkpoint
-    from simlidar.bench.train import train as run
+    from simlidar.bench.selection import ANNEALED
+    from simlidar.bench.train import train as train_model
     from simlidar.models.registry import load_recipe
     from simlidar.release.verify import check_trainable
 
@@ -147,7 +148,7 @@ def train(
         check_trainable(dataset)  # a sound dataset, or a one-line error
         check_writable(out)  # before training, not after
         with using_threads(threads):
-            result = run(
+            result = train_model(
                 recipe, dataset, seed=seed, epochs=epochs, max_seconds=max_seconds, device=device
             )
     result.model.cpu()

@@ -192,7 +192,7 @@ def network_size(model, input_shape: tuple[int, ...]) -> tuple[int, int]:
 def decide_all(model, z_in: torch.Tensor) -> list[Decision]:
     """:func:`decide` for every sample of a batch and for any spiking network (dense layers and
     convolutions), from the exact spike times of the layer-wise forward pass in float64
-    (``SpikingNet.propagate``, the pass that :func:`simlidar.bench.train.predictions` scores
+    (``SpikingNet.propagate``, the pass that :func:`simlidar.bench.scoring.predictions` scores
     a spiking network's accuracy by: the two read the same first output spike, an exact tie
     going to the lower class index, :func:`simlidar.models.ttfs.predict`).
 

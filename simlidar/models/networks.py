@@ -92,7 +92,8 @@ class SpikingNet(nn.Module):
         """Input spikes ``z`` (B, ...) (z domain) and every layer's output spikes after them,
         computed in the wider of z's and the weights' dtypes: float64 input spikes give the
         exact spike times that the accuracy and the event-driven evaluator are read from
-        (:func:`simlidar.bench.train.predictions`, :func:`simlidar.models.decisions.decide_all`)."""
+        (:func:`simlidar.bench.scoring.predictions`,
+        :func:`simlidar.models.decisions.decide_all`)."""
         out = [z]
         for layer in self.layers:
             out.append(layer(out[-1]))

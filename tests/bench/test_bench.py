@@ -132,7 +132,7 @@ def test_a_suite_runs_reruns_and_reports(tiny_suite, tmp_path, datasets):
         assert c["energy_pj_mac"] == pytest.approx(c["macs"] * 4.6)
     assert {c["noise"] for c in cells} == {0.1, 0.5}
     # every cell's kept weights, to re-measure a figure without training again
-    from simlidar.bench.train import load_checkpoint
+    from simlidar.bench.checkpoints import load_checkpoint
 
     saved = sorted((out / "checkpoints").glob("*.pt"))
     assert [p.stem for p in saved] == sorted(p.stem for p in (out / "cells").glob("*.json"))

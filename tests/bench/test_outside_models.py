@@ -289,9 +289,9 @@ def test_a_builder_that_prints_leaves_train_json_on_stdout(plain_module, tmp_pat
 def test_a_builder_that_hangs_is_stopped_by_the_time_cap(
     plain_module, tmp_path, datasets, cli, monkeypatch
 ):
-    import simlidar.bench.train
+    import simlidar.bench.checks
 
-    monkeypatch.setattr(simlidar.bench.train, "PROBE_FLOOR_S", 0.3)
+    monkeypatch.setattr(simlidar.bench.checks, "PROBE_FLOOR_S", 0.3)
     result = cli("train", "--model", "outside_plain:sleeps", "--dataset", datasets[0.1],
                  "--out", tmp_path / "runs", "--max-seconds", 0.1)  # fmt: skip
     assert result.exit_code == 2 and "Traceback" not in result.output, result.output

@@ -298,8 +298,9 @@ def test_the_card_command_regenerates_a_shipped_profile(tmp_path, profile, cli):
 # the command line written out, as in tests/cli/test_cli.py's variation test: each test its
 # own flags
 def test_the_encoding_follows_the_profile(tmp_path, cli):
+    from simlidar.bench.checkpoints import load_checkpoint, save_checkpoint
     from simlidar.bench.early import early_decisions
-    from simlidar.bench.train import load_checkpoint, save_checkpoint, train
+    from simlidar.bench.train import train
     from simlidar.models.registry import load_recipe
 
     paths = {}

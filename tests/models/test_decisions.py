@@ -205,7 +205,7 @@ def _near_tie():
 
 
 def test_a_near_tie_goes_the_same_way_in_the_accuracy_and_the_event_driven_run():
-    from simlidar.bench.train import predictions
+    from simlidar.bench.scoring import predictions
     from simlidar.models.decisions import decide_all
 
     model, x = _near_tie()
@@ -221,7 +221,7 @@ def test_a_near_tie_goes_the_same_way_in_the_accuracy_and_the_event_driven_run()
 
 
 def test_an_exact_tie_goes_to_the_lower_class_everywhere():
-    from simlidar.bench.train import predictions
+    from simlidar.bench.scoring import predictions
     from simlidar.models.decisions import decide_all
 
     model, x = _near_tie()

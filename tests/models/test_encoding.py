@@ -25,7 +25,8 @@ import numpy as np
 import pytest
 import torch
 
-from simlidar.bench.train import load_checkpoint, save_checkpoint, train
+from simlidar.bench.checkpoints import load_checkpoint, save_checkpoint
+from simlidar.bench.train import train
 from simlidar.dataset.loaders import load_split
 from simlidar.errors import ConfigError
 from simlidar.models import ttfs

@@ -6,7 +6,9 @@ import pytest
 import torch
 
 from simlidar.bench import train as training_module
-from simlidar.bench.train import evaluate, train, validation_split
+from simlidar.bench.scoring import evaluate
+from simlidar.bench.selection import validation_split
+from simlidar.bench.train import train
 from simlidar.dataset.loaders import load_split
 from simlidar.errors import ConfigError
 from simlidar.models.registry import load_recipe
@@ -101,7 +103,7 @@ def test_a_time_cap_is_recorded_as_the_reason(datasets):
 
 
 def test_an_annealed_schedule_keeps_its_last_epoch_and_runs_every_epoch(datasets):
-    from simlidar.bench.train import ANNEALED, SELECTION, selection_rule
+    from simlidar.bench.selection import ANNEALED, SELECTION, selection_rule
 
     recipe = _recipe(validation=0.34, patience=1, lr_schedule="cosine")
     result = train(recipe, datasets[0.1], seed=1, epochs=8, progress=False)

@@ -14,7 +14,9 @@ from pathlib import Path
 import pytest
 import torch
 
-from simlidar.bench.train import load_checkpoint, predictions, save_checkpoint, train
+from simlidar.bench.checkpoints import load_checkpoint, save_checkpoint
+from simlidar.bench.scoring import predictions
+from simlidar.bench.train import train
 from simlidar.dataset.loaders import load_split
 from simlidar.errors import ConfigError
 from simlidar.models.registry import load_recipe
@@ -250,7 +252,7 @@ def test_noise_augment_draws_the_noise_anew_each_epoch(datasets):
     """Fresh U(0, a) on the clean delays under the split's rule, seeded, different per epoch."""
     import numpy as np
 
-    from simlidar.bench.train import fresh_noise
+    from simlidar.bench.augment import fresh_noise
     from simlidar.dataset.reader import read_split_info
 
     path = datasets[0.5]

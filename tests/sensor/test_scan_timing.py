@@ -264,7 +264,7 @@ def test_fresh_noise_of_a_scan_split_is_the_flash_twins_made_arrival_times(
     flight, as the generator draws it, and then made arrival times: the scan draw is the flash
     twin's draw of the same seed on the sweep's clock. Before issue 42 it was added to the
     arrival times, a jitter of the noise level times the whole window (0.2 x 9.5 ms)."""
-    from simlidar.bench.train import fresh_noise
+    from simlidar.bench.augment import fresh_noise
     from simlidar.generator.pulses import scan_delays
 
     pair = twins
