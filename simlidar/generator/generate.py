@@ -211,6 +211,59 @@ def generated_name(config: GeneratorConfig) -> str:
     )
 
 
+def checked_request(
+    config: GeneratorConfig, catalog: Catalog, batch_size: int, workers, shard_samples
+) -> int:
+    """Refuse, before anything touches the disk, a batch size, worker count or shard size out
+    of range, classes the catalog cannot give and a receiver that does not fit the sensor and
+    the catalog; the batch size to use (a batch's stored waveforms held at once: at most
+    :data:`WAVEFORM_BATCH_BYTES`)."""
+    if not 1 <= batch_size <= MAX_BATCH:
+        raise DatasetError(f"batch_size={batch_size}: expected 1..{MAX_BATCH}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ConfigError(f"workers={workers!r}: expected a number of processes >= 1")
+    if isinstance(shard_samples, bool) or not isinstance(shard_samples, int) or shard_samples < 1:
+        raise ConfigError(f"shard_samples={shard_samples!r}: expected a number of samples >= 1")
+    catalog = catalog.for_sensor(config.sensor.name)
+    class_plan(catalog, config.classes)
+    if config.receiver is not None:
+        physics = receiver_physics(config.profile)
+        check_physics(physics, config.sensor, catalog.surfaces, config.return_mode)
+    if config.waveform_bins:
+        per_sample = config.sensor.beams * config.width * config.waveform_bins * 4
+        batch_size = max(1, min(batch_size, WAVEFORM_BATCH_BYTES // per_sample))
+    return batch_size
+
+
+def write_local(
+    configs, catalog, shards, temps, batches, batch_size, on_rows, stack, titles=None
+) -> Previews | None:
+    """Write every shard of every noise level's dataset (``configs``, into ``temps``) from
+    ``batches``, in order (the test split first); with ``titles``, start drawing each dataset's
+    preview once the test split is written (:class:`Previews`, entered into ``stack``) and
+    return it."""
+    previews = None
+    last_test = [shard for shard in shards if shard.split == "test"][-1]
+    for shard in shards:
+        write_shard(configs, catalog, shard, temps, batches, batch_size, on_rows)
+        if titles is not None and shard is last_test:  # no file is open now
+            previews = stack.enter_context(closing(Previews(temps, titles)))
+    batches.close()
+    return previews
+
+
+def finish_dataset(temp: Path, name: str, preview: bool) -> None:
+    """What a dataset directory gets once its splits are written: the leftovers of dead
+    writers removed, the preview (where ``preview``: not drawn while the splits were written),
+    Croissant metadata, the card and SHA256SUMS."""
+    remove_partials(temp)
+    if preview:
+        write_preview(temp, temp / "preview.png", title=name)
+    write_croissant(temp, generated_croissant(temp, name))
+    write_card(temp, generated_card(temp))
+    write_sums(temp)
+
+
 def generate(
     config: GeneratorConfig,
     noise_levels: list[float],
@@ -238,21 +291,9 @@ def generate(
     """
     from tqdm import tqdm
 
-    if not 1 <= batch_size <= MAX_BATCH:
-        raise DatasetError(f"batch_size={batch_size}: expected 1..{MAX_BATCH}")
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ConfigError(f"workers={workers!r}: expected a number of processes >= 1")
-    if isinstance(shard_samples, bool) or not isinstance(shard_samples, int) or shard_samples < 1:
-        raise ConfigError(f"shard_samples={shard_samples!r}: expected a number of samples >= 1")
+    batch_size = checked_request(config, catalog, batch_size, workers, shard_samples)
     configs = [config.with_noise(level) for level in noise_levels]
     catalog = catalog.for_sensor(config.sensor.name)  # what is stored: the recipes used
-    class_plan(catalog, config.classes)  # fail before touching the disk
-    if config.receiver is not None:  # and its receiver fits the sensor and the catalog
-        physics = receiver_physics(config.profile)
-        check_physics(physics, config.sensor, catalog.surfaces, config.return_mode)
-    if config.waveform_bins:  # a batch's waveforms held at once: at most WAVEFORM_BATCH_BYTES
-        per_sample = config.sensor.beams * config.width * config.waveform_bins * 4
-        batch_size = max(1, min(batch_size, WAVEFORM_BATCH_BYTES // per_sample))
     out = Path(out)
     finals = [out / generated_name(c) for c in configs]
     if len(set(finals)) != len(finals):
@@ -297,24 +338,14 @@ def generate(
                     client, config, noise_levels, catalog, shards, temps, batch_size, bar
                 )
             else:
-                last_test = [shard for shard in shards if shard.split == "test"][-1]
-                for shard in shards:
-                    write_shard(configs, catalog, shard, temps, batches, batch_size, bar.update)
-                    if preview and shard is last_test:  # no file is open now
-                        previews = stack.enter_context(
-                            closing(Previews(temps, [final.name for final in finals]))
-                        )
-                batches.close()
+                titles = [final.name for final in finals] if preview else None
+                previews = write_local(configs, catalog, shards, temps, batches, batch_size,
+                                       bar.update, stack, titles)  # fmt: skip
             bar.close()
             if previews is not None:
                 previews.wait()
             for temp, final in zip(temps, finals):
-                remove_partials(temp)
-                if preview and previews is None:
-                    write_preview(temp, temp / "preview.png", title=final.name)
-                write_croissant(temp, generated_croissant(temp, final.name))
-                write_card(temp, generated_card(temp))
-                write_sums(temp)
+                finish_dataset(temp, final.name, preview and previews is None)
             for claim, final in zip(claims, finals):
                 install(claim, final, force)
         except BaseException:
