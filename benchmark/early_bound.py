@@ -8,7 +8,9 @@
 For each dataset and encoding (``direction/missing``, :func:`simlidar.models.ttfs.encode`),
 :func:`simlidar.bench.bound.dataset_bound` trains the learner on what has arrived by the k-th
 input spike, k in ``--ks`` and each sample's own count, for every seed. Each (dataset,
-encoding) is a JSON file under ``--out``/runs (a rerun skips the ones present); then
+encoding) is a JSON file under ``--out``/runs (a rerun skips the ones present, or adds to a
+run of several families those of ``--learners`` it lacks, at its own seeds, k and columns:
+``--learners mlp,wide,cnn`` adds the CNN); then
 ``bound.json`` (every run), ``bound.md`` (a table) and ``bound.png`` (accuracy against input
 spikes consumed, one curve per dataset and encoding, seed spread as error bars, with the
 committed ``snn_simlidar_tuned`` cells of benchmark/results/paper and /physical as points: their
@@ -70,7 +72,7 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--learners",
         type=choices(LEARNER_CHOICES),
-        default="mlp,wide",
+        default="mlp,wide,cnn",
         help="the learner families whose best each row gives, trained with the networks' "
         "advantages (fresh noise every epoch, every training row; each also as its seeds' "
         "ensemble: simlidar.bench.bound.LEARNERS), or 'published': the one MLP of --hidden on "
@@ -96,7 +98,7 @@ def main(argv=None) -> int:
 
     import torch
 
-    from simlidar.bench.bound import BoundConfig, dataset_bound
+    from simlidar.bench.bound import BoundConfig, dataset_bound, with_families
     from simlidar.dataset.loaders import split_info
 
     check_threads(args.threads)
@@ -133,14 +135,38 @@ def main(argv=None) -> int:
             scan = "-scan-" in dataset.name
             clock = f"-{args.clock}-clock" if scan and args.clock == "sensor" else ""
             path = runs / f"{dataset.name}__{direction}-{missing}{clock}.json"
+            start, present = time.perf_counter(), None
             if path.exists():
-                print(f"{path.name}: present, skipped")
-                continue
-            start = time.perf_counter()
-            result = dataset_bound(
-                dataset, direction, missing, args.clock, ks=args.ks, seeds=args.seeds, **options
-            )
-            result.update(dataset=dataset.name, seconds=time.perf_counter() - start)
+                present = json.loads(path.read_text())
+                lacking = [n for n in options.get("learners", {}) if n not in present["learner"]]
+                if "mlp" not in present["learner"] or not isinstance(
+                    present["learner"]["mlp"], dict
+                ) or not lacking:  # fmt: skip
+                    print(f"{path.name}: present, skipped")
+                    continue
+                print(f"{path.name}: present, adding the families {lacking}")
+                result = dataset_bound(
+                    dataset,
+                    direction,
+                    missing,
+                    args.clock,
+                    ks=[row["k"] for row in present["rows"] if row["k"] is not None],
+                    seeds=present["seeds"],
+                    **{
+                        **{k: v for k, v in options.items() if k != "per_sample"},
+                        "learners": {n: LEARNERS[n] for n in lacking},
+                        "columns": [row["columns"] for row in present.get("column_rows", [])],
+                    },
+                )  # fmt: skip; the present run's per-sample form stays
+                result = with_families(present, result)
+                seconds = present["seconds"] + time.perf_counter() - start
+            else:
+                result = dataset_bound(
+                    dataset, direction, missing, args.clock, ks=args.ks, seeds=args.seeds,
+                    **options,
+                )  # fmt: skip
+                seconds = time.perf_counter() - start
+            result.update(dataset=dataset.name, seconds=seconds)
             path.write_text(json.dumps(result, indent=1) + "\n")
             print(f"{path.name}: {result['seconds']:.0f} s")
             for row in result["rows"]:
@@ -235,10 +261,11 @@ def network_cells() -> list[dict]:
 
 def cell_bounds(results: list[dict], cells: list[dict]) -> list[dict]:
     """Each cell beside the bound of its dataset and encoding, where a run of several
-    learners has one: behind a gate of k the row at k (the network read at most k spikes);
-    otherwise the per-sample form at the cell's own decision counts (the better of the seeds'
-    mean and their ensemble) and the looser rounded-up form, and the larger of the two."""
-    from simlidar.bench.bound import per_sample_accuracy, rounded_up_accuracy
+    learners on a test split of the cell's size has one: behind a gate of k the row at k (the
+    network read at most k spikes); otherwise the per-sample form at the cell's own decision
+    counts (the better of the seeds' mean and their ensemble) and the looser rounded-up form,
+    and the larger of the two."""
+    from simlidar.bench.bound import per_sample_accuracy, rounded_up_accuracy, test_samples
 
     runs = {
         (r["dataset"], r["encoding"]["direction"], r["encoding"]["missing"]): r
@@ -248,8 +275,8 @@ def cell_bounds(results: list[dict], cells: list[dict]) -> list[dict]:
     found = []
     for cell in cells:
         run = runs.get((cell["dataset"], cell["direction"], cell["missing"]))
-        if run is None:
-            continue
+        if run is None or test_samples(run) != len(cell["spikes"]):
+            continue  # none, or a dataset of the same name and another size (a user's own)
         entry = {**{k: v for k, v in cell.items() if k != "spikes"}}
         if cell["gate"] is not None:
             row = next((r for r in run["rows"] if r["k"] == cell["gate"]), None)

@@ -53,18 +53,18 @@ class Range:
     def expected(self) -> str:
         low, high = self.low, self.high
         if high is None:
-            text = f"{self.unit} {'>' if self.low_open else '>='} {_g(low)}"
+            text = f"{self.unit} {'>' if self.low_open else '>='} {_as_written(low)}"
         elif low is None:
-            text = f"{self.unit} {'<' if self.high_open else '<='} {_g(high)}"
+            text = f"{self.unit} {'<' if self.high_open else '<='} {_as_written(high)}"
         else:
             text = (
-                f"{self.unit} in {'(' if self.low_open else '['}{_g(low)}, {_g(high)}"
-                f"{')' if self.high_open else ']'}"
+                f"{self.unit} in {'(' if self.low_open else '['}{_as_written(low)}, "
+                f"{_as_written(high)}{')' if self.high_open else ']'}"
             )
         return f"{text} {self.note}" if self.note else text
 
 
-def _g(value: float) -> str:
+def _as_written(value: float) -> str:
     """A bound as people write it: 2**63, 1000000000, 0.5."""
     if value == 2**63:
         return "2**63"

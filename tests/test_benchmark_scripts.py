@@ -303,6 +303,32 @@ def test_early_bound_refuses_a_bad_argument_in_one_line_writing_nothing(args, wo
     assert not any(tmp_path.iterdir())
 
 
+def test_early_bound_adds_the_families_a_run_lacks(datasets, tmp_path):
+    """A rerun with more ``--learners`` trains only the families a present run lacks, at its
+    own seeds and k, and takes every row's bound again over all of them; the present
+    families' figures are kept as they were."""
+    dataset = str(datasets[0.1])
+    common = ["--ks", "4", "--seeds", "0", "--encodings", "near_first/as_value"]
+    first = run_script("early_bound.py", dataset, *common, "--learners", "mlp",
+                       "--out", str(tmp_path), timeout=600)  # fmt: skip
+    assert "adding" not in first
+    (path,) = (tmp_path / "runs").glob("*.json")
+    before = json.loads(path.read_text())
+    again = run_script("early_bound.py", dataset, "--ks", "8", "--seeds", "1,2", "--encodings",
+                       "near_first/as_value", "--learners", "mlp,cnn", "--out", str(tmp_path),
+                       timeout=600)  # fmt: skip
+    assert "adding the families ['cnn']" in again
+    after = json.loads(path.read_text())
+    assert set(after["learner"]) == {"mlp", "cnn"} and after["seeds"] == [0]
+    assert [r["k"] for r in after["rows"]] == [4, None]
+    for old, new in zip(before["rows"], after["rows"]):
+        assert new["learners"]["mlp"] == old["learners"]["mlp"]
+        both = new["learners"]
+        assert new["accuracy_mean"] == max(
+            max(f["accuracy_mean"], f["ensemble"]) for f in both.values()
+        )
+
+
 BAD_ARGUMENTS = [
     ("early_objectives.py", ["--variants", "near,nonsense"], "argument --variants: 'nonsense'"),
     ("early_objectives.py", ["--seeds", "0,-1"], "argument --seeds: '0,-1': expected"),

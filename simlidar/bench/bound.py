@@ -14,7 +14,8 @@ The learner: simlidar's MLP (:func:`simlidar.models.conventional.mlp`, two hidde
 kept (ties: the lower validation loss; the rows of
 :func:`simlidar.bench.selection.validation_split`), stopped after ``patience`` epochs without
 improvement: the first bound. The bound of issue 42 (:data:`LEARNERS`, :func:`bound`'s
-``learners``) trains two families (that MLP and a wide one) with the networks' advantages
+``learners``) trains three families (that MLP, a wide one and the paper's CNN on the view as
+(2, H, W) images) with the networks' advantages
 (fresh noise every epoch, every training row: :attr:`BoundConfig.fresh_noise`) and takes,
 per k, the best of their seed means and seed ensembles. Seeded: one torch.Generator per seed
 drives the initial weights and the batch order. Times are taken with scale 1 (t in [0, 1]);
@@ -44,14 +45,14 @@ import torch.nn.functional as F
 
 from simlidar.bench.selection import SELECTION, better_score, validation_split
 from simlidar.models import ttfs
-from simlidar.models.conventional import mlp
+from simlidar.models.conventional import cnn, mlp
 
 KS = (4, 8, 16, 32, 64, 128, 180, 256)  # input spikes arrived; None: each sample's own count
 
 
 @dataclass(frozen=True)
 class BoundConfig:
-    hidden: tuple[int, ...] = (256, 256)  # the MLP's hidden layers
+    hidden: tuple[int, ...] = (256, 256)  # the MLP's hidden layers (the CNN's dense ones)
     lr: float = 1e-3  # Adam's learning rate
     batch_size: int = 128
     max_epochs: int = 100
@@ -61,6 +62,16 @@ class BoundConfig:
     # its clean delays, and, once the validation rows (other scenes) chose the epoch count, a
     # second run of that many epochs on every training row, the last epoch kept
     fresh_noise: bool = False
+    # the learner: "mlp", or "cnn", the paper's CNN baseline (conv 5x5/2 x48, x24, then the
+    # dense layers of ``hidden``) on the view as a (2, H, W) image
+    model: str = "mlp"
+
+
+def learner_model(config: BoundConfig, view: tuple[int, int, int], classes: int, generator):
+    """The learner of ``config`` for views of shape ``view`` (2, H, W)."""
+    if config.model == "cnn":
+        return cnn(view, classes, generator, dense=config.hidden)
+    return mlp(view, classes, generator, dense=config.hidden)
 
 
 def spike_times(
@@ -116,6 +127,7 @@ def train_learner(
     seed: int,
     config: BoundConfig = BoundConfig(),
     draw=None,
+    height: int = 1,
 ):
     """Train the learner on (x, y) (N, 2, P), selecting on a validation split.
 
@@ -126,20 +138,25 @@ def train_learner(
     returns : (scores, record): ``scores(view)`` the trained learner's class probabilities
         (M, classes) of any (M, 2, P) view; record {"val_accuracy", "best_epoch", "epochs"},
         and with ``draw`` "refit_epochs"
+    height : the samples' rows H (P = H x W): the CNN sees the view as (2, H, W) images; the
+        MLP reads (2, 1, P), the same numbers in the same order
     """
     # each feature standardised by the training rows (a time that differs by 0.01 between
-    # classes must not look like a constant), then (N, 2, 1, P): the MLP's (C, H, W)
+    # classes must not look like a constant), then (N, 2, 1, P): the MLP's (C, H, W), or the
+    # samples' own (N, 2, H, W) for the CNN
     mean, std = x.mean(axis=0), np.maximum(x.std(axis=0), 1e-3)
+    view = (x.shape[1], height, x.shape[-1] // height) if config.model == "cnn" else None
 
     def shaped(a: np.ndarray) -> torch.Tensor:
-        return torch.from_numpy(((a - mean) / std).astype(np.float32)[:, :, None])
+        a = ((a - mean) / std).astype(np.float32)
+        return torch.from_numpy(a.reshape(len(a), *view) if view else a[:, :, None])
 
     names = [str(c) for c in range(classes)]
     rows, held = validation_split(y, config.validation, seed, names)
     views = (lambda: shaped(draw())) if draw is not None else (lambda: shaped(x))
     xv, yv = shaped(x[held]), torch.from_numpy(y[held]).long()
     generator = torch.Generator().manual_seed(seed)
-    model = mlp((2, 1, x.shape[-1]), classes, generator, dense=config.hidden)
+    model = learner_model(config, view or (2, 1, x.shape[-1]), classes, generator)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
     best, best_epoch, best_state, epoch = None, 0, None, 0
     for epoch in range(config.max_epochs):
@@ -158,7 +175,7 @@ def train_learner(
         model.load_state_dict(best_state)
     else:  # every row, as many epochs as validation chose, the last kept
         generator = torch.Generator().manual_seed(seed)
-        model = mlp((2, 1, x.shape[-1]), classes, generator, dense=config.hidden)
+        model = learner_model(config, view or (2, 1, x.shape[-1]), classes, generator)
         optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
         for _ in range(best_epoch + 1):
             _epoch(model, optimizer, views(), torch.from_numpy(y).long(), generator, config)
@@ -182,13 +199,14 @@ def fit(
     config: BoundConfig = BoundConfig(),
     draw=None,
     keep_scores: bool = False,
+    height: int = 1,
 ) -> dict:
     """Train the learner on (x, y) (N, 2, P) (:func:`train_learner`) and score the test view.
 
     returns : {"accuracy", "val_accuracy", "best_epoch", "epochs"} (and "refit_epochs" with
         ``draw``); with ``keep_scores`` also "scores", the test rows' class probabilities
     """
-    scores, record = train_learner(x, y, classes, seed, config, draw)
+    scores, record = train_learner(x, y, classes, seed, config, draw, height)
     probabilities = scores(x_test)
     result = {"accuracy": float((probabilities.argmax(1) == y_test).mean()), **record}
     return {**result, "scores": probabilities} if keep_scores else result
@@ -206,11 +224,13 @@ def _epoch(model, optimizer, x: torch.Tensor, y: torch.Tensor, generator, config
         optimizer.step()
 
 
-# the learner families whose best a bound row gives (issue 42): the published MLP and a wider
-# one, both with the networks' advantages; each also as the ensemble of its seeds' learners
+# the learner families whose best a bound row gives (issue 42): the published MLP, a wider
+# one and the paper's CNN, all with the networks' advantages; each also as the ensemble of its
+# seeds' learners
 LEARNERS = {
     "mlp": BoundConfig(fresh_noise=True),
     "wide": BoundConfig(hidden=(1024, 1024), fresh_noise=True),
+    "cnn": BoundConfig(hidden=(256,), fresh_noise=True, model="cnn"),
 }
 
 
@@ -257,6 +277,7 @@ def bound(
     if columns and emission is None:
         raise ValueError("columns: expected scan-timed data on the sensor's clock (emission)")
     families = learners or {"mlp": config}
+    height = train[0].shape[1] if train[0].ndim == 3 else 1  # (N, H, W) delays: H rows
     points = [("k", k, (None, None)) for k in [*ks, None]]
     for c in columns:  # when the last pulse of the first c columns is back, per sample
         ends = [e.reshape(len(e), -1, e.shape[-1])[..., :c].max(axis=(1, 2)) for e in emission]
@@ -277,7 +298,9 @@ def bound(
                     delays = fresh(seed)
                     view = (kk, no_return, direction, missing, fired[0], scale, until[0])
                     draw = _view_draw(delays, *view)
-                fitted = fit(x, train[1], x_test, test[1], classes, seed, learner, draw, True)
+                fitted = fit(
+                    x, train[1], x_test, test[1], classes, seed, learner, draw, True, height
+                )
                 runs.append(fitted)
             found[name] = _family(runs, test[1])
         row = {
@@ -298,19 +321,7 @@ def bound(
                 runs=only["runs"],
             )
         else:
-            best = max(
-                ((f"{n}{form}", f[key]) for n, f in found.items()
-                 for form, key in (("", "accuracy_mean"), ("/ensemble", "ensemble"))),
-                key=lambda pair: pair[1],
-            )  # fmt: skip
-            family = found[best[0].split("/")[0]]
-            row.update(
-                accuracy=family["accuracy"],
-                accuracy_mean=best[1],
-                accuracy_std=family["accuracy_std"],
-                best=best[0],
-                learners=found,
-            )
+            row.update(best_of(found))
         (rows if key == "k" else column_rows).append(row)
     learner = {**asdict(config), "model": "mlp", "selection": SELECTION}
     if learners is not None:
@@ -320,9 +331,45 @@ def bound(
         "seeds": list(seeds),
         "learner": learner,
         "spikes_total_mean": float(np.isfinite(times[1]).sum(axis=1).mean()),
+        "test_samples": len(test[1]),
         "rows": rows,
     }
     return {**result, "column_rows": column_rows} if columns else result
+
+
+def best_of(found: dict[str, dict]) -> dict:
+    """A row's bound from its learner families ``found`` (name -> :func:`_family`): the best of
+    every family's seed mean and seed ensemble, named (``mlp``, ``wide/ensemble``, ...)."""
+    best = max(
+        ((f"{n}{form}", f[key]) for n, f in found.items()
+         for form, key in (("", "accuracy_mean"), ("/ensemble", "ensemble"))),
+        key=lambda pair: pair[1],
+    )  # fmt: skip
+    family = found[best[0].split("/")[0]]
+    return {
+        "accuracy": family["accuracy"],
+        "accuracy_mean": best[1],
+        "accuracy_std": family["accuracy_std"],
+        "best": best[0],
+        "learners": found,
+    }
+
+
+def with_families(result: dict, extra: dict) -> dict:
+    """A bound of several learner families (``result``) with the families of ``extra`` added:
+    a run of other families on the same data, encoding, seeds, k and columns; every row's bound
+    taken again over all of them."""
+    if extra["seeds"] != result["seeds"] or extra["encoding"] != result["encoding"]:
+        raise ValueError("with_families: expected runs of the same seeds and encoding")
+    merged = {**result, "learner": {**result["learner"], **extra["learner"]}}
+    merged["test_samples"] = result.get("test_samples", extra["test_samples"])
+    for name in ("rows", "column_rows"):
+        pairs = list(zip(result.get(name, []), extra.get(name, []), strict=True))
+        if any(a.get("k") != b.get("k") or a.get("columns") != b.get("columns") for a, b in pairs):
+            raise ValueError(f"with_families: the runs' {name} differ")
+        if pairs:
+            merged[name] = [{**a, **best_of({**a["learners"], **b["learners"]})} for a, b in pairs]
+    return merged
 
 
 def _split_times(train, test, no_return, direction, missing, emission):
@@ -422,6 +469,15 @@ def per_sample_accuracy(form: dict, spikes, which: str = "ensemble") -> float:
     correct = unpack(form["correct"][which], (form["k_max"], form["samples"]))
     k = np.clip(np.asarray(spikes, dtype=np.int64), 1, form["k_max"])
     return float(correct[k - 1, np.arange(form["samples"])].mean())
+
+
+def test_samples(result: dict) -> int:
+    """The test samples of :func:`bound`'s result; in runs that predate the field, read from
+    the packed per-sample answers (exact where the count is a multiple of 8, as 600 is)."""
+    if "test_samples" in result:
+        return result["test_samples"]
+    family = next(iter(result["rows"][0]["learners"].values()))
+    return 8 * len(base64.b64decode(family["ensemble_correct"]))
 
 
 def rounded_up_accuracy(result: dict, spikes) -> float:

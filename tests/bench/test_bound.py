@@ -18,7 +18,14 @@ import math
 import numpy as np
 import pytest
 
-from simlidar.bench.bound import BoundConfig, arrived, bound, rounded_up_accuracy, spike_times
+from simlidar.bench.bound import (
+    BoundConfig,
+    arrived,
+    bound,
+    rounded_up_accuracy,
+    spike_times,
+    with_families,
+)
 
 SMALL = BoundConfig(hidden=(64, 64), max_epochs=60, patience=10)
 FAST = BoundConfig(hidden=(64, 64), max_epochs=30, patience=5)
@@ -194,3 +201,24 @@ def test_the_bound_by_the_sweeps_first_columns_knows_what_they_hold():
     assert "column_rows" not in bound(train, test, CLASSES, math.inf, scale=1e3, **options)
     with pytest.raises(ValueError, match="columns: expected scan-timed data"):
         bound(train, test, CLASSES, math.inf, ks=(), seeds=(0,), config=SMALL, columns=(5,))
+
+
+CNN = BoundConfig(hidden=(64,), max_epochs=30, patience=5, model="cnn")
+
+
+def test_a_family_added_later_gives_the_bound_of_both_at_once():
+    """The CNN family (the view as (2, H, W) images) learns the early toy; added to a run of
+    the MLP (``with_families``, as ``benchmark/early_bound.py --learners mlp,wide,cnn`` adds
+    it to a committed run), every row is the one a run of both families at once gives."""
+    train, test = _toy(400, 0, late=False), _toy(100, 1, late=False)
+    common = {"ks": (2,), "seeds": (0, 1)}
+    alone = bound(train, test, CLASSES, math.inf, learners={"mlp": FAST}, **common)
+    cnn = bound(train, test, CLASSES, math.inf, learners={"cnn": CNN}, **common)
+    both = bound(train, test, CLASSES, math.inf, learners={"mlp": FAST, "cnn": CNN}, **common)
+    merged = with_families(alone, cnn)
+    assert merged == both
+    assert set(merged["learner"]) == {"mlp", "cnn"} and merged["learner"]["cnn"]["model"] == "cnn"
+    assert all(row["learners"]["cnn"]["accuracy_mean"] >= 0.9 for row in merged["rows"])
+    with pytest.raises(ValueError, match="same seeds"):
+        with_families(alone, bound(train, test, CLASSES, math.inf, learners={"cnn": CNN},
+                                   ks=(2,), seeds=(0,)))  # fmt: skip
