@@ -34,7 +34,8 @@ def test_generation_stages_times_every_stage():
     assert 1.0 <= draws < 2.0 and lines[1].endswith("draws a sample; CPU time a stage:")
     stages = {line[:34].strip(): float(line[34:].split()[0]) for line in lines[2:]}
     assert set(stages) == {
-        "Embree BVH build + ray queries",
+        "Embree BVH build",
+        "Embree ray queries",
         "other",
         "HDF5 writing",
         "profile and noise",
