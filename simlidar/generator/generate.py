@@ -241,12 +241,13 @@ def write_local(
     """Write every shard of every noise level's dataset (``configs``, into ``temps``) from
     ``batches``, in order (the test split first); with ``titles``, start drawing each dataset's
     preview once the test split is written (:class:`Previews`, entered into ``stack``) and
-    return it."""
+    return it (where processes cannot be forked, None: the caller draws it at the end)."""
     previews = None
     last_test = [shard for shard in shards if shard.split == "test"][-1]
+    fork = "fork" in multiprocessing.get_all_start_methods()
     for shard in shards:
         write_shard(configs, catalog, shard, temps, batches, batch_size, on_rows)
-        if titles is not None and shard is last_test:  # no file is open now
+        if titles is not None and fork and shard is last_test:  # no file is open now
             previews = stack.enter_context(closing(Previews(temps, titles)))
     batches.close()
     return previews

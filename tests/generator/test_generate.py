@@ -164,6 +164,20 @@ def test_the_preview_is_drawn_by_a_process_of_its_own_and_is_the_test_splits(
         assert (dataset.path / "preview.png").read_bytes() == again.read_bytes()
 
 
+def test_without_fork_the_preview_is_drawn_at_the_end_the_same(tmp_path, catalog, monkeypatch):
+    """Where processes cannot be forked, the preview is drawn after the splits, the same
+    picture."""
+    import simlidar.generator.generate as gen
+
+    config = GeneratorConfig(train_size=40, test_size=32, classes=8)
+    forked = generate(config, [0.2], catalog, tmp_path / "fork", progress=False)[0]
+    monkeypatch.setattr(gen.multiprocessing, "get_all_start_methods", lambda: ["spawn"])
+    monkeypatch.setattr(gen, "Previews", None)  # would fail if it were made
+    tail = generate(config, [0.2], catalog, tmp_path / "tail", progress=False)[0]
+    for name in ("preview.png", "SHA256SUMS", "test.h5", "train.h5"):
+        assert (forked.path / name).read_bytes() == (tail.path / name).read_bytes(), name
+
+
 @pytest.mark.parametrize(
     ("failure", "error", "message"),
     [
