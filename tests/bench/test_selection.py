@@ -118,3 +118,32 @@ def test_an_annealed_schedule_keeps_its_last_epoch_and_runs_every_epoch(datasets
     assert accuracy == pytest.approx(curve[-1])  # the returned weights are the last epoch's
     assert selection_rule(_config(recipe)) == ANNEALED
     assert selection_rule(_config(_recipe())) == SELECTION
+
+
+def test_the_selection_object_keeps_the_best_epoch_and_knows_its_patience():
+    """The best validation accuracy is kept (ties: the lower loss, a loss of None never wins a
+    tie), its weights copied when it becomes the best and put back by ``restore``; ``plateau``
+    once ``patience`` epochs brought nothing better; an annealed rule and a run without
+    validation keep the last epoch and never stop early."""
+    from simlidar.bench.selection import ANNEALED, SELECTION, Selection
+
+    model = torch.nn.Linear(2, 2)
+    selection = Selection(SELECTION, patience=2, validating=True)
+    scores = [(0.5, 1.0), (0.6, 0.9), (0.6, 0.8), (0.6, None), (0.55, 0.1), (0.6, 0.8)]
+    kept = None
+    for epoch, score in enumerate(scores):
+        with torch.no_grad():
+            model.weight.fill_(epoch)
+        selection.update(epoch, score, model)
+        if epoch == 2:
+            kept = model.weight.clone()
+    assert selection.best_epoch == 2 and selection.best == (0.6, 0.8)
+    assert not selection.plateau(3) and selection.plateau(4)
+    selection.restore(model)
+    assert torch.equal(model.weight, kept)
+    for rule, validating, score in ((ANNEALED, True, (0.9, 0.1)), (SELECTION, False, None)):
+        last = Selection(rule, patience=1, validating=validating)
+        for epoch in range(5):
+            last.update(epoch, score if epoch == 0 else (0.1, 9.0) if validating else None, model)
+            assert last.best_epoch == epoch and not last.plateau(epoch)
+        assert last.state is None
