@@ -55,6 +55,16 @@ def _start_worker(parent: int) -> None:
     one_blas_thread()
 
 
+def _forked_pool(workers: int) -> ProcessPoolExecutor:
+    """``workers`` forked processes that die with this one and run BLAS on one thread."""
+    return ProcessPoolExecutor(
+        workers,
+        mp_context=multiprocessing.get_context("fork"),
+        initializer=_start_worker,
+        initargs=(os.getpid(),),
+    )
+
+
 def _simulate_job(job: tuple[str, int, int]):
     config, catalog = _SHARED
     return simulate(config, catalog, *job)
@@ -74,12 +84,7 @@ class Previews:
     DatasetError where the process died; ``close`` stops it."""
 
     def __init__(self, temps: list[Path], titles: list[str]):
-        self.pool = ProcessPoolExecutor(
-            1,
-            mp_context=multiprocessing.get_context("fork"),
-            initializer=_start_worker,
-            initargs=(os.getpid(),),
-        )
+        self.pool = _forked_pool(1)
         self.futures = [
             self.pool.submit(_draw_preview, temp, title) for temp, title in zip(temps, titles)
         ]
@@ -119,10 +124,7 @@ class Batches:
         workers = capped_workers(workers, len(jobs), "batches") if workers > 1 else 1
         if workers > 1:
             _SHARED = (config, catalog)
-            context = multiprocessing.get_context("fork")
-            self.pool = ProcessPoolExecutor(
-                workers, mp_context=context, initializer=_start_worker, initargs=(os.getpid(),)
-            )
+            self.pool = _forked_pool(workers)
             for job in islice(self.todo, 2 * workers):  # forks every worker now
                 self.pending.append((job, self.pool.submit(_simulate_job, job)))
 
@@ -215,16 +217,15 @@ def checked_request(
     config: GeneratorConfig, catalog: Catalog, batch_size: int, workers, shard_samples
 ) -> int:
     """Refuse, before anything touches the disk, a batch size, worker count or shard size out
-    of range, classes the catalog cannot give and a receiver that does not fit the sensor and
-    the catalog; the batch size to use (a batch's stored waveforms held at once: at most
-    :data:`WAVEFORM_BATCH_BYTES`)."""
+    of range, classes the catalog (the sensor's, ``Catalog.for_sensor``) cannot give and a
+    receiver that does not fit the sensor and the catalog; the batch size to use (a batch's
+    stored waveforms held at once: at most :data:`WAVEFORM_BATCH_BYTES`)."""
     if not 1 <= batch_size <= MAX_BATCH:
         raise DatasetError(f"batch_size={batch_size}: expected 1..{MAX_BATCH}")
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ConfigError(f"workers={workers!r}: expected a number of processes >= 1")
     if isinstance(shard_samples, bool) or not isinstance(shard_samples, int) or shard_samples < 1:
         raise ConfigError(f"shard_samples={shard_samples!r}: expected a number of samples >= 1")
-    catalog = catalog.for_sensor(config.sensor.name)
     class_plan(catalog, config.classes)
     if config.receiver is not None:
         physics = receiver_physics(config.profile)
@@ -292,9 +293,9 @@ def generate(
     """
     from tqdm import tqdm
 
+    catalog = catalog.for_sensor(config.sensor.name)  # what is stored: the recipes used
     batch_size = checked_request(config, catalog, batch_size, workers, shard_samples)
     configs = [config.with_noise(level) for level in noise_levels]
-    catalog = catalog.for_sensor(config.sensor.name)  # what is stored: the recipes used
     out = Path(out)
     finals = [out / generated_name(c) for c in configs]
     if len(set(finals)) != len(finals):
