@@ -135,13 +135,11 @@ def main(argv=None) -> int:
             scan = "-scan-" in dataset.name
             clock = f"-{args.clock}-clock" if scan and args.clock == "sensor" else ""
             path = runs / f"{dataset.name}__{direction}-{missing}{clock}.json"
-            start, present = time.perf_counter(), None
+            start = time.perf_counter()
             if path.exists():
                 present = json.loads(path.read_text())
                 lacking = [n for n in options.get("learners", {}) if n not in present["learner"]]
-                if "mlp" not in present["learner"] or not isinstance(
-                    present["learner"]["mlp"], dict
-                ) or not lacking:  # fmt: skip
+                if not of_families(present) or not lacking:
                     print(f"{path.name}: present, skipped")
                     continue
                 print(f"{path.name}: present, adding the families {lacking}")
@@ -182,6 +180,13 @@ def main(argv=None) -> int:
                 )
     report(args.out)
     return 0
+
+
+def of_families(run: dict) -> bool:
+    """Whether a run is of several learner families (issue 42: ``learner`` maps each family to
+    its configuration), not the one MLP of the runs before (``learner`` that configuration)."""
+    learner = run["learner"]
+    return isinstance(learner, dict) and all(isinstance(c, dict) for c in learner.values())
 
 
 def _encoding(run: dict) -> str:
@@ -270,7 +275,7 @@ def cell_bounds(results: list[dict], cells: list[dict]) -> list[dict]:
     runs = {
         (r["dataset"], r["encoding"]["direction"], r["encoding"]["missing"]): r
         for r in results
-        if isinstance(r["learner"], dict) and "mlp" in r["learner"] and "clock" not in r["encoding"]
+        if of_families(r) and "clock" not in r["encoding"]
     }
     found = []
     for cell in cells:
@@ -320,7 +325,7 @@ def report(out: Path) -> None:
         "",
     ]
     for r in results:
-        if "mlp" in r["learner"] and isinstance(r["learner"]["mlp"], dict):
+        if of_families(r):
             lines += _families_table(r)
             continue
         lines += [
