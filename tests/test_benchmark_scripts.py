@@ -103,6 +103,38 @@ def _script(name: str):
     return module
 
 
+def test_physical_gap_reads_the_committed_cells_of_the_physical_profile():
+    """benchmark/ablation/physical_gap.py trains only its two new datasets' cells: the
+    physical profile's are the committed ones of sweep_decisions.py, found by their names."""
+    gap = _script("ablation/physical_gap")
+    dataset = Path("simlidar-32c-noise0.2-physical-v1.0.0")
+    for recipe in gap.RECIPES:
+        for seed in range(5):
+            name = gap.cell_name(dataset, 16, recipe, seed)
+            cell = json.loads(gap.found_cell(Path("/nonexistent"), name).read_text())
+            assert (cell["recipe"], cell["seed"], cell["dataset"]) == (recipe, seed, dataset.name)
+            assert cell["architecture"] == {"input_columns": 16}
+
+
+def test_the_late_profile_makes_every_pixel_a_spike_and_a_missing_return_the_window_end(
+    tmp_path, cli
+):
+    """The ablation's one change: a missing return is written as 1.0, as physical, and it is an
+    input spike there (the no-return threshold of the loaders is inf)."""
+    from simlidar.dataset.loaders import load_split, spike_threshold, split_info
+
+    profile = ROOT / "benchmark/ablation/physical_late.toml"
+    done = cli("generate", "--profile", profile, "--noise", "0.2", "--train-size", "32",
+        "--test-size", "32", "--out", tmp_path)  # fmt: skip
+    assert done.exit_code == 0, done.output
+    (dataset,) = tmp_path.iterdir()
+    assert dataset.name == "simlidar-32c-noise0.2-physical_late-v2.0.0"
+    attrs = split_info(dataset, "test").attrs
+    assert spike_threshold(attrs) == math.inf and attrs["no_return_delay"] == 1.0
+    delays = load_split(dataset, "test")[0]
+    assert (delays == 1.0).any() and (delays <= 1.0).all()
+
+
 def _early_objectives():
     return _script("early_objectives")
 
@@ -367,8 +399,12 @@ BAD_ARGUMENTS = [
     ("sweep_speed.py", ["--sensor", "nosuch"], "sensor 'nosuch': expected one of"),
     ("ttfs_speed.py", ["--steps", "0"], "argument --steps: '0': expected an integer in"),
     ("ttfs_speed.py", ["--threads", "-2"], "argument --threads: '-2': expected an integer in"),
+    ("ttfs_speed.py", ["--device", "tpu"], "--device 'tpu': expected one of ['auto', 'cpu',"),
+    ("torch_form_cells.py", ["/nonexistent/x", "--device", "cpu"], "expected a dataset dire"),
     ("ttfs_torch_speed.py", ["--steps", "x"], "argument --steps: 'x': expected an integer in"),
     ("ttfs_torch_speed.py", ["--model", "cnn"], "argument --model: invalid choice: 'cnn'"),
+    ("ablation/physical_gap.py", ["--data", "/nonexistent/g", "--seeds", "x"], "'x': expected"),
+    ("ablation/physical_gap.py", ["--data", "/nonexistent/g", "--noise", "1"], "'1': expected"),
     ("fog_check.py", ["--samples", "5"], "argument --samples: '5': expected an integer in"),
     ("rain_check.py", ["--samples", "x"], "argument --samples: 'x': expected an integer in"),
     ("receiver_speed.py", ["--repeats", "0"], "argument --repeats: '0': expected an integer"),
@@ -379,6 +415,7 @@ BAD_ARGUMENTS = [
 # where a script writes by default (the repository's benchmark/results, or --out required):
 # the bad runs are sent to tmp_path / "out", which must not be made
 WRITES = {
+    "ablation/physical_gap.py",
     "fog_check.py",
     "rain_check.py",
     "weather.py",
