@@ -1,6 +1,8 @@
 """Where generation spends its time: CPU microseconds per sample for each stage, on one core.
 
     python benchmark/generation_stages.py [--samples 6144] [--profile paper]
+    python benchmark/generation_stages.py --profile sensor [--beam-samples 2] \
+        [--return-mode dual] [--fog 50] [--rain 50] [--waveform-bin 1]
 
 Runs what ``simlidar generate --classes 32 --noise 0.2`` runs (the profile ``--profile``, by
 default the command's own, ``paper``; 16 x 16 samples, the default catalog, HDF5 writing, the
@@ -13,6 +15,14 @@ bookkeeping, the numpy around the cast, pulses, claiming and installing the fold
 timers add a few microseconds a sample; ``benchmark/generation_speed.py`` gives the untimed
 throughput. The process's start-up imports are not in the run (``python -X importtime -m
 simlidar.cli --version`` shows them).
+
+With a receiver (``--profile sensor``, and the options of ``simlidar generate`` that shape its
+physics: ``--beam-samples``, ``--return-mode``, ``--fog``, ``--rain``, ``--waveform-bin``) the
+receiver's work has stages of its own: the beam's sub-rays, the receiver's random streams, the
+fog's backscatter table, the rain's drops and their echoes, the waveforms' echoes and peaks,
+the reported returns, the stored waveform, and the rest of the receiver (materials, the range
+equation, detection, range noise, intensity). Each stage's time is its own: a timed stage
+inside another (the waveform inside the receiver) is not counted twice.
 """
 
 import os
@@ -23,6 +33,8 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
+import dataclasses  # noqa: E402
+import math  # noqa: E402
 import resource  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -33,6 +45,7 @@ import h5py  # noqa: E402
 import numpy as np  # noqa: E402
 
 import simlidar.generator.generate as generate_module  # noqa: E402
+import simlidar.generator.returns as returns  # noqa: E402
 import simlidar.generator.simulate as simulate  # noqa: E402
 import simlidar.sensor.raycast as raycast  # noqa: E402
 from simlidar.dataset.writer import SplitWriter  # noqa: E402
@@ -42,21 +55,44 @@ from simlidar.generator.generate import generate  # noqa: E402
 from simlidar.generator.profiles import load_profile  # noqa: E402
 from simlidar.generator.streams import Streams  # noqa: E402
 from simlidar.scene.recipe import load_catalog  # noqa: E402
-from simlidar.script_args import integers, run  # noqa: E402
+from simlidar.script_args import integers, numbers, run  # noqa: E402
 from simlidar.sensor import embree  # noqa: E402
+from simlidar.sensor.receiver import RETURN_MODES  # noqa: E402
+from simlidar.sensor.weather import MAX_RAIN_MM_H  # noqa: E402
 
 SPENT: dict[str, float] = defaultdict(float)
+_INSIDE: list[float] = []  # per open timed call, the time its timed callees took
 
 
 def timed(stage: str, fn):
+    """``fn`` with its CPU time added to ``stage``, less that of the timed calls inside it."""
+
     def wrapper(*args, **kwargs):
         start = time.process_time()
+        _INSIDE.append(0.0)
         try:
             return fn(*args, **kwargs)
         finally:
-            SPENT[stage] += time.process_time() - start
+            spent = time.process_time() - start
+            SPENT[stage] += spent - _INSIDE.pop()
+            if _INSIDE:
+                _INSIDE[-1] += spent
 
     return wrapper
+
+
+# the receiver's stages (a profile with a receiver): module, function, stage
+RECEIVER_STAGES = (
+    (simulate, "subray_directions", "receiver: beam sub-rays"),
+    (simulate, "receiver_stream", "receiver: random streams"),
+    (simulate, "receive_hits", "receiver: materials, power, detection, noise"),
+    (returns, "fog_table", "receiver: fog backscatter table"),
+    (returns, "rain", "receiver: rain drops and echoes"),
+    (returns, "_drop_echoes", "receiver: rain drops and echoes"),
+    (returns, "echoes", "receiver: waveform echoes and peaks"),
+    (returns, "reported", "receiver: reported returns"),
+    (returns, "sampled", "receiver: stored waveform"),
+)
 
 
 class TimedScene(rtcs.EmbreeScene):
@@ -80,11 +116,27 @@ def main() -> None:
         "--samples", type=integers(192, MAX_SPLIT_SIZE, one=True), default=6144, help="train + test"
     )
     parser.add_argument("--profile", default="paper", help="as simlidar generate --profile")
+    receiver = parser.add_argument_group("a receiver's physics (as simlidar generate's)")
+    receiver.add_argument("--beam-samples", type=integers(1, 8, one=True), default=1)
+    receiver.add_argument("--return-mode", choices=RETURN_MODES, default="strongest")
+    receiver.add_argument("--fog", type=numbers(1e-9, one=True), default=math.inf, help="m")
+    receiver.add_argument("--rain", type=numbers(0.0, MAX_RAIN_MM_H, one=True), default=0.0)
+    receiver.add_argument("--waveform-bin", type=numbers(0.0, one=True), default=0.0, help="ns")
     args = parser.parse_args()
+    physics = {
+        "beam_samples": args.beam_samples,
+        "return_mode": args.return_mode,
+        "fog_visibility_m": args.fog,
+        "rain_rate_mm_h": args.rain,
+        "waveform_bin_ns": args.waveform_bin,
+    }
+    plain = {f.name: f.default for f in dataclasses.fields(GeneratorConfig)}
+    asked = {k: v for k, v in physics.items() if v != plain[k]}
     config = GeneratorConfig.from_profile(
         load_profile(args.profile),
         train_size=args.samples * 5 // 6,
         test_size=args.samples // 6,
+        **asked,
     )
     n = config.train_size + config.test_size
     catalog = load_catalog()
@@ -98,6 +150,8 @@ def main() -> None:
         raycast.visible_triangles = timed("back-face culling", raycast.visible_triangles)
         raycast.attach_triangles = timed("Embree geometry", raycast.attach_triangles)
         rtcs.EmbreeScene = TimedScene
+        for module, name, stage in RECEIVER_STAGES if config.receiver is not None else ():
+            setattr(module, name, timed(stage, getattr(module, name)))
         shard_module.split_rows = timed("profile and noise", shard_module.split_rows)
         SplitWriter.append = timed("HDF5 writing", SplitWriter.append)
         SplitWriter.close = timed("HDF5 writing", SplitWriter.close)  # the last chunks
@@ -126,7 +180,7 @@ def main() -> None:
         "draws a sample; CPU time a stage:"
     )
     for stage, seconds in sorted(SPENT.items(), key=lambda kv: -kv[1]):
-        print(f"  {stage:32s} {1e6 * seconds / n:6.1f} us/sample  {100 * seconds / total:4.1f} %")
+        print(f"  {stage:46s} {1e6 * seconds / n:6.1f} us/sample  {100 * seconds / total:4.1f} %")
 
 
 if __name__ == "__main__":
