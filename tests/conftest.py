@@ -1,8 +1,9 @@
 """Shared fixtures: the shipped catalog and a batch of its scenes, small generated datasets, a
-writable catalog copy, the command line, an HTTP server with a packed dataset, synthetic KITTI
-frames, HDF5 bombs."""
+writable catalog copy, the command line, a KITTI training folder made from a simulated sweep,
+an HTTP server with a packed dataset, synthetic KITTI frames, HDF5 bombs."""
 
 import http.server
+import json
 import shutil
 import threading
 from pathlib import Path
@@ -151,6 +152,33 @@ class _Handler(http.server.SimpleHTTPRequestHandler):
             self.release.wait(timeout=10)  # never answers within the client's timeout
             return
         super().do_GET()
+
+
+# A DontCare line as KITTI writes them (the real sample's frame 000001 has two): skipped.
+DONT_CARE = "DontCare -1 -1 -10 503.89 169.71 590.61 190.13 -1 -1 -1 -1000 -1000 -1000 -10\n"
+
+
+@pytest.fixture(scope="session")
+def built_kitti(tmp_path_factory, cli) -> Path:
+    """A KITTI training folder made here, so that the format checks run in any clone: 8 frames
+    of an HDL-64E sweep exported in KITTI's layout (`simlidar sweep --export kitti`: label_2/,
+    calib/, velodyne/; 6 frames with a car, pedestrian or truck, 2 without), moved under
+    ``training/`` without the sweep's frames.h5, so that the converter reads them as recorded
+    frames, plus a DontCare line in frame 000002."""
+
+    out = tmp_path_factory.mktemp("built-kitti")
+    args = ["sweep", "--frames", "8", "--sensor", "hdl64e", "--export", "kitti"]
+    done = cli(*args, "--out", str(out / "sweep"), "--json")
+    assert done.exit_code == 0, done.output
+    sweep = Path(json.loads(done.stdout)["path"])
+    root = out / "kitti"
+    (root / "training").mkdir(parents=True)
+    for folder in ("label_2", "calib", "velodyne"):
+        shutil.move(sweep / folder, root / "training" / folder)
+    with (root / "training" / "label_2" / "000002.txt").open("a") as labels:
+        labels.write(DONT_CARE)
+    shutil.rmtree(out / "sweep")
+    return root
 
 
 @pytest.fixture

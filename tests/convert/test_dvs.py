@@ -9,6 +9,7 @@ import h5py
 import numpy as np
 import pytest
 from scipy.io import savemat
+from source_examples import RECORDINGS, write_mat
 
 from simlidar.convert import convert_dvs_barrel
 from simlidar.dataset.loaders import load_split
@@ -16,36 +17,6 @@ from simlidar.errors import ConfigError, DatasetError
 from simlidar.release.checksums import read_sums, write_sums
 from simlidar.release.verify import verify
 from simlidar.sources import render_card
-
-# (x, y, polarity, timestamp_us, label) per recording; addresses 1-based as MATLAB writes them
-RECORDINGS = [
-    ([1, 32, 1, 3], [1, 2, 1, 32], [1, -1, -1, 1], [100, 300, 50, 450], "A"),
-    ([5], [6], [1], [1000], "A"),
-    ([2, 3], [2, 3], [1, 1], [0, 400], "b"),  # lower case is read as B
-    ([], [], [], [], "B"),  # a recording without events: every pixel silent
-    ([7], [7], [1], [20], "7"),  # the only 7: stays in train
-]
-
-
-def write_mat(path, recordings=RECORDINGS, cells=False, fields=("x", "y", "p", "ts", "label")):
-    """A .mat file holding ROI as a 1 x n struct array (or a cell array of 1 x 1 structs)."""
-    dtype = [(name, object) for name in fields]
-    rows = [
-        tuple(([np.array([v], dtype=float) for v in r[:4]] + list(r[4:]))[: len(fields)])
-        for r in recordings
-    ]
-    if cells:
-        roi = np.empty((1, len(rows)), dtype=object)
-        for k, row in enumerate(rows):
-            struct = np.empty((1, 1), dtype=dtype)
-            struct[0, 0] = row
-            roi[0, k] = struct
-    else:
-        roi = np.empty((1, len(rows)), dtype=dtype)
-        for k, row in enumerate(rows):
-            roi[0, k] = row
-    savemat(path, {"ROI": roi})
-    return path
 
 
 def records(path):
