@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from simlidar.bench.hardware import MAX_THREADS
-from simlidar.models.training import MAX_EPOCHS, PENALTY
+from simlidar.models.training_config import MAX_EPOCHS, PENALTY
 from simlidar.script_args import command_line, integers, numbers, run
 
 ROOT = Path(__file__).resolve().parents[1]

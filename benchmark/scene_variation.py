@@ -22,7 +22,7 @@ from simlidar.bench.suite import load_suite
 from simlidar.generator.config import MAX_SPLIT_SIZE, GeneratorConfig
 from simlidar.generator.generate import generate
 from simlidar.models.registry import load_recipe
-from simlidar.models.training import MAX_EPOCHS
+from simlidar.models.training_config import MAX_EPOCHS
 from simlidar.scene.recipe import load_catalog
 from simlidar.script_args import integers, numbers, run
 

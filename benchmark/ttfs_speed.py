@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from simlidar.bench.hardware import MAX_THREADS, check_threads, resolve_device
 from simlidar.bench.train import batch_loss, make_optimizer
 from simlidar.models.registry import build_model, load_recipe
-from simlidar.models.training import TrainingConfig
+from simlidar.models.training_config import TrainingConfig
 from simlidar.script_args import integers, run
 
 MAX_STEPS = 100_000  # timed steps per model

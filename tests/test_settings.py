@@ -11,7 +11,7 @@ from simlidar.convert.options import DvsConfig, KittiConfig
 from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.sweep import SweepConfig
-from simlidar.models.training import TrainingConfig
+from simlidar.models.training_config import TrainingConfig
 from simlidar.settings import Choice, Range, default_of, rule_of
 
 

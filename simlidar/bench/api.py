@@ -23,7 +23,7 @@ from simlidar.bench.run import run_suite
 from simlidar.bench.suite import BUDGET_KEYS, Suite, load_suite
 from simlidar.errors import ConfigError
 from simlidar.models.registry import register
-from simlidar.models.training import TrainingConfig
+from simlidar.models.training_config import TrainingConfig
 
 
 def bench_model(

@@ -11,7 +11,7 @@ from simlidar.bench.selection import selection_rule
 from simlidar.bench.suite import BUDGET_KEYS
 from simlidar.errors import DatasetError
 from simlidar.models.registry import builder_source, load_recipe, model_name
-from simlidar.models.training import TrainingConfig
+from simlidar.models.training_config import TrainingConfig
 from simlidar.release.checksums import SUMS, read_sums
 
 

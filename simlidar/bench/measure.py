@@ -18,7 +18,7 @@ from simlidar.dataset.loaders import load_split, spike_threshold
 from simlidar.dataset.reader import dataset_splits
 from simlidar.errors import DatasetError
 from simlidar.models.protocol import STEPPED_SPIKES, ModelSpec, encode, spec_of
-from simlidar.models.training import TrainingConfig
+from simlidar.models.training_config import TrainingConfig
 
 METRICS = "neurobench-2.3.0-definitions/v1"  # what measure() computes; a cell records it
 

@@ -12,7 +12,7 @@ from simlidar.bench.plots import plot_accuracy, plot_confusions, plot_decisions
 from simlidar.bench.tables import accuracy_by_noise, by_model, training_table
 from simlidar.content import content_dir
 from simlidar.models.decisions import ALPHAS_PJ
-from simlidar.models.training import TrainingConfig
+from simlidar.models.training_config import TrainingConfig
 from simlidar.settings import default_of
 
 PAPER_FILE = "reported/wang2020.toml"

@@ -6,7 +6,7 @@ import torch.nn.functional as F
 
 from simlidar.bench.checks import check_finite
 from simlidar.models.protocol import ModelSpec, class_scores, encode, readout, spec_of
-from simlidar.models.training import TrainingConfig
+from simlidar.models.training_config import TrainingConfig
 
 
 def _batches(

@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from simlidar.errors import ConfigError
-from simlidar.models.training import TrainingConfig
+from simlidar.models.training_config import TrainingConfig
 
 SELECTION = "best-validation-accuracy-then-loss/v1"  # the rule's name, recorded by every cell
 ANNEALED = "last-epoch-of-annealed-schedule/v1"  # the rule of a schedule that anneals to 0

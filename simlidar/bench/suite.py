@@ -35,7 +35,7 @@ from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.profiles import DEFAULT_PROFILE, load_profile
 from simlidar.models.registry import load_recipe
-from simlidar.models.training import TrainingConfig
+from simlidar.models.training_config import TrainingConfig
 from simlidar.settings import Range
 
 SUITE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,99}$")

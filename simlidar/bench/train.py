@@ -30,7 +30,7 @@ from simlidar.bench.selection import (
 from simlidar.dataset.loaders import load_split, spike_threshold, split_info
 from simlidar.errors import ConfigError, TrainingError
 from simlidar.models.protocol import ModelSpec, class_scores, encode, spec_of
-from simlidar.models.training import TrainingConfig
+from simlidar.models.training_config import TrainingConfig
 
 STOPS = ("plateau", "epochs", "time", "own-fit")  # why training stopped (TrainResult.stopped)
 

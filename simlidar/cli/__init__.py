@@ -18,7 +18,7 @@ from simlidar.cli.options import LazyGroup
 COMMANDS = {
     **dict.fromkeys(("generate", "sweep", "profiles", "sensors", "scenes"), "generate"),
     **dict.fromkeys(("info", "preview", "card", "verify", "pack", "fetch"), "release"),
-    **dict.fromkeys(("train", "bench"), "training"),
+    **dict.fromkeys(("train", "bench"), "bench"),
     "report": "report",
     "convert": "convert",
 }

@@ -58,7 +58,7 @@ class Group(click.Group):
 class LazyGroup(Group):
     """A :class:`Group` whose commands are imported when one is asked for (click's lazy
     loading: ``list_commands`` and ``get_command``), so that ``simlidar generate`` does not
-    import the training commands' modules and ``simlidar train`` not the generator's.
+    import the benchmark commands' module and ``simlidar train`` not the generator's.
 
     lazy : command name -> module of ``simlidar.cli`` that defines it under that name
     """

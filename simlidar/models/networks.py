@@ -118,7 +118,7 @@ class SpikingNet(nn.Module):
     def simlidar_loss(self, x: torch.Tensor, y: torch.Tensor, training) -> tuple:
         """(cross-entropy, cross-entropy plus the recipe's penalties) on one batch: the
         weight-sum penalty, the target-neuron firing penalty and the early-decision term
-        (``training``: a :class:`~simlidar.models.training.TrainingConfig`; docs/snn.md)."""
+        (``training``: a :class:`~simlidar.models.training_config.TrainingConfig`; docs/snn.md)."""
         spikes = self.spikes(x)
         scores = class_scores(spikes[-1], self.simlidar_spec, training.logits, training.logit_scale)
         loss = F.cross_entropy(scores, y)

@@ -26,7 +26,7 @@ from pathlib import Path
 from simlidar.content import read_toml, shipped_or_path
 from simlidar.errors import ConfigError, raised
 from simlidar.models.protocol import reset_state, spec_of, stateful_modules
-from simlidar.models.training import TrainingConfig
+from simlidar.models.training_config import TrainingConfig
 
 # model name (a recipe's `model`) -> (module of simlidar.models, builder function); each
 # builder is ``builder(input_shape, classes, generator, **architecture)``. The modules (torch)

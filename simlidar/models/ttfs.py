@@ -435,8 +435,9 @@ def target_time(z_out: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
 
 
 def early_term(z_out: torch.Tensor, target: torch.Tensor, form: str, beta: float, margin: float):
-    """The early-decision loss term of ``form`` (:data:`simlidar.models.training.EARLY_FORMS`)
-    on output spikes ``z_out`` (B, M) (z domain, inf: none) and labels ``target`` (B,):
+    """The early-decision loss term of ``form``
+    (:data:`simlidar.models.training_config.EARLY_FORMS`) on output spikes ``z_out`` (B, M) (z
+    domain, inf: none) and labels ``target`` (B,):
 
     linear    mean spike time t = ln z of the correct output (:func:`target_time`)
     exp       mean exp(t / beta) of the correct output (Goeltz et al. 2021, their alpha being

@@ -12,7 +12,7 @@ from simlidar.bench.train import train
 from simlidar.dataset.loaders import load_split
 from simlidar.errors import ConfigError
 from simlidar.models.registry import load_recipe
-from simlidar.models.training import TrainingConfig
+from simlidar.models.training_config import TrainingConfig
 
 NAMES = [f"class{i}" for i in range(4)]
 

@@ -16,7 +16,7 @@ from simlidar.cli.options import (
     setting_option,
 )
 from simlidar.errors import ConfigError, SimlidarError
-from simlidar.models.training import TrainingConfig
+from simlidar.models.training_config import TrainingConfig
 from simlidar.settings import help_of
 
 
