@@ -48,9 +48,11 @@ def bench_model(
         (copied for each cell; its initial weights are then not the seed's)
     dataset : a dataset directory; or ``suite``: a suite name or file (its datasets, its
         budget for the model's name, its data: ``out`` may be that suite's folder)
+    seeds : one cell per seed (initial weights, batch order, validation rows)
     budget : epochs, max_seconds, validation, patience (over the recipe's [training])
     name : what the cells call a function or module (default: its ``__name__`` / class name)
     device, threads : as ``--device`` and ``--threads``
+    progress : a progress bar on stderr
     """
     if (dataset is None) == (suite is None):
         raise ConfigError("bench_model: expected a dataset or a suite, exactly one")

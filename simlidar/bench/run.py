@@ -241,6 +241,9 @@ def run_suite(
 ) -> dict:
     """Run every unfinished cell of the suite into ``out``; write results.json and the report.
 
+    models : the recipes to run (None: the suite's)
+    dataset : one dataset directory to run them on instead of the suite's datasets
+    progress : a progress bar on stderr
     scheduler : a Dask scheduler's address (or ``local``: a LocalCluster of ``workers``
         processes): each cell is then one task on the cluster, writing its own file into
         ``out`` (a path every worker must see; :mod:`simlidar.cluster`)

@@ -183,6 +183,13 @@ def train(
     Deterministic for a given seed, recipe, dataset, device and thread count (one
     torch.Generator drives the initial weights and the batch order; the validation rows are
     drawn from the seed too).
+
+    recipe : a loaded recipe (:func:`simlidar.models.registry.load_recipe`)
+    dataset : a dataset directory of any source
+    seed : the run's seed
+    epochs, max_seconds : over the recipe's ``[training]`` values (None: the recipe's)
+    progress : a progress bar on stderr
+    device : where the model trains
     """
     from tqdm import tqdm
 

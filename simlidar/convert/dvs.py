@@ -239,6 +239,11 @@ def convert_dvs_barrel(
     (one character per recording) or the struct's 'label' field. Per class, test_fraction of the
     recordings go to test (seeded; at least one stays in train). Returns the dataset directory.
 
+    mat_file : the MATLAB file (read with scipy.io.loadmat; a file from elsewhere: checked)
+    out : the folder that receives the dataset directory (made if missing)
+    force : replace a dataset directory of the same name (else an error names it)
+    progress : a progress bar on stderr
+    preview : draw the dataset's ``preview.png``
     options : the fields of :class:`~simlidar.convert.options.DvsConfig` (labels, window_us,
         address_base, test_fraction, seed), each with its default there
     """

@@ -233,6 +233,11 @@ def convert_kitti(
     between train and test (test_fraction of them, seeded; at least one each, so at least two
     frames with objects are needed). Returns the dataset directory.
 
+    root : the KITTI folder (training/, or the folder holding label_2/, calib/ and velodyne/)
+    out : the folder that receives the dataset directory (made if missing)
+    force : replace a dataset directory of the same name (else an error names it)
+    progress : a progress bar on stderr
+    preview : draw the dataset's ``preview.png``
     options : the fields of :class:`~simlidar.convert.options.KittiConfig` (crop, res_h_deg,
         res_v_deg, max_range_m, test_fraction, seed), each with its default there
     """

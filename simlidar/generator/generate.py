@@ -281,6 +281,16 @@ def generate(
 ) -> list[Written]:
     """Generate one dataset directory per noise level under ``out``; return what was written.
 
+    config : what decides the samples (profile, classes, sizes, seed, sensor, timing, receiver,
+        weather); its noise is replaced by each of ``noise_levels``
+    noise_levels : one dataset per level, each with the same scenes (the noise is drawn apart)
+    catalog : the scene recipes (:func:`simlidar.scene.recipe.load_catalog`); the sensor's
+        part of it is used and stored
+    out : the folder that receives the dataset directories (made if missing)
+    batch_size : samples simulated at a time (at most :data:`MAX_BATCH`); no effect on the bytes
+    force : replace a dataset directory of the same name (else an error names it)
+    progress : a progress bar on stderr
+    preview : draw each dataset's ``preview.png``
     workers : processes that simulate batches (the calling process writes them, in order); the
         bytes are the same for every count, as every sample draws from its own random streams.
         With ``scheduler`` ``local``: the LocalCluster's worker processes

@@ -170,6 +170,10 @@ def simulate(
 ) -> Samples:
     """Samples ``start .. stop - 1`` of ``split`` (at most MAX_BATCH of them).
 
+    config : what decides the samples (profile, classes, seed, sensor, timing, receiver)
+    catalog : the scene recipes (the sensor's part and the config's variation are taken here)
+    split : ``train`` or ``test`` (each draws from its own random streams)
+
     ``backend`` has the signature of :func:`batched_backend`; the speed benchmark swaps in the
     naive per-sample trimesh way to compare with on the same samples.
     """

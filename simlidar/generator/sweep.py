@@ -273,7 +273,18 @@ def sweep(
 ) -> Path:
     """Simulate ``sweep_config.frames`` frames into ``out/<sweep_name>/frames.h5`` (one frame
     a chunk), draw ``bev.png`` (:func:`draw_bev`: up to four frames) and write every frame in
-    each format of ``exports`` (:data:`EXPORTS`); the folder appears complete or not at all."""
+    each format of ``exports`` (:data:`EXPORTS`); the folder appears complete or not at all.
+
+    config : the scenes, sensor, receiver and weather (as for
+        :func:`simlidar.generator.generate.generate`)
+    sweep_config : the frames: how many, the sweep's own settings (:class:`SweepConfig`)
+    catalog : the scene recipes; the sensor's part of it is used and stored
+    out : the folder that receives the sweep's folder (made if missing)
+    exports : formats to write every frame in as well (:data:`EXPORTS`)
+    force : replace a sweep folder of the same name (else an error names it)
+    progress : a progress bar on stderr
+    batch : frames simulated at a time; no effect on the bytes
+    """
     from tqdm import tqdm
 
     for fmt in exports:

@@ -319,6 +319,15 @@ def fetch(
     (:mod:`simlidar.atomic`), removed at the end whatever happens; those of killed runs
     are removed by the next run in ``out`` (a warning each). ``out`` itself is removed again if
     this call created it and nothing was installed.
+
+    url : the archive's address (http or https; ``simlidar pack`` makes such archives)
+    sha256 : the archive's expected SHA-256 (64 hex digits); None: the ``<url>.sha256``
+        file published beside it
+    out : the folder that receives the dataset directory (made if missing)
+    timeout : seconds a connection may stay silent
+    force : replace an installed dataset directory of the same name (else an error names it)
+    max_bytes : the most bytes the archive's members may hold once unpacked
+    progress : a progress bar on stderr
     """
     if sha256 is not None and not is_sha256(sha256):
         raise FetchError("checksum", f"--sha256 {sha256!r}: expected 64 hexadecimal digits")

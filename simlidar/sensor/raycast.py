@@ -93,8 +93,11 @@ def cast(
 ) -> Hits:
     """First hit of every pulse.
 
+    scene : the batch's triangles, each tagged with its sample, surface and solid
+        (:func:`simlidar.scene.build.build_batch`)
     origins, directions : (B, H, W, 3) float64 in each sample's local frame, unit directions
     slots : (B,) int, distinct grid cells (use the sample index in its split mod MAX_BATCH)
+    max_range_m : the sensor's range: a ray stops there
     cull : drop triangles no ray can hit first (exact; off only to test that it is)
     shared : hand the triangles to Embree in place (:mod:`simlidar.sensor.embree`; off only to
         test that the hits are those of embreex's own copy)
