@@ -432,6 +432,8 @@ BAD_ARGUMENTS = [
     ("ttfs_speed.py", ["--threads", "-2"], "argument --threads: '-2': expected an integer in"),
     ("ttfs_speed.py", ["--device", "tpu"], "--device 'tpu': expected one of ['auto', 'cpu',"),
     ("torch_form_cells.py", ["/nonexistent/x", "--device", "cpu"], "expected a dataset dire"),
+    ("ttfs_float32.py", ["/nonexistent/x"], "/nonexistent/x: expected a dataset directory"),
+    ("ttfs_float32.py", ["x", "--recipe", "cnn"], "argument --recipe: invalid choice: 'cnn'"),
     ("ttfs_torch_speed.py", ["--steps", "x"], "argument --steps: 'x': expected an integer in"),
     ("ttfs_torch_speed.py", ["--model", "cnn"], "argument --model: invalid choice: 'cnn'"),
     ("ablation/physical_gap.py", ["--data", "/nonexistent/g", "--seeds", "x"], "'x': expected"),

@@ -98,18 +98,30 @@ CHUNK_ELEMENTS = {"cpu": 1 << 19}
 CHUNK_ELEMENTS_ELSEWHERE = 1 << 26
 
 _TORCH_FORM = contextvars.ContextVar("simlidar_ttfs_torch_form", default=False)
+# the dtype the torch form sums in: float64, as the kernels; float32 only in a study of what
+# float32 sums would change (benchmark/ttfs_float32.py)
+_SUM_DTYPE = contextvars.ContextVar("simlidar_ttfs_sum_dtype", default=torch.float64)
+SUM_DTYPES = (torch.float64, torch.float32)
 
 
 @contextlib.contextmanager
-def torch_form(enabled: bool = True):
+def torch_form(enabled: bool = True, sums: torch.dtype = torch.float64):
     """Within this block :func:`dense` and :func:`conv2d` run the torch form on CPU tensors too
     (``enabled=False``: the compiled kernels again); for tests and benchmarks. Which form a
-    layer ran is chosen at its forward pass: its backward follows it."""
-    token = _TORCH_FORM.set(enabled)
+    layer ran is chosen at its forward pass: its backward follows it.
+
+    sums : the dtype the torch form sums in (on every device) within the block: float64, as
+        the kernels and the torch form always do elsewhere, or float32 (what float32 sums
+        would change: benchmark/ttfs_float32.py)
+    """
+    if sums not in SUM_DTYPES:
+        raise ValueError(f"sums={sums}: expected one of {SUM_DTYPES}")
+    token, dtype = _TORCH_FORM.set(enabled), _SUM_DTYPE.set(sums)
     try:
         yield
     finally:
         _TORCH_FORM.reset(token)
+        _SUM_DTYPE.reset(dtype)
 
 
 def first_spikes(z: torch.Tensor, budget: int) -> torch.Tensor:
@@ -235,20 +247,22 @@ class _DenseTTFSTorch(torch.autograd.Function):
     @staticmethod
     def forward(ctx, z, w):
         dtype = torch.promote_types(z.dtype, w.dtype)  # the kernels' output dtype
-        z_out, z_last, excess = _first_spikes(z.detach().double(), w.detach().double())
+        sums = _SUM_DTYPE.get()  # float64 but in a study of float32 sums
+        z_out, z_last, excess = _first_spikes(z.detach().to(sums), w.detach().to(sums))
         ctx.save_for_backward(z, w, z_out, z_last, excess)
         return z_out.to(dtype)
 
     @staticmethod
     def backward(ctx, grad_out):
         z, w, z_out, z_last, excess = ctx.saved_tensors
+        sums = z_out.dtype  # the forward pass's
         grad_z, grad_w = _spike_gradients(
-            z.detach().double(),
-            w.detach().double(),
+            z.detach().to(sums),
+            w.detach().to(sums),
             z_out,
             z_last,
             excess,
-            grad_out.double(),
+            grad_out.to(sums),
             *ctx.needs_input_grad,
         )
         return (

@@ -81,6 +81,26 @@ def test_float32_decisions_are_made_in_float64(dense_case):
     assert hard >= 1
 
 
+def test_the_torch_form_sums_in_float32_only_when_asked(dense_case):
+    """``torch_form(sums=torch.float32)`` (the study of benchmark/ttfs_float32.py) decides as
+    float32 prefix sums do, on the batches where those differ from float64; outside the block
+    the sums are float64 again, and another dtype is refused."""
+    differed = 0
+    for seed in range(8):
+        z, w = dense_case(60, 256, 400, seed, torch.float32)
+        in_float32 = torch.isfinite(ttfs._first_spikes(z, w)[0])
+        with ttfs.torch_form(sums=torch.float32):
+            out = ttfs.dense(z.double(), w.double())
+        assert out.dtype == torch.float64 and torch.equal(torch.isfinite(out), in_float32)
+        with ttfs.torch_form():
+            again = ttfs.dense(z.double(), w.double())
+        differed += not torch.equal(torch.isfinite(again), in_float32)
+    assert differed >= 1
+    with pytest.raises(ValueError, match="sums=torch.float16: expected one of"):
+        with ttfs.torch_form(sums=torch.float16):
+            pass
+
+
 def test_mixed_dtypes_promote_as_the_kernels_do(dense_case):
     z, w = dense_case(20, 16, 8, 5, torch.float32)
     w = w.double()
