@@ -147,6 +147,23 @@ def test_physical_gap_reads_the_committed_cells_of_the_physical_profile():
             assert cell["architecture"] == {"input_columns": 16}
 
 
+def test_physical_gap_counts_the_gap_from_the_intervals_lower_end(tmp_path):
+    """One network on one dataset: accuracy over seeds, its 95 % interval (Student's t), the
+    bound's best row and its CNN family, and the gap as issue 42 counts it."""
+    gap = _script("ablation/physical_gap")
+    cells = [{"seed": s, "test_accuracy": a} for s, a in enumerate([0.70, 0.72, 0.74])]
+    cnn = {"accuracy": [0.80, 0.82, 0.84]}
+    bound = {"row": {"accuracy_mean": 0.9, "best": "cnn/ensemble", "learners": {"cnn": cnn}}}
+    row = gap.summarise(cells, bound)
+    low = 72.0 - 4.302652729911275 * 2.0 / math.sqrt(3)  # t(0.975, 2) * std / sqrt(n)
+    assert row["mean"] == 72.0 and row["std"] == 2.0 and row["ci95"][0] == round(low, 2)
+    assert (row["bound"], row["bound_best"]) == (90.0, "cnn/ensemble")
+    assert row["cnn_learner_mean"] == 82.0
+    assert row["gap"] == round(90.0 - low, 1)
+    gap.write(tmp_path, {"physical": {"mlp": {"dataset": "d", **row}}}, "cmd")
+    assert "| physical (`d`) | mlp | 3 | 72.00 ± 2.00 [" in (tmp_path / "gap.md").read_text()
+
+
 def test_the_late_profile_makes_every_pixel_a_spike_and_a_missing_return_the_window_end(
     tmp_path, cli
 ):
