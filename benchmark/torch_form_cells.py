@@ -9,9 +9,11 @@ with every column on the dataset (``--seed``; the paper's protocol: all 3000 tra
 fresh noise every epoch, 60 epochs of a cosine schedule, the last scored) is trained again on
 ``--device``, and the script prints one JSON line a network: test accuracy and wall seconds
 there and in the committed cell, and the first epoch's training loss in both (the same batches
-and noise: a difference is the two forms' rounding, after which the runs part). The torch form
-is not the kernels bit for bit (float64 sums in another order), so the accuracies are two
-draws of one training, not one figure twice. docs/performance.md records the runs.
+and noise). On a CUDA GPU the torch form's layers give the kernels' outputs bit for bit from
+the same input spikes, but the input encoding's float32 ``exp`` rounds otherwise there
+(``benchmark/ttfs_speed.py --device cuda`` shows both), and after the first steps the two runs
+part: the accuracies are two draws of one training, not one figure twice.
+docs/performance.md records the runs.
 """
 
 import argparse
