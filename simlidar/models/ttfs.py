@@ -32,7 +32,8 @@ has fired; docs/performance.md), on any other device the torch form (:func:`dens
 tensor operations over every prefix of a chunk of rows, on the tensors' own device), which is
 also the kernels' oracle in the tests. :func:`torch_form` makes the CPU run the torch form.
 Both sum in float64 whatever the inputs' dtype, so their spikes agree to float64 rounding
-(tests/models/test_ttfs_torch.py).
+(tests/models/test_ttfs_torch.py); ``torch_form(sums=torch.float32)`` sums in float32, only to
+measure what that would change (benchmark/ttfs_float32.py).
 """
 
 import contextlib
