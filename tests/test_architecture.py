@@ -239,7 +239,6 @@ def test_the_checker_sees_a_folder_without_tests(tmp_path):
 # only shrink: a function listed here that names them all now fails the test too, so that the
 # list is taken down as they are written.
 UNDOCUMENTED = {
-    "simlidar/bench/bound.py:train_learner",
     "simlidar/bench/bound.py:fit",
     "simlidar/bench/bound.py:bound",
     "simlidar/bench/bound.py:per_sample",
@@ -248,10 +247,7 @@ UNDOCUMENTED = {
     "simlidar/bench/checks.py:check_output",
     "simlidar/bench/measure.py:decision_record",
     "simlidar/bench/measure.py:measure",
-    "simlidar/bench/metrics.py:latency",
-    "simlidar/bench/run.py:run_cell",
     "simlidar/bench/run.py:run_and_write",
-    "simlidar/bench/scoring.py:predictions",
     "simlidar/bench/scoring.py:evaluate",
     "simlidar/bench/stepped.py:stepped_decisions",
     "simlidar/bench/train.py:batch_loss",
@@ -260,13 +256,11 @@ UNDOCUMENTED = {
     "simlidar/cluster.py:run_tasks",
     "simlidar/convert/common.py:converted_split_attrs",
     "simlidar/convert/dvs.py:write_split",
-    "simlidar/convert/kitti.py:crop_ranges",
     "simlidar/convert/kitti.py:write_splits",
     "simlidar/dataset/schema.py:expected_shapes",
     "simlidar/generator/generate.py:checked_request",
     "simlidar/generator/generate.py:write_local",
     "simlidar/generator/on_cluster.py:write_on_cluster",
-    "simlidar/generator/pulses.py:profile_pulses",
     "simlidar/generator/returns.py:receive_hits",
     "simlidar/generator/returns.py:receive",
     "simlidar/generator/returns.py:receive_beams",
@@ -289,8 +283,6 @@ UNDOCUMENTED = {
     "simlidar/scene/build.py:build_batch",
     "simlidar/scene/parse.py:parse_recipe",
     "simlidar/sensor/receiver.py:received_power_w",
-    "simlidar/sensor/waveform.py:echoes",
-    "simlidar/sensor/waveform.py:sampled",
     "simlidar/sensor/weather.py:fog_table",
     "simlidar/sensor/weather.py:rain",
 }

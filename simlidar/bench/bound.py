@@ -131,6 +131,9 @@ def train_learner(
 ):
     """Train the learner on (x, y) (N, 2, P), selecting on a validation split.
 
+    classes : the class count C (the learner's outputs)
+    seed : the seed of its initial weights, batch order and validation rows
+    config : the learner (:class:`BoundConfig`: its family, layers and training)
     draw : a function giving the training view (N, 2, P) anew, one call an epoch (fresh noise;
         ``x`` is then the file's draw, which the validation rows keep): the epoch count chosen
         on the validation rows, the learner is trained again on every row for that many

@@ -292,6 +292,7 @@ def latency(
     throughput at a large batch in samples per second.
 
     x : (N, C, H, W) test inputs
+    big_batch : the batch of the throughput figure (the first samples of ``x``)
     encode : what makes the model's input of a batch of ``x`` (timed with the model)
     """
     encode = encode or (lambda batch: batch)

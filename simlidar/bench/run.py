@@ -82,7 +82,8 @@ def run_cell(
 ) -> dict:
     """Train one model on one dataset with one seed and measure it (docs/benchmark.md); with
     ``checkpoint``, save the kept weights there (a figure can be re-measured later).
-    ``device``: where it trains (``--device``); it is measured on the CPU."""
+    ``device``: where it trains (``--device``); it is measured on the CPU. ``suite``: the
+    suite whose budget (epochs, time, validation, patience) and selection the cell follows."""
     recipe = load_recipe(model)
     budget = suite.budget_for(model)
     recipe["training"].update(budget)  # the suite's budget over the recipe's values

@@ -50,6 +50,7 @@ def predictions(
     event-driven networks in float64 (:func:`_batches`, ``exact``).
 
     x : (N, 1, H, W) delays, encoded as the model wants (``spec``; default: what it declares)
+    batch : samples run at a time
     silent_from : the data's no-return threshold (default: the model's, else 1.0)
     """
     spec = spec or spec_of(model)

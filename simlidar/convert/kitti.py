@@ -81,6 +81,7 @@ def crop_ranges(
     rows, cols, range_m : (n,) the points' cells and ranges
     origin : front-view (row, column) of the crop's top-left cell; columns wrap modulo
         ``columns`` (the 360 degree view closes on itself)
+    shape : the crop's (rows H, columns W)
     returns : (H, W) float64 metres, NaN where no point fell
     """
     height, width = shape

@@ -66,6 +66,8 @@ def profile_pulses(
     """Clean delays (missing return = 1.0) -> (clean, noisy) delays under a profile's rule.
 
     clean : (..., H, W) float32, returns in (0, 1), missing returns at NO_RETURN
+    level, u : the noise level a and the pixels' uniforms in [0, 1) (as ``clean``): the
+        noise is ``level * u``
     missing_delay : 0.0 or 1.0, what a missing return is written as
     noise_on : "returns" (noise delays returns only) or "all" (every pixel)
     returns : clean delays with missing returns at ``missing_delay``, and those with

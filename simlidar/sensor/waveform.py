@@ -116,6 +116,7 @@ def echoes(
     """Every local maximum of each pulse's sampled waveform, with its Gaussian fit.
 
     times_ns, powers_w : (P, S) sub-ray times of flight (NaN: no hit) and received powers
+    sigma_ns : the Gaussian pulse's sigma (:func:`pulse_sigma_ns` of its width)
     fog : a :class:`simlidar.sensor.weather.FogTable` (on bins of ``bin_ns``) whose column
         ``fog_columns[p]`` (-1: no fog) adds to pulse p's waveform. Where the pulse's
         surfaces add nothing (beyond 4 sigma of every hit) the waveform is that column alone,
@@ -240,6 +241,7 @@ def sampled(
 
     times_ns, powers_w : (P, S) as :func:`echoes` takes them (NaN time: no hit); each echo is
         evaluated within ``REACH_SIGMAS`` sigmas of its time (beyond, under 3.4e-4 of its peak)
+    sigma_ns : the Gaussian pulse's sigma (:func:`pulse_sigma_ns` of its width)
     fog : a :class:`simlidar.sensor.weather.FogTable` whose bins (of :data:`BIN_NS`) fall on
         every sample (``bin_ns`` a multiple of them), column ``fog_columns[p]`` for pulse p
     """
