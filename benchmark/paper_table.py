@@ -160,6 +160,18 @@ def run_cells(todo: list[tuple], jobs: int) -> None:
             future.result()
 
 
+def made(root: Path, config) -> Path:
+    """The dataset of ``config`` (a GeneratorConfig of one noise level) under ``root``,
+    generated there if missing."""
+    from simlidar.generator.generate import generate, generated_name
+    from simlidar.scene.recipe import load_catalog
+
+    path = root / generated_name(config)
+    if not path.is_dir():
+        generate(config, [config.noise], load_catalog(), root)
+    return path
+
+
 def datasets(root: Path) -> dict[float, Path]:
     """The four datasets of the table (default profile), generated when missing."""
     from simlidar.generator.config import GeneratorConfig

@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from paper_table import EPOCHS, JOBS, NOISE, PENALTIES, ROOT, SEEDS, done, run_cells
+from paper_table import EPOCHS, JOBS, NOISE, PENALTIES, ROOT, SEEDS, done, made, run_cells
 
 from simlidar.script_args import in_folder, run
 
@@ -53,18 +53,10 @@ def twin_datasets(root: Path, profile: str, noise: float) -> dict[str, Path]:
     from dataclasses import replace
 
     from simlidar.generator.config import GeneratorConfig
-    from simlidar.generator.generate import generate, generated_name
     from simlidar.generator.profiles import load_profile
-    from simlidar.scene.recipe import load_catalog
 
     flash = GeneratorConfig.from_profile(load_profile(profile), noise=noise)
-    paths = {}
-    for timing in TIMINGS:
-        config = replace(flash, timing=timing)
-        paths[timing] = root / generated_name(config)
-        if not paths[timing].is_dir():
-            generate(config, [noise], load_catalog(), root)
-    return paths
+    return {timing: made(root, replace(flash, timing=timing)) for timing in TIMINGS}
 
 
 def flash_ready_ns(scan_dataset: Path) -> np.ndarray:

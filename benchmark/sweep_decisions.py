@@ -64,6 +64,39 @@ NOISES = (0.1, 0.2)
 TARGETS = {("paper", 0.1): (6000.0, 3.0, None), ("physical", 0.2): (None, 5.0, "all")}
 
 
+def cell_name(dataset: str, columns: int, seed: int, recipe: str = RECIPE, hidden: int = HIDDEN):
+    """The file name of a cell: the network ``recipe`` (``--hidden`` wide) behind a gate of
+    ``columns`` on the flash dataset named ``dataset``, seed ``seed``."""
+    wider = "" if hidden == HIDDEN else f"-hidden{hidden}"
+    wider += "" if recipe == RECIPE else f"-{recipe}"
+    return f"{dataset}__columns{columns}{wider}__seed{seed}.json"
+
+
+# where each network's committed cells are: benchmark/results/<folder>/cells (docs/snn.md)
+COMMITTED = {"snn_simlidar_tuned": "sweep-decisions", "scnn_simlidar_tuned": "sweep-decisions-scnn"}
+
+
+def committed_cell(dataset: Path, recipe: str, seed: int) -> tuple[dict, dict]:
+    """The committed cell of ``recipe`` (a network of :data:`COMMITTED`) with every column of
+    the flash dataset ``dataset``, seed ``seed``, and the recipe as that cell was trained (the
+    paper's protocol: :func:`paper_table.run_cells`' cells hold no validation rows; the cell's
+    architecture); a ConfigError where there is no such cell."""
+    from simlidar.dataset.loaders import split_info
+    from simlidar.errors import ConfigError
+    from simlidar.models.registry import load_recipe
+
+    width = split_info(dataset, "test").width
+    folder = ROOT / "benchmark/results" / COMMITTED[recipe] / "cells"
+    path = folder / cell_name(dataset.name, width, seed, recipe)
+    if not path.is_file():
+        raise ConfigError(f"{path}: no committed cell for this dataset, network and seed")
+    cell = json.loads(path.read_text())
+    trained = load_recipe(recipe)
+    trained["training"]["validation"] = 0
+    trained["architecture"].update(cell.get("architecture", {}))
+    return cell, trained
+
+
 def dataset_pairs(text: str) -> list[tuple[str, float]]:
     """``--datasets``: comma-separated profile:noise, each of PROFILES x NOISES."""
     pairs = []
@@ -251,9 +284,7 @@ def main(argv=None) -> int:
     cells.mkdir(parents=True, exist_ok=True)
 
     def cell_path(flash: Path, columns: int, hidden: int, seed: int) -> Path:
-        wider = "" if hidden == HIDDEN else f"-hidden{hidden}"
-        wider += "" if args.recipe == RECIPE else f"-{args.recipe}"
-        return cells / f"{flash.name}__columns{columns}{wider}__seed{seed}.json"
+        return cells / cell_name(flash.name, columns, seed, args.recipe, hidden)
 
     def architecture(columns: int, hidden: int) -> dict:
         return {"input_columns": columns} | ({} if hidden == HIDDEN else {"hidden": [hidden]})

@@ -18,17 +18,14 @@ docs/performance.md records the runs.
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
-from simlidar.script_args import integers, run
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from sweep_decisions import COMMITTED, committed_cell
 
-ROOT = Path(__file__).resolve().parents[1]
-# recipe: (its results folder, the cell name's suffix), as benchmark/sweep_decisions.py names them
-CELLS = {
-    "snn_simlidar_tuned": ("sweep-decisions", ""),
-    "scnn_simlidar_tuned": ("sweep-decisions-scnn", "-scnn_simlidar_tuned"),
-}
+from simlidar.script_args import integers, run
 
 
 def main() -> None:
@@ -36,28 +33,17 @@ def main() -> None:
     parser.add_argument("dataset", type=Path, help="the flash dataset the committed cells name")
     parser.add_argument("--device", default="cuda", help="cuda (default), cuda:N or cpu")
     parser.add_argument("--seed", type=integers(0, 2**31 - 1, one=True), default=0)
-    parser.add_argument("--recipes", default=",".join(CELLS), help="comma-separated")
+    parser.add_argument("--recipes", default=",".join(COMMITTED), help="comma-separated")
     args = parser.parse_args()
     from simlidar.bench.hardware import resolve_device
     from simlidar.bench.train import train
-    from simlidar.dataset.loaders import split_info
     from simlidar.errors import ConfigError
-    from simlidar.models.registry import load_recipe
 
     device = resolve_device(args.device)
-    width = split_info(args.dataset, "test").width
     for name in args.recipes.split(","):
-        if name not in CELLS:
-            raise ConfigError(f"--recipes {name!r}: expected some of {list(CELLS)}")
-        folder, suffix = CELLS[name]
-        cell = ROOT / "benchmark/results" / folder / "cells"
-        cell /= f"{args.dataset.name}__columns{width}{suffix}__seed{args.seed}.json"
-        if not cell.is_file():
-            raise ConfigError(f"{cell}: no committed cell for this dataset, network and seed")
-        committed = json.loads(cell.read_text())
-        recipe = load_recipe(name)
-        recipe["training"]["validation"] = 0  # the cells' protocol (benchmark/paper_table.py)
-        recipe["architecture"].update(committed.get("architecture", {}))
+        if name not in COMMITTED:
+            raise ConfigError(f"--recipes {name!r}: expected some of {list(COMMITTED)}")
+        committed, recipe = committed_cell(args.dataset, name, args.seed)
         start = time.perf_counter()
         result = train(
             recipe, args.dataset, seed=args.seed, max_seconds=float("inf"), progress=False,

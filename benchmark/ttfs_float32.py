@@ -19,7 +19,6 @@ test split, best of three), to set what float32 would buy beside what it would c
 """
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -27,19 +26,10 @@ from pathlib import Path
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from torch_form_cells import CELLS, ROOT
+from sweep_decisions import COMMITTED, committed_cell
+from ttfs_speed import differences
 
 from simlidar.script_args import integers, run
-
-
-def firing(a: torch.Tensor, b: torch.Tensor) -> tuple[int, int, float]:
-    """Spikes (z domain, inf = none) of one layer both ways: (neurons that fire in one only,
-    of all neurons; the largest difference of the spike times t = ln z where both fire, in
-    the network's time unit)."""
-    fa, fb = torch.isfinite(a), torch.isfinite(b)
-    both = fa & fb
-    gap = (a[both].double().log() - b[both].double().log()).abs()
-    return int((fa != fb).sum()), a.numel(), float(gap.max()) if gap.numel() else 0.0
 
 
 def best_seconds(step, rounds: int = 3) -> float:
@@ -54,26 +44,15 @@ def best_seconds(step, rounds: int = 3) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("dataset", type=Path, help="the flash dataset the committed cell names")
-    parser.add_argument("--recipe", choices=list(CELLS), default="snn_simlidar_tuned")
+    parser.add_argument("--recipe", choices=list(COMMITTED), default="snn_simlidar_tuned")
     parser.add_argument("--seed", type=integers(0, 2**31 - 1, one=True), default=0)
     args = parser.parse_args()
     from simlidar.bench.train import train
-    from simlidar.dataset.loaders import load_split, split_info
-    from simlidar.errors import ConfigError
+    from simlidar.dataset.loaders import load_split
     from simlidar.models import ttfs
-    from simlidar.models.registry import load_recipe
 
     torch.set_num_threads(1)  # the cells' own thread count: the same network
-    width = split_info(args.dataset, "test").width
-    folder, suffix = CELLS[args.recipe]
-    cell = ROOT / "benchmark/results" / folder / "cells"
-    cell /= f"{args.dataset.name}__columns{width}{suffix}__seed{args.seed}.json"
-    if not cell.is_file():
-        raise ConfigError(f"{cell}: no committed cell for this dataset, network and seed")
-    committed = json.loads(cell.read_text())
-    recipe = load_recipe(args.recipe)
-    recipe["training"]["validation"] = 0  # the cells' protocol (benchmark/paper_table.py)
-    recipe["architecture"].update(committed.get("architecture", {}))
+    committed, recipe = committed_cell(args.dataset, args.recipe, args.seed)
     result = train(recipe, args.dataset, seed=args.seed, max_seconds=float("inf"), progress=False)
     same = result.test_accuracy == committed["test_accuracy"]
     print(
@@ -90,9 +69,9 @@ def main() -> None:
         with ttfs.torch_form(sums=torch.float32):
             narrow = net.propagate(z)
         for i, (a, b) in enumerate(zip(wide[1:], narrow[1:]), start=1):
-            only, neurons, gap = firing(a, b)
+            only, _, gap = differences(a, b, times=True)
             print(
-                f"  layer {i}: {only} of {neurons} neuron-samples fire one way only; where both "
+                f"  layer {i}: {only} of {a.numel()} neuron-samples fire one way only; where both "
                 f"fire the spike times t = ln z differ by at most {gap:.3g}"
             )
         hidden = [sum(int(torch.isfinite(t).sum()) for t in s[1:-1]) for s in (wide, narrow)]

@@ -77,13 +77,15 @@ def trainer(name: str, x, y, classes: int, device: str = "cpu"):
     return step
 
 
-def differences(a: torch.Tensor, b: torch.Tensor) -> tuple[int, int, float]:
-    """Spike times ``a`` and ``b`` (inf = none) compared: (places where one fires and the other
-    does not, places where both fire at different times, the largest such difference)."""
+def differences(a: torch.Tensor, b: torch.Tensor, times: bool = False) -> tuple[int, int, float]:
+    """Spikes ``a`` and ``b`` (z domain, inf = none) compared: (places where one fires and the
+    other does not, places where both fire at different times, the largest such difference;
+    with ``times``, of the spike times t = ln z, in the network's time unit)."""
     a, b = a.double().cpu(), b.double().cpu()
     fired_a, fired_b = torch.isfinite(a), torch.isfinite(b)
     both = fired_a & fired_b
-    gap = (a[both] - b[both]).abs()
+    a, b = (a[both].log(), b[both].log()) if times else (a[both], b[both])
+    gap = (a - b).abs()
     largest = float(gap.max()) if gap.numel() else 0.0
     return int((fired_a != fired_b).sum()), int((gap > 0).sum()), largest
 

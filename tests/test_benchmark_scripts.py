@@ -141,7 +141,7 @@ def test_physical_gap_reads_the_committed_cells_of_the_physical_profile():
     dataset = Path("simlidar-32c-noise0.2-physical-v1.0.0")
     for recipe in gap.RECIPES:
         for seed in range(5):
-            name = gap.cell_name(dataset, 16, recipe, seed)
+            name = gap.cell_name(dataset.name, 16, seed, recipe)
             cell = json.loads(gap.found_cell(Path("/nonexistent"), name).read_text())
             assert (cell["recipe"], cell["seed"], cell["dataset"]) == (recipe, seed, dataset.name)
             assert cell["architecture"] == {"input_columns": 16}

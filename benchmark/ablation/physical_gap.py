@@ -39,7 +39,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from paper_table import ROOT, interval, run_cells
+from paper_table import ROOT, interval, made, run_cells
+from sweep_decisions import COMMITTED, cell_name
 
 from simlidar.script_args import command_line, integers, numbers, run
 
@@ -50,34 +51,19 @@ VARIANTS = {
     "physical_late": (str(PROFILE_LATE), {}),
     "physical, variation 0.05": ("physical", {"variation": 0.05}),
 }
-RECIPES = ("snn_simlidar_tuned", "scnn_simlidar_tuned")
-DEFAULT_RECIPE = "snn_simlidar_tuned"  # sweep_decisions.py's: its cells carry no recipe suffix
-COMMITTED_CELLS = [
-    ROOT / f"benchmark/results/{folder}/cells"
-    for folder in ("sweep-decisions", "sweep-decisions-scnn")
-]
+RECIPES = tuple(COMMITTED)  # the dense TTFS network and the spiking CNN
+COMMITTED_CELLS = [ROOT / "benchmark/results" / folder / "cells" for folder in COMMITTED.values()]
 
 
 def datasets(root: Path, noise: float) -> dict[str, Path]:
     """The flash dataset of each variant (3000 / 600, seed 0), made if missing."""
     from simlidar.generator.config import GeneratorConfig
-    from simlidar.generator.generate import generate, generated_name
     from simlidar.generator.profiles import load_profile
-    from simlidar.scene.recipe import load_catalog
 
-    paths = {}
-    for name, (profile, overrides) in VARIANTS.items():
-        config = GeneratorConfig.from_profile(load_profile(profile), noise=noise, **overrides)
-        paths[name] = root / generated_name(config)
-        if not paths[name].is_dir():
-            generate(config, [noise], load_catalog(), root)
-    return paths
-
-
-def cell_name(dataset: Path, width: int, recipe: str, seed: int) -> str:
-    """The file name ``benchmark/sweep_decisions.py`` gives the cell with every column."""
-    suffix = "" if recipe == DEFAULT_RECIPE else f"-{recipe}"
-    return f"{dataset.name}__columns{width}{suffix}__seed{seed}.json"
+    return {
+        name: made(root, GeneratorConfig.from_profile(load_profile(p), noise=noise, **over))
+        for name, (p, over) in VARIANTS.items()
+    }
 
 
 def found_cell(cells: Path, name: str) -> Path | None:
@@ -177,7 +163,7 @@ def main(argv=None) -> int:
         for dataset in paths.values():
             width = dataset_width(dataset)
             for recipe in RECIPES:
-                name = cell_name(dataset, width, recipe, seed)
+                name = cell_name(dataset.name, width, seed, recipe)
                 if found_cell(cells, name) is None:
                     arch = {"input_columns": width}
                     todo.append((recipe, str(dataset), seed, str(cells / name), None, None, arch))
@@ -190,7 +176,8 @@ def main(argv=None) -> int:
         width = dataset_width(dataset)
         rows = {}
         for recipe in RECIPES:
-            found = [found_cell(cells, cell_name(dataset, width, recipe, s)) for s in args.seeds]
+            names = [cell_name(dataset.name, width, s, recipe) for s in args.seeds]
+            found = [found_cell(cells, name) for name in names]
             mine = [json.loads(p.read_text()) for p in found if p is not None]
             if mine:
                 rows[recipe] = {"dataset": dataset.name, **summarise(mine, bound)}
