@@ -33,7 +33,7 @@ STAGES = [
     {"simlidar.release"},
     {"simlidar.generator"},
     {"simlidar.convert"},
-    {"simlidar.sources"},
+    {"simlidar.any_card"},
     {"simlidar.models"},
     {"simlidar.bench"},
     {"simlidar.cli"},

@@ -7,7 +7,7 @@ import click
 import pytest
 
 from simlidar.cli import main
-from simlidar.convert.options import DvsConfig, KittiConfig
+from simlidar.convert.config import DvsConfig, KittiConfig
 from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.sweep import SweepConfig

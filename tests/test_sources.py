@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 from source_examples import write_mat
 
+from simlidar.any_card import render_card, rewrite_card
 from simlidar.convert import convert_dvs_barrel, convert_kitti
 from simlidar.dataset.loaders import load_split, split_info
 from simlidar.dataset.version import GENERATOR, SOURCES
 from simlidar.release.checksums import read_sums
 from simlidar.release.verify import verify
-from simlidar.sources import render_card, rewrite_card
 
 EXAMPLES = (GENERATOR, "kitti", "dvs-barrel")
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from simlidar.cli.options import DEFAULT_OUT, FiniteRange, IntegerRange, setting_option
-from simlidar.convert.options import DvsConfig, KittiConfig
+from simlidar.convert.config import DvsConfig, KittiConfig
 
 
 @click.group()

@@ -58,7 +58,7 @@ def preview(path, out, split):
 @click.argument("path", type=click.Path(path_type=Path))
 def card(path):
     """Rewrite a dataset's card (README.md) from its files, and its line in SHA256SUMS."""
-    from simlidar.sources import rewrite_card
+    from simlidar.any_card import rewrite_card
 
     click.echo(f"wrote {rewrite_card(path)}")
 

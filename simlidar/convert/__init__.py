@@ -3,7 +3,7 @@
 The converted datasets sit beside the generated ones (same directory layout, ``delays`` and
 ``labels`` in every split), so loading, ``verify`` and the benchmark take them as they are.
 ``docs/converters.md`` describes both converters. The converters load on first use, so that
-their options (:mod:`simlidar.convert.options`) import without them.
+their options (:mod:`simlidar.convert.config`) import without them.
 """
 
 __all__ = ["convert_dvs_barrel", "convert_kitti"]

@@ -14,15 +14,15 @@ from pathlib import Path
 import numpy as np
 
 from simlidar.atomic import building
-from simlidar.convert.card import write_release_files
 from simlidar.convert.common import (
     choose_test,
     converted_split_attrs,
     delays_from_times,
 )
 from simlidar.convert.common import stream as random_stream
-from simlidar.convert.options import DVS_CLASSES as CLASSES
-from simlidar.convert.options import DvsConfig
+from simlidar.convert.config import DvsConfig
+from simlidar.convert.converted_card import write_release_files
+from simlidar.dataset.dvs_barrel import CLASSES
 from simlidar.dataset.schema import CONVERTED_SCHEMAS, SPLITS, expected_shapes
 from simlidar.dataset.version import SOURCES
 from simlidar.dataset.writer import SplitWriter
@@ -244,7 +244,7 @@ def convert_dvs_barrel(
     force : replace a dataset directory of the same name (else an error names it)
     progress : a progress bar on stderr
     preview : draw the dataset's ``preview.png``
-    options : the fields of :class:`~simlidar.convert.options.DvsConfig` (labels, window_us,
+    options : the fields of :class:`~simlidar.convert.config.DvsConfig` (labels, window_us,
         address_base, test_fraction, seed), each with its default there
     """
     from tqdm import tqdm

@@ -20,13 +20,14 @@ from pathlib import Path
 import numpy as np
 
 from simlidar.atomic import building
-from simlidar.convert.card import write_release_files
 from simlidar.convert.common import (
     choose_test,
     converted_split_attrs,
     delays_from_times,
     stream,
 )
+from simlidar.convert.config import KittiConfig
+from simlidar.convert.converted_card import write_release_files
 from simlidar.convert.kitti_files import (
     CLASSES,
     Frame,
@@ -38,7 +39,6 @@ from simlidar.convert.kitti_files import (
     to_velo,
     training_dir,
 )
-from simlidar.convert.options import KittiConfig
 from simlidar.dataset.reader import check_storage
 from simlidar.dataset.schema import (
     CONVERTED_SCHEMAS,
@@ -239,7 +239,7 @@ def convert_kitti(
     force : replace a dataset directory of the same name (else an error names it)
     progress : a progress bar on stderr
     preview : draw the dataset's ``preview.png``
-    options : the fields of :class:`~simlidar.convert.options.KittiConfig` (crop, res_h_deg,
+    options : the fields of :class:`~simlidar.convert.config.KittiConfig` (crop, res_h_deg,
         res_v_deg, max_range_m, test_fraction, seed), each with its default there
     """
     config = KittiConfig(**options)

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simlidar.dataset.version import GENERATOR, SOURCES
+from simlidar.dataset.version import CONVERTED, GENERATOR, SOURCES
 from simlidar.errors import DatasetError
 from simlidar.sensor.receiver import RETURN_MODES
 from simlidar.settings import Choice, Range
@@ -249,34 +249,14 @@ ATTRIBUTES = {
 # reads them)
 SOURCE_ATTRS = {
     GENERATOR: ("classes", "layout_names", "object_names", "catalog", "catalog_sha256"),
-    "kitti": ("classes", "input_sha256"),
-    "dvs-barrel": ("classes", "input_sha256"),
+    **{name: source.attrs for name, source in CONVERTED.items()},
 }
 
-# Converted real data (simlidar.convert), by the split's `source` attribute:
-# name -> (dtype, shape), a shape's letters being N samples, E events, H rows, W columns.
+# Converted real data (simlidar.convert), by the split's `source` attribute: name -> (dtype,
+# shape), a shape's letters being N samples, E events, H rows, W columns (each source's module:
+# simlidar.dataset.kitti, simlidar.dataset.dvs_barrel)
 CONVERTED_SCHEMAS: dict[str, dict[str, tuple[str, tuple]]] = {
-    "kitti": {
-        "delays": ("float32", ("N", "H", "W")),
-        "labels": ("int64", ("N",)),
-        "frame": ("int64", ("N",)),
-        "crop_origin": ("int32", ("N", 2)),
-        "box_corners_m": ("float32", ("N", 8, 3)),
-        "box_points": ("int32", ("N",)),
-        "truncated": ("float32", ("N",)),
-        "occluded": ("uint8", ("N",)),
-    },
-    "dvs-barrel": {
-        "delays": ("float32", ("N", "H", "W")),
-        "labels": ("int64", ("N",)),
-        "recording": ("int64", ("N",)),
-        "event_start": ("int64", ("N",)),
-        "event_count": ("int64", ("N",)),
-        "event_x": ("uint8", ("E",)),
-        "event_y": ("uint8", ("E",)),
-        "event_p": ("int8", ("E",)),
-        "event_t_us": ("int64", ("E",)),
-    },
+    name: source.schema for name, source in CONVERTED.items()
 }
 
 

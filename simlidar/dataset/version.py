@@ -9,6 +9,9 @@ converter of real data (``simlidar.convert``), keyed by the ``source`` attribute
 sweep's frames file has its own (``SWEEP_VERSION``).
 """
 
+from simlidar.dataset import dvs_barrel, kitti
+from simlidar.dataset.source import Source
+
 DATASET_VERSION = "2.0.0"
 # The records of the physical pulse rule (profile `physical`) have not changed since 1.0.0:
 # such datasets are still written as 1.0.0, byte for byte (see dataset_version).
@@ -170,27 +173,11 @@ def notes_until(
 
 GENERATOR = "simlidar-generator"  # the source of a split file without a `source` attribute
 
+# every source of converted real data, by its splits' `source` attribute: one module each
+CONVERTED: dict[str, Source] = {s.name: s for s in (kitti.SOURCE, dvs_barrel.SOURCE)}
+
 # source -> (current version, {version: release date}, {version: release notes})
 SOURCES: dict[str, tuple[str, dict[str, str], dict[str, str]]] = {
     GENERATOR: (DATASET_VERSION, RELEASE_DATES, RELEASE_NOTES),
-    "kitti": (
-        "1.0.0",
-        {"1.0.0": "2026-11-22"},
-        {
-            "1.0.0": (
-                "First release: KITTI 3D object benchmark scans projected into the expanded "
-                "front view, one fixed-size crop of normalised pulse delays per labelled object."
-            )
-        },
-    ),
-    "dvs-barrel": (
-        "1.0.0",
-        {"1.0.0": "2026-11-22"},
-        {
-            "1.0.0": (
-                "First release: DVS barrel recordings as 32 x 32 first-spike times, with the raw "
-                "events alongside."
-            )
-        },
-    ),
+    **{name: (s.version, s.dates, s.notes) for name, s in CONVERTED.items()},
 }

@@ -22,8 +22,8 @@ from simlidar.dataset.reader import read_split
 from simlidar.dataset.shards import SHARD_SAMPLES
 from simlidar.dataset.version import dataset_version
 from simlidar.errors import ConfigError, DatasetError
-from simlidar.generator.card import generated_card, generated_croissant
 from simlidar.generator.config import GeneratorConfig
+from simlidar.generator.generated_card import generated_card, generated_croissant
 from simlidar.generator.returns import check_physics, receiver_physics
 from simlidar.generator.shard import remove_partials, split_shards, write_shard
 from simlidar.generator.simulate import class_plan, simulate

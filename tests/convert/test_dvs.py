@@ -11,12 +11,12 @@ import pytest
 from scipy.io import savemat
 from source_examples import RECORDINGS, write_mat
 
+from simlidar.any_card import render_card
 from simlidar.convert import convert_dvs_barrel
 from simlidar.dataset.loaders import load_split
 from simlidar.errors import ConfigError, DatasetError
 from simlidar.release.checksums import read_sums, write_sums
 from simlidar.release.verify import verify
-from simlidar.sources import render_card
 
 
 def records(path):

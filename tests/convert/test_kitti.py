@@ -347,7 +347,7 @@ def test_the_card_and_croissant_are_made_from_the_files(kitti_dataset, caplog):
     import mlcroissant as mlc
     from huggingface_hub import DatasetCard
 
-    from simlidar.sources import render_card
+    from simlidar.any_card import render_card
 
     text = (kitti_dataset / "README.md").read_text()
     assert render_card(kitti_dataset) == text  # the shared entry point (simlidar card)

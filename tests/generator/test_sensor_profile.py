@@ -228,8 +228,8 @@ def test_fog_takes_power_by_koschmieder_and_drops_the_weak_returns(twins, tmp_pa
     fog's echo never reaches the threshold, benchmark/results/fog), fewer as the fog thickens,
     and a returned surface's peak is at least its extinguished power (the fog adds to it); the
     dataset's name, config and card say so, and its card's command makes it again."""
-    from simlidar.generator.card import regenerate_command
     from simlidar.generator.generate import generated_name
+    from simlidar.generator.generated_card import regenerate_command
 
     assert math.log(20) / 50 == pytest.approx(0.05991, abs=1e-5)
     assert math.exp(-2 * math.log(20) / 50 * 10) == pytest.approx(0.3017, abs=1e-4)

@@ -22,12 +22,12 @@ import h5py
 import numpy as np
 import pytest
 
+from simlidar.any_card import render_card
 from simlidar.dataset.reader import read_split_info
 from simlidar.errors import DatasetError
 from simlidar.release.card import read_front_matter
 from simlidar.release.checksums import SUMS, check_sums, read_sums
 from simlidar.release.verify import verify
-from simlidar.sources import render_card
 
 
 @pytest.fixture

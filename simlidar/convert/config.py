@@ -6,10 +6,10 @@ here; a converted split stores its options as JSON."""
 import json
 from dataclasses import asdict, dataclass
 
+from simlidar.dataset.dvs_barrel import CLASSES as DVS_CLASSES
 from simlidar.errors import ConfigError
 from simlidar.settings import Choice, Range, check, check_value, setting
 
-DVS_CLASSES = tuple("0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZ")  # the 36 characters, ASCII order
 SEED = Range(0, 2**63, "an integer", high_open=True)
 FRACTION = Range(0, 1, "a fraction", low_open=True, high_open=True)
 

@@ -1,5 +1,5 @@
 """The card (``README.md``), ``croissant.json``, preview and checksums of a converted dataset,
-made from its split files and the source's :class:`~simlidar.convert.about.About`.
+made from its split files and the source's declaration (:class:`simlidar.dataset.source.Source`).
 
 The generator's datasets get theirs from :mod:`simlidar.release.card` and
 :mod:`simlidar.release.croissant`; the table and Croissant helpers are shared with them.
@@ -7,10 +7,9 @@ The generator's datasets get theirs from :mod:`simlidar.release.card` and
 
 from pathlib import Path
 
-from simlidar.convert.about import ABOUT
 from simlidar.dataset.reader import dataset_splits
 from simlidar.dataset.schema import CONVERTED_SCHEMAS, SPLITS
-from simlidar.dataset.version import SOURCES, notes_until
+from simlidar.dataset.version import CONVERTED, SOURCES, notes_until
 from simlidar.generator.about import CITATION
 from simlidar.release.card import (
     card_head,
@@ -24,29 +23,6 @@ from simlidar.release.checksums import write_sums
 from simlidar.release.croissant import CONTEXT, field, file_objects, write_croissant
 from simlidar.release.info import dataset_info
 from simlidar.release.preview import write_preview
-
-# source -> (library function, its first argument), for the card's "Regenerate" section
-_CALLS = {
-    "kitti": ("convert_kitti", "ROOT"),  # the benchmark's training folder
-    "dvs-barrel": ("convert_dvs_barrel", "FILE.mat"),
-}
-_DOCS = {  # one line per dataset; the full tables are in docs/converters.md
-    "delays": "normalised delays (1.0 = nothing in the window): the network input",
-    "labels": "class index",
-    "frame": "KITTI frame number (the file name's digits)",
-    "crop_origin": "front-view row y_front and column x_front of the crop's top-left cell",
-    "box_corners_m": "the 3D box's 8 corners in the Velodyne frame, m",
-    "box_points": "Velodyne points inside the 3D box",
-    "truncated": "KITTI truncation, 0 (none) to 1",
-    "occluded": "KITTI occlusion, 0 (visible) to 3 (unknown)",
-    "recording": "index of the recording in the ROI struct array (0-based)",
-    "event_start": "row of the sample's first event in the event_* datasets",
-    "event_count": "number of events of the sample",
-    "event_x": "event x address, 0-based (column)",
-    "event_y": "event y address, 0-based (row)",
-    "event_p": "event polarity as recorded",
-    "event_t_us": "event timestamp as recorded, microseconds",
-}
 
 
 def _shape(shape: tuple, height: int, width: int) -> tuple:
@@ -91,7 +67,7 @@ def converted_front_matter(path: Path) -> dict:
     """The YAML front matter (Hugging Face dataset card metadata) of a converted dataset."""
     splits = dataset_splits(path)
     info = splits["train"]
-    about = ABOUT[info.source]
+    about = CONVERTED[info.source].about
     features = [
         hf_feature(
             name, dtype, _shape(shape, info.height, info.width)[1:], info.attrs["class_names"]
@@ -105,7 +81,7 @@ def converted_front_matter(path: Path) -> dict:
 
 def regenerate_call(source: str, config: dict) -> str:
     """The Python call that converts the same input into the same bytes."""
-    function, first = _CALLS[source]
+    function, first = CONVERTED[source].call
     args = ", ".join(f"{k}={tuple(v) if isinstance(v, list) else v!r}" for k, v in config.items())
     return f"from simlidar.convert import {function}\n{function}({first!r}, 'data', {args})"
 
@@ -115,7 +91,7 @@ def converted_card(path: str | Path) -> str:
     path = Path(path)
     splits = dataset_splits(path)
     info = splits["train"]
-    attrs, about = info.attrs, ABOUT[info.source]
+    attrs, about = info.attrs, CONVERTED[info.source].about
     names = attrs["class_names"]
     counts = dataset_info(path)["counts"]
     version = attrs["dataset_version"]
@@ -149,7 +125,7 @@ def converted_card(path: str | Path) -> str:
         table(
             ["dataset", "dtype", "shape", "meaning"],
             [
-                [f"`{name}`", dtype, _shape_text(shape, info), _DOCS[name]]
+                [f"`{name}`", dtype, _shape_text(shape, info), CONVERTED[info.source].fields[name]]
                 for name, (dtype, shape) in CONVERTED_SCHEMAS[info.source].items()
             ],
         )
@@ -185,7 +161,7 @@ def converted_croissant(path: str | Path, name: str | None = None) -> dict:
     path = Path(path)
     splits = dataset_splits(path)
     info = splits["train"]
-    about = ABOUT[info.source]
+    about = CONVERTED[info.source].about
     version = info.attrs["dataset_version"]
     schema = CONVERTED_SCHEMAS[info.source]
 
@@ -205,7 +181,7 @@ def converted_croissant(path: str | Path, name: str | None = None) -> dict:
                     n,
                     schema[n][0],
                     _shape(schema[n][1], info.height, info.width),
-                    _DOCS[n],
+                    CONVERTED[info.source].fields[n],
                     sharded=info.sharded,
                 )
                 for n in fields
