@@ -128,7 +128,17 @@ def run_tasks(
     """Run ``function(*task)`` for every task on the cluster; ``on_done(index, result)`` as
     each finishes (in any order); the results in task order. The first task that fails for
     good cancels the others and raises: its own error (a SimlidarError stays one line), or a
-    DatasetError naming the task (``names``) when its workers kept dying."""
+    DatasetError naming the task (``names``) when its workers kept dying.
+
+    client : a ``dask.distributed.Client`` (:func:`connect`)
+    function : what a worker runs; what it returns comes back to the caller, so it should be
+        small (names, sizes)
+    tasks : each task's positional arguments to ``function``
+    names : each task's name in an error, in task order
+    on_done : called here, in the calling process, as each task finishes (a progress bar)
+    retries : the times a task that raises is run again before its error ends the run (a dead
+        worker's task is run again by the scheduler's own rule, Dask's ``allowed-failures``)
+    """
     distributed = _dask()
     run = secrets.token_hex(4)  # keys unique to this run: a shared scheduler may hold others'
     futures = [

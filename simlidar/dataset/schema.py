@@ -334,7 +334,15 @@ def expected_shapes(
     (``timing``: a generated split's ``timing`` attribute, "flash" where it has none;
     ``receiver``: whether it has a ``receiver`` attribute; ``returns``: its
     :func:`reported_returns`; ``waveform_bins``: its attribute of that name, 0 where it has
-    none)."""
+    none).
+
+    source : the split's ``source``: ``GENERATOR`` or a key of :data:`CONVERTED_SCHEMAS` (any
+        other is a DatasetError)
+    n : the split's samples (N)
+    h, w : a sample's rows (H: a generated split's beams) and columns (W)
+    e : the split's events (E), the rows of a converted split's per-event datasets; 0 where it
+        has none
+    """
     if source == GENERATOR:
         shapes = generated_shapes(h, w, timing, receiver, returns, waveform_bins)
         return {name: (dtype, (n, *tail)) for name, (dtype, tail) in shapes.items()}

@@ -183,7 +183,17 @@ class ResNet(Conventional):
 
 
 def cnn(input_shape, classes, generator=None, conv=((48, 5, 2), (24, 5, 2)), dense=(256,)):
-    """The paper's CNN baseline: the SCNN's layers with ReLU (conv 5x5/2 x48, x24, dense 256)."""
+    """The paper's CNN baseline: the SCNN's layers with ReLU (conv 5x5/2 x48, x24, dense 256).
+
+    input_shape : (C, H, W) of one delay image, from the dataset
+    classes : the logits it outputs, one per class
+    generator : the ``torch.Generator`` the initial weights are drawn from (None: torch's global
+        random state)
+    conv : (channels, kernel, stride) of each convolution, in order, each zero-padded by
+        kernel // 2 and followed by a ReLU
+    dense : the widths of the ReLU dense layers after the convolutions; a last dense layer gives
+        the logits
+    """
     return init_weights(CNN(input_shape, classes, conv, dense), generator)
 
 
@@ -194,7 +204,18 @@ def mlp(input_shape, classes, generator=None, dense=(400,)):
 
 
 def vgg(input_shape, classes, generator=None, plan="vgg16", classifier=(512,)):
-    """VGG (``plan``: a name in VGG_PLANS or a list) with batch norm, for small inputs."""
+    """VGG (``plan``: a name in VGG_PLANS or a list) with batch norm, for small inputs.
+
+    input_shape : (C, H, W) of one delay image, from the dataset
+    classes : the logits it outputs, one per class
+    generator : the ``torch.Generator`` the initial weights are drawn from (None: torch's global
+        random state)
+    plan : a name in :data:`VGG_PLANS` (another name is a ConfigError), or a list in their
+        form: the channels of each 3 x 3 convolution (with batch norm and ReLU) and "M" for a
+        2 x 2 max pool (skipped once a side is 1 pixel)
+    classifier : the widths of the ReLU dense layers after the global average pooling; a last
+        dense layer gives the logits
+    """
     if isinstance(plan, str) and plan not in VGG_PLANS:
         raise ConfigError(f"plan={plan!r}: expected one of {sorted(VGG_PLANS)} or a list")
     layers = VGG_PLANS[plan] if isinstance(plan, str) else plan
@@ -202,7 +223,17 @@ def vgg(input_shape, classes, generator=None, plan="vgg16", classifier=(512,)):
 
 
 def resnet(input_shape, classes, generator=None, plan="resnet50", width=64):
-    """ResNet (``plan``: a name in RESNET_PLANS) with a small-input stem."""
+    """ResNet (``plan``: a name in RESNET_PLANS) with a small-input stem.
+
+    input_shape : (C, H, W) of one delay image, from the dataset
+    classes : the logits it outputs, one per class
+    generator : the ``torch.Generator`` the initial weights are drawn from (None: torch's global
+        random state)
+    plan : a name in :data:`RESNET_PLANS` (its block kind and blocks per stage); another name is
+        a ConfigError
+    width : the stem's channels and the first stage's block width, doubled at each later stage
+        (a bottleneck block puts out 4 times its width); 64 is torchvision's
+    """
     if plan not in RESNET_PLANS:
         raise ConfigError(f"plan={plan!r}: expected one of {sorted(RESNET_PLANS)}")
     block, stages = RESNET_PLANS[plan]

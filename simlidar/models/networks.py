@@ -140,7 +140,18 @@ def dense_snn(
 ) -> SpikingNet:
     """Dense TTFS network: inputs (all pixels) - hidden... - classes (256-400-32 on Sim LiDAR).
     ``encoding``: the input's keywords of :class:`SpikingNet` (``scale`` 3.0, ``direction``,
-    ``missing``, ``input_budget``, ``input_columns``)."""
+    ``missing``, ``input_budget``, ``input_columns``).
+
+    input_shape : (C, H, W) of one delay image, from the dataset; its C H W pixels are the
+        inputs
+    classes : the output neurons, one per class
+    generator : the ``torch.Generator`` the initial weights are drawn from (None: torch's global
+        random state)
+    hidden : the widths of the hidden dense TTFS layers
+    excess, spread : each layer's initial weights are N((1 + excess) / m, spread / sqrt(m)), m
+        its inputs (the first layer's times the fraction that can spike behind the input gates),
+        so that every neuron can fire from the start (:class:`~simlidar.models.layers.DenseTTFS`)
+    """
     net = SpikingNet(**encoding)
     sizes = [int(torch.tensor(input_shape).prod())] + list(hidden) + [classes]
     arriving = [net.arriving_fraction(input_shape)] + [1.0] * len(hidden)
@@ -162,7 +173,19 @@ def spiking_cnn(
 ) -> SpikingNet:
     """Spiking CNN: TTFS convolutions (channels, kernel, stride; padded with "no spike"),
     then dense TTFS layers (the paper's KITTI network: 48 and 24 channels of 5x5 stride 2,
-    dense 256, dense C). ``encoding``: as :func:`dense_snn`'s."""
+    dense 256, dense C). ``encoding``: as :func:`dense_snn`'s.
+
+    input_shape : (C, H, W) of one delay image, from the dataset
+    classes : the output neurons, one per class
+    generator : the ``torch.Generator`` the initial weights are drawn from (None: torch's global
+        random state)
+    conv : (channels, kernel, stride) of each TTFS convolution, in order, each padded by
+        kernel // 2 of "no spike"
+    dense : the widths of the hidden dense TTFS layers after the convolutions
+    excess, spread : the initial weights as :func:`dense_snn`'s, m being a convolution's fan-in
+        (C_in k k) or a dense layer's inputs; behind an input gate, only a network without
+        convolutions counts its first layer's inputs by the fraction that can spike
+    """
     net = SpikingNet(**encoding)
     c, h, w = input_shape
     layers: list[nn.Module] = []

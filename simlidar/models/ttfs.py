@@ -330,6 +330,17 @@ class _ConvTTFS(torch.autograd.Function):
 
     @staticmethod
     def forward(ctx, z, w, stride, padding):
+        """The layer's output spikes by :func:`simlidar.models.ttfs_kernels.conv_forward`, in
+        the wider of z's and w's dtypes.
+
+        ctx : the autograd context, which keeps z, w and the kernel's z_out, z_last and excess
+            (``save_for_backward``) and ``(stride, padding)`` (``ctx.geometry``) for backward
+        z : (B, C_in, H, W) input spikes in the z domain, inf = no spike
+        w : (C_out, C_in, k, k) weights
+        stride, padding : the step between receptive fields and the "no spike" border added on
+            each side of H and W, in pixels
+        returns : (B, C_out, H_out, W_out) output spikes in the z domain, inf = no spike
+        """
         from simlidar.models import ttfs_kernels
 
         dtype = torch.promote_types(z.dtype, w.dtype)
@@ -392,10 +403,12 @@ def conv2d(
 
     z : (B, C_in, H, W) input spikes in the z domain, inf = no spike
     w : (C_out, C_in, k, k) weights
-    returns : (B, C_out, H_out, W_out); padding adds "no spike" (inf), never an early spike
+    stride, padding : the step between receptive fields and the border added on each side of H
+        and W, in pixels
     layer : None (the event-driven kernels on CPU tensors, :func:`dense_torch` on every
         receptive field elsewhere or within :func:`torch_form`), or a dense layer run on every
         receptive field
+    returns : (B, C_out, H_out, W_out); padding adds "no spike" (inf), never an early spike
     """
     if layer is None:
         if uses_kernels(z, w):

@@ -110,7 +110,17 @@ def backward(z, w, z_out, order, last, excess, grad_out, threads):
     Input by input (``threads`` blocks of inputs in parallel), every row's part at once: an
     input's weight row and its gradient row stay in cache while the rows are summed (in
     float64, in row order: the same result for every thread count), where a walk row by row
-    would sweep the whole weight gradient once a row (9.6 MB for the SCNN's dense layer)."""
+    would sweep the whole weight gradient once a row (9.6 MB for the SCNN's dense layer).
+
+    z, w, z_out : the forward pass's input spikes (R, N), weights (N, M) and output spikes
+        (R, M)
+    order, last, excess : :func:`forward`'s: each row's spiking inputs in time order (then -1),
+        the position in ``order`` of each neuron's last causal input (-1: silent) and
+        sum_C w - 1 (float64; 1 where silent)
+    grad_out : (R, M) the loss's gradient with respect to z_out
+    threads : the blocks of inputs run in parallel
+    returns : grad_z (R, N) in z's dtype and grad_w (N, M) in w's
+    """
     rows, n_in = z.shape
     n_out = w.shape[1]
     grad_z = np.zeros_like(z)
@@ -222,10 +232,17 @@ def conv_forward(z, wt, stride, padding, h_out, w_out, min_excess):
     spike": it never arrives. The spikes go out in two steps, to the rows of fields and then
     to the fields of one row, so that the lists being filled stay few and in cache.
 
-    z (B, C, H, W) input spikes (inf: none); wt (C, k, k, C_out): the weights, output channel
-    last; returns z_out (B, C_out, H_out, W_out) (inf: silent), z_last (the time of each
-    neuron's last causal input; a causal set is the field's inputs at or before it) and excess
-    (float64; 1 where silent)."""
+    z : (B, C, H, W) input spikes (inf: none)
+    wt : (C, k, k, C_out) the weights, output channel last
+    stride, padding : the step between receptive fields and the "no spike" border on each side
+        of H and W, in pixels
+    h_out, w_out : the output's height and width, (H + 2 padding - k) // stride + 1 and likewise
+        of W (the caller computes them)
+    min_excess : ``ttfs.MIN_EXCESS``: a prefix fires only where sum_C w - 1 is above it
+    returns : z_out (B, C_out, H_out, W_out) (inf: silent), z_last (the time of each neuron's
+        last causal input; a causal set is the field's inputs at or before it; -inf: silent)
+        and excess (float64; 1 where silent), both of z_out's shape
+    """
     batch, channels, height, width = z.shape
     kernel = wt.shape[1]
     n_out = wt.shape[3]
@@ -361,7 +378,15 @@ def conv_forward(z, wt, stride, padding, h_out, w_out, min_excess):
 @njit(cache=True, parallel=True, fastmath={"reassoc"})
 def conv_backward(z, wt, stride, padding, z_out, z_last, excess, grad_out, threads):
     """Gradients of the summed ``grad_out * z_out`` of :func:`conv_forward` with respect to z
-    and to wt (C, k, k, C_out): every field's inputs at or before each neuron's ``z_last``."""
+    and to wt (C, k, k, C_out): every field's inputs at or before each neuron's ``z_last``.
+
+    z, wt, stride, padding : :func:`conv_forward`'s
+    z_out, z_last, excess : what :func:`conv_forward` returned, (B, C_out, H_out, W_out) each
+    grad_out : (B, C_out, H_out, W_out) the loss's gradient with respect to z_out
+    threads : the blocks of samples run in parallel, each summing its own part of the weight
+        gradient (the result depends on their count by float rounding only)
+    returns : grad_z (B, C, H, W) and grad_wt (C, k, k, C_out), float64
+    """
     batch, channels, height, width = z.shape
     kernel = wt.shape[1]
     n_out = wt.shape[3]

@@ -54,7 +54,18 @@ def hf_front_matter(
     tags: list[str],
     config_name: str,
 ) -> dict:
-    """The Hugging Face card metadata of a dataset directory's splits (generated or converted)."""
+    """The Hugging Face card metadata of a dataset directory's splits (generated or converted).
+
+    splits : split name -> its :class:`~simlidar.dataset.reader.SplitInfo`, every one of
+        ``SPLITS`` (:func:`~simlidar.dataset.reader.dataset_splits`): their files, samples and
+        bytes on disk
+    features : a sample's ``features`` entries (:func:`hf_feature`)
+    license : the data's Hugging Face license id (``cc-by-4.0`` for the generated data)
+    pretty_name : the dataset's title
+    tags : the card's tags
+    config_name : the name of the dataset's one config (``noise0.2``, ``default``)
+    returns : the front matter as a dict, for :func:`front_matter_block`
+    """
     nbytes = {s: info.nbytes for s, info in splits.items()}
     return {
         "license": license,

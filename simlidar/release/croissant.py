@@ -101,7 +101,16 @@ def field(
     sharded: bool = False,
 ) -> dict:
     """A Croissant Field: column ``name`` of ``split``.h5 (or of its shards), of ``dtype`` and
-    ``shape``."""
+    ``shape``.
+
+    record_set : the @id of the RecordSet that holds the field (its own @id is
+        ``record_set/name``)
+    dtype, shape : a key of :data:`DATA_TYPES` and the dataset's full shape, sizes that vary
+        as letters (``("N", 16, 118)``), both written into the description
+    doc : what the column holds, appended to the description (None: nothing)
+    sharded : whether the split is written as shard files (the source is then the FileSet
+        ``split-*.h5``, else the FileObject ``split.h5``)
+    """
     shape_text = str(tuple(shape)).replace("'", "")
     source = (
         {"fileSet": {"@id": f"{split}-*.h5"}} if sharded else {"fileObject": {"@id": f"{split}.h5"}}

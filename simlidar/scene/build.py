@@ -161,7 +161,17 @@ def build_batch(
     layout_uniforms: np.ndarray,
     object_uniforms: np.ndarray,
 ) -> SceneBatch:
-    """Build the triangles of B scenes (arguments as :func:`place_instances`)."""
+    """Build the triangles of B scenes (arguments as :func:`place_instances`). A RecipeError
+    names the primitive of any vertex that is not finite or lies more than
+    :data:`CELL_HALF_EXTENT_M` from the sensor along an axis.
+
+    catalog : the scene recipes that the ids index and the variates parametrise
+    layout_ids, object_ids : (B,) int, each scene's index into ``catalog.layouts`` and
+        ``catalog.objects`` (0: the empty "none" object)
+    layout_uniforms : (B, catalog.layout_columns) float in [0, 1), the uniform variates of each
+        scene's layout parameters
+    object_uniforms : (B, catalog.object_columns) float in [0, 1), those of its object's
+    """
     placed, pose = place_instances(
         catalog, layout_ids, object_ids, layout_uniforms, object_uniforms
     )

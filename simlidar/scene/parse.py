@@ -219,7 +219,18 @@ def load_scene_recipe(path: Path, surfaces: list[str], is_object: bool) -> Recip
 
 
 def parse_recipe(where: str, stem: str, data: dict, surfaces: list[str], is_object: bool) -> Recipe:
-    """Check one layout or object recipe's parsed TOML ``data``."""
+    """Check one layout or object recipe's parsed TOML ``data``.
+
+    where : what an error names the recipe by (its file's path, or a sensor file's path and
+        key), kept as ``Recipe.path``
+    stem : the recipe's name (its file's stem), and an object's default surface
+    surfaces : the catalog's surface names ("none" first); a primitive's surface must be one of
+        them and is kept as its index
+    is_object : an object recipe (a ``[placement]``, whose parameters come first) rather than a
+        layout (``visible`` rules)
+    returns : the checked :class:`Recipe`; a RecipeError names the file, the key and what was
+        expected otherwise
+    """
     allowed = {"description", "params", "primitive"} | ({"placement"} if is_object else {"visible"})
     check_keys(
         where, data, allowed, {"description", "primitive"} | ({"placement"} if is_object else set())

@@ -258,6 +258,14 @@ def received_power_w(
         P_r = P_0 * rho * cos(theta) * A_r * eta * exp(-2 * alpha * R) / (pi * R^2)
 
     All arguments broadcast (any shape); returns watts in their broadcast shape.
+
+    receiver : the emitter and receiver: P_0 (``peak_power_w``), A_r (``aperture_area_m2``) and
+        eta (``optics_efficiency``)
+    range_m : R, the target's range in metres (> 0: the power divides by R^2)
+    reflectance : rho, the target's diffuse reflectance
+    incidence_rad : theta, the angle between the beam and the surface's normal in radians
+        (0: normal incidence); cos(theta) is taken as 0 beyond 90 degrees
+    extinction_per_m : alpha, the atmosphere's extinction coefficient in 1/m (0: clear air)
     """
     range_m = np.asarray(range_m, dtype=float)
     cosine = np.clip(np.cos(incidence_rad), 0.0, None)

@@ -143,7 +143,18 @@ def fog_table(
     max_range_m: float,
 ) -> FogTable | None:
     """The fog's waveform table (:class:`FogTable`) for a receiver and a fog; None where even
-    unblocked it never reaches ``FLOOR`` x the threshold."""
+    unblocked it never reaches ``FLOOR`` x the threshold.
+
+    peak_power_w, aperture_area_m2, optics_efficiency : the receiver's P_0 (W), A_r (m^2) and
+        eta (:class:`simlidar.sensor.receiver.Receiver`)
+    threshold_w : the receiver's detection threshold (W)
+    visibility_m : the fog's meteorological visibility (m), which sets its backscatter beta
+    extinction_per_m : the atmosphere's alpha (1/m) on the way out and back: the fog's
+        Koschmieder alpha, plus a rain's where it rains too
+    sigma_ns : the Gaussian pulse's sigma (ns; :func:`simlidar.sensor.waveform.pulse_sigma_ns`)
+    bin_ns : the waveform's bin (ns; :data:`simlidar.sensor.waveform.BIN_NS`)
+    max_range_m : the sensor's range (m): the slabs reach no further
+    """
     beta = backscatter_per_m_sr(visibility_m)
     constant = peak_power_w * aperture_area_m2 * optics_efficiency * beta
     start = CROSSOVER_M[0]
@@ -248,7 +259,17 @@ def rain(
     divergence_v_mrad: float,
     rate_mm_h: float,
 ) -> Rain | None:
-    """The rain (:class:`Rain`) a receiver sees at rate R (mm/h); None for no rain."""
+    """The rain (:class:`Rain`) a receiver sees at rate R (mm/h); None for no rain.
+
+    peak_power_w, aperture_area_m2, optics_efficiency : the receiver's P_0 (W), A_r (m^2) and
+        eta (:class:`simlidar.sensor.receiver.Receiver`)
+    threshold_w : the receiver's detection threshold (W): only drops whose echo could reach
+        ``RAIN_FLOOR`` of it are sampled
+    divergence_h_mrad, divergence_v_mrad : the beam's full-angle divergence along and across
+        the scan (mrad), theta_h and theta_v: a drop of diameter D at range r covers
+        min(D^2 / (theta_h theta_v r^2), 1) of the beam
+    rate_mm_h : the rain's rate R (mm/h; 0 or below: no rain)
+    """
     from scipy.special import gamma, gammaincc
 
     if rate_mm_h <= 0.0:
