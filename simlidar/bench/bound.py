@@ -206,6 +206,12 @@ def fit(
 ) -> dict:
     """Train the learner on (x, y) (N, 2, P) (:func:`train_learner`) and score the test view.
 
+    x_test, y_test : the test split's view (M, 2, P) (:func:`arrived`) and labels (M,)
+    classes, seed, config, draw : :func:`train_learner`'s: the class count, the seed, the
+        learner (:class:`BoundConfig`) and None or the function that draws the training view
+        anew every epoch
+    keep_scores : also return the test rows' class probabilities
+    height : the samples' rows H (P = H x W), which the CNN reads (:func:`train_learner`)
     returns : {"accuracy", "val_accuracy", "best_epoch", "epochs"} (and "refit_epochs" with
         ``draw``); with ``keep_scores`` also "scores", the test rows' class probabilities
     """
@@ -262,6 +268,16 @@ def bound(
     ``fresh``: with :attr:`BoundConfig.fresh_noise`, ``fresh(seed)`` gives a function that
     draws the train split's delays anew (:func:`simlidar.bench.augment.fresh_noise`).
 
+    classes : the class count C (the learners' outputs)
+    no_return, direction, missing : the encoding (:func:`simlidar.models.ttfs.encode`): delays
+        at or above ``no_return`` are no return (inf: every pixel spikes), which delay spikes
+        first, and what a missing return becomes
+    ks : the counts k of input spikes arrived, one row each in this order (:data:`KS`); the
+        row of each sample's own count comes last
+    seeds : one learner trained per seed (its initial weights, batch order and validation rows)
+    config : the one learner without ``learners`` (:class:`BoundConfig`)
+    scale : with ``emission``, delay units to units of ``tof_max``: the view's times are
+        multiplied by it (:func:`arrived`; 1.0: left as they are)
     learners : name -> configuration of several learner families (:data:`LEARNERS`); each row
         then holds every family's per-seed accuracies and the accuracy of its seeds' ensemble
         (their class probabilities averaged), and ``accuracy_mean`` is the best of those
@@ -421,6 +437,10 @@ def per_sample(
     :func:`rounded_up_accuracy` is the per-sample form that holds. The arguments are
     :func:`bound`'s.
 
+    train, test, classes, no_return, direction, missing, seeds : :func:`bound`'s
+    config : the one learner of every seed (:class:`BoundConfig`; by default the wide MLP of
+        :data:`LEARNERS`, with fresh noise, which then needs ``fresh``)
+    emission, scale, fresh : :func:`bound`'s
     returns : {"learner", "seeds", "k_max": P, "samples": N, "correct": {seed or "ensemble":
         the (P, N) matrix of right answers at k = 1..P, packed (:func:`unpack`)}}
     """

@@ -80,7 +80,14 @@ def cell_inputs(dataset: Path, model: str, budget: dict) -> dict:
 def finished(out: Path, dataset: Path, model: str, seed: int, budget: dict) -> bool:
     """Whether the cell is done in ``out``; a cell made from another dataset, recipe of the
     same name or other training rules is refused (results are never silently reused for
-    different inputs)."""
+    different inputs).
+
+    out : the run's output directory (its ``cells/<cell>.json``)
+    dataset, model, seed : the cell (:func:`cell_id`): a dataset directory, a recipe name or
+        path (or an outside builder named alone) and the training seed
+    budget : the suite's budget for the model (:meth:`simlidar.bench.suite.Suite.budget_for`),
+        which the cell's recorded rules must match
+    """
     path = out / "cells" / f"{cell_id(dataset, model, seed)}.json"
     if not path.is_file():
         return False

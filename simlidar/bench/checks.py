@@ -32,7 +32,14 @@ def prepared_model(
     ``classes``, on ``device``, its declaration read and its output on two samples of ``x``
     checked (:func:`check_output`); a ConfigError naming the builder for a model with nothing
     to train and no ``simlidar_fit``. What ``train`` does before its first epoch, and what a
-    suite checks of every model before it writes anything (:func:`probe_model`)."""
+    suite checks of every model before it writes anything (:func:`probe_model`).
+
+    recipe : a loaded recipe (:func:`simlidar.models.registry.load_recipe`)
+    generator : the torch.Generator the builder draws the initial weights from
+    silent_from : the data's no-return threshold (delays at or above it are no spike;
+        :func:`simlidar.dataset.loaders.spike_threshold`): set on a spiking model (or one with
+        a ``silent_from`` attribute) and used to encode the checked samples
+    """
     where = f"recipe {recipe.get('name', '?')}"
     model = build_model(recipe, tuple(x.shape[1:]), classes, generator)
     spec = spec_of(model, recipe.get("spec"), where)
@@ -98,7 +105,12 @@ def check_output(
 ) -> None:
     """Run the model on two samples of ``x`` (N, 1, H, W) delays, encoded with the data's
     no-return threshold ``silent_from``, and refuse, in one line naming ``where``, an output of
-    the wrong kind or shape for what it declares (before any training)."""
+    the wrong kind or shape for what it declares (before any training).
+
+    spec : the model's declaration (:func:`simlidar.models.protocol.spec_of`): the encoding
+        it is fed, its output's kind and, for stepped spikes, its steps
+    classes : the class count, the output's last axis
+    """
     device = next(iter(model.parameters()), torch.empty(0)).device
     was_training = model.training
     model.eval()

@@ -35,7 +35,15 @@ def decision_record(
     """How early a spiking network decides on the test split ``x`` (N, 1, H, W), ``y``:
     ``{"stepped": ...}`` for a network of stepped spikes (:func:`stepped_decisions`),
     ``{"early": ...}`` for one the event-driven evaluator runs (:func:`early_decisions`),
-    ``{}`` for any other; with ``per_sample``, each with its ``per_sample`` part."""
+    ``{}`` for any other; with ``per_sample``, each with its ``per_sample`` part.
+
+    model : the trained network
+    dataset : the dataset directory whose test split ``x``, ``y`` are: the event-driven
+        evaluator reads the split from it
+    spec : the model's declaration (:func:`simlidar.models.protocol.spec_of`)
+    silent_from : the data's no-return threshold: delays at or above it are no input spike
+        (:func:`simlidar.dataset.loaders.spike_threshold`)
+    """
     if spec.output == STEPPED_SPIKES:
         return {"stepped": stepped_decisions(model, x, y, spec, silent_from, per_sample)}
     if getattr(model, "event_driven", False):
@@ -56,7 +64,14 @@ def measure(
     accuracy, confusion, footprint, latency, NeuroBench's workload metrics, early decisions;
     ``timing`` gets the seconds of each part, and is recorded. ``spec``: what the model
     declares (default: :func:`~simlidar.models.protocol.spec_of` the model, the recipe's
-    ``[spec]`` over it)."""
+    ``[spec]`` over it).
+
+    dataset : the dataset directory whose test split is measured
+    suite : the cell's suite: its ``board_power_w`` gives a conventional model's energy
+        estimate (power x latency)
+    predicted : (N,) the model's class of each test sample (-1: no decision), for the accuracy
+        and the confusion matrix
+    """
     attrs = dataset_splits(dataset)["test"].attrs
     x, y = load_split(dataset, "test")
     x = torch.from_numpy(x)[:, None]

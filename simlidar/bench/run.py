@@ -315,7 +315,15 @@ def run_and_write(
     thread_count: int = DEFAULT_THREADS,
 ) -> str:
     """Run one cell on ``thread_count`` threads and write it (``out/cells/<cell>.json``, its
-    checkpoint beside); its id."""
+    checkpoint beside); its id.
+
+    dataset, model, seed : the cell: a dataset directory, a recipe name or path (or an outside
+        builder named alone) and the training seed
+    suite : the suite whose budget and selection the cell follows (:func:`run_cell`)
+    out : the run's output directory
+    device : where the cell trains (``cpu``, ``cuda``, ``auto``: :mod:`simlidar.bench.hardware`);
+        it is measured on the CPU
+    """
     name = cell_id(dataset, model, seed)
     start = time.perf_counter()
     with threads(thread_count):

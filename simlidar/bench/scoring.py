@@ -72,7 +72,18 @@ def evaluate(
 ) -> tuple[float, float | None]:
     """(accuracy, mean cross-entropy with the recipe's logits) on ``x``, in eval mode; the loss
     is None where it is not finite (a spiking network whose correct output never fired).
-    ``when``: what a TrainingError for a NaN output names (:func:`check_finite`)."""
+    ``when``: what a TrainingError for a NaN output names (:func:`check_finite`).
+
+    model : the model, scored on the device of its parameters
+    x, y : (N, 1, H, W) delays, encoded as the model wants (``spec``), and (N,) labels
+    training : the recipe's training rules: their ``logits`` and ``logit_scale`` make a spiking
+        network's logits (:func:`simlidar.models.protocol.class_scores`)
+    batch : samples run at a time
+    spec : what the model declares (default: :func:`~simlidar.models.protocol.spec_of` the
+        model)
+    silent_from : the data's no-return threshold: delays at or above it are no input spike
+        (:func:`simlidar.dataset.loaders.spike_threshold`; 1.0: the physical profile's)
+    """
     spec = spec or spec_of(model)
     correct, loss = 0, 0.0
     for i, out in _batches(model, x, spec, silent_from, batch, when=when):

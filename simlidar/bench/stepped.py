@@ -87,6 +87,10 @@ def stepped_decisions(
 
     x : (N, 1, H, W) delays, encoded as the model declares (``spec``)
     y : (N,) labels
+    silent_from : the data's no-return threshold: delays at or above it are no input spike
+        (:func:`simlidar.dataset.loaders.spike_threshold`)
+    per_sample : also give each sample's decision step (1 .. T, None if undecided) and input
+        spikes consumed (the summary's ``per_sample``)
 
     ``decision_step_mean``: steps elapsed when it decided, 1 .. T, over decided samples (T for
     the "spike_count" and "membrane" readouts, which read the whole window);

@@ -85,7 +85,15 @@ def batch_loss(
 ):
     """(cross-entropy, cross-entropy plus the recipe's penalties) on one encoded batch: the
     model's own ``simlidar_loss`` where it has one (simlidar's spiking networks add their
-    penalties there), else the cross-entropy of its class scores."""
+    penalties there), else the cross-entropy of its class scores.
+
+    x, y : one batch, its input encoded as the model wants (``spec``) on the model's device,
+        and its (B,) labels
+    training : the training rules: the logits of a spiking network's class scores, the
+        penalties (``l2`` here, the others read by ``simlidar_loss``)
+    spec : what the model declares (default: :func:`~simlidar.models.protocol.spec_of` the
+        model)
+    """
     spec = spec or spec_of(model)
     own = getattr(model, "simlidar_loss", None)
     if own is not None:
@@ -127,7 +135,17 @@ def train_one_epoch(
     run: Run, optimizer, x_train: torch.Tensor, y_train: torch.Tensor, epoch: int
 ) -> float:
     """One epoch over the training rows in a seeded order; the mean cross-entropy. A scheduled
-    early-decision term is off before its epoch; a loss that is not finite stops the run."""
+    early-decision term is off before its epoch; a loss that is not finite stops the run.
+
+    run : what the run's parts share (:class:`Run`): the model, what it declares and the
+        no-return threshold (which encode each batch), the training rules, the seeded
+        generator of the batch order, the device
+    optimizer : the torch optimizer of the model's parameters (:func:`make_optimizer`)
+    x_train, y_train : the training rows, (N, 1, H, W) delays (encoded a batch at a time, on
+        ``run.device``) and (N,) labels
+    epoch : the 0-based epoch, which the schedule of the early-decision term reads
+        (``early_start``) and a TrainingError names
+    """
     training = run.training
     run.model.train()
     order = torch.randperm(len(y_train), generator=run.generator)
@@ -154,7 +172,15 @@ def train_one_epoch(
 
 def training_rows(dataset, attrs: dict, seed: int, validation: float, where: str) -> Rows:
     """The train split less its validation rows (:func:`validation_split`, seeded by the
-    training seed), and those rows."""
+    training seed), and those rows.
+
+    dataset : a dataset directory
+    attrs : its train split's attributes (its ``class_names``)
+    seed : the training seed
+    validation : the fraction of each class held out for validation (0: none)
+    where : what a ConfigError for a class left without a training row starts with
+    returns : :class:`Rows`
+    """
     x_all, y_all = (torch.from_numpy(a) for a in load_split(dataset, "train"))
     try:
         rows, held = validation_split(

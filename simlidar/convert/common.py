@@ -59,7 +59,18 @@ def converted_split_attrs(
     input_sha256: str,
 ) -> dict:
     """The attributes every converted split carries (``docs/converters.md``); a converter adds
-    its own (``tof_max_ns``, ``time_window_us``, ...)."""
+    its own (``tof_max_ns``, ``time_window_us``, ...).
+
+    source : the converter's source (``kitti``, ``dvs-barrel``), a key of
+        :data:`simlidar.dataset.version.SOURCES`, which gives the dataset version
+    split : ``train`` or ``test``
+    config : the converter's configuration (:class:`~simlidar.convert.config.KittiConfig`,
+        :class:`~simlidar.convert.config.DvsConfig`), stored as JSON with its seed
+    class_names : the class names, in label order
+    class_mode : what a class is (``object``, ``character``)
+    sensor : what recorded the data (its name, resolution, range or time unit), stored as JSON
+    input_sha256 : sha256 of the input (of what, per source: ``docs/converters.md``)
+    """
     strings = h5py.string_dtype()
     return {
         "dataset_version": SOURCES[source][0],

@@ -185,7 +185,11 @@ def write_split(
 ) -> None:
     """One split file: the samples' records (N rows) and their events, concatenated (E rows).
 
+    path : the split file to write (``train.h5``, ``test.h5``)
+    recordings : the split's N recordings, in the order of ``rows``
     rows : (N,) the recordings' indices in ROI; delays : (N, 32, 32); labels : (N,)
+    attrs : the split's attributes (:func:`~simlidar.convert.common.converted_split_attrs`, and
+        ``time_window_us``)
     """
     schema = CONVERTED_SCHEMAS[SOURCE]
     full = expected_shapes(SOURCE, len(rows), PIXELS, PIXELS)

@@ -266,6 +266,12 @@ def write_splits(
     """Read every scan once, in split order, and write train.h5 and test.h5 into ``folder``.
 
     files : the training folder's files (paths in the input's hash are relative to it)
+    frames : every frame with a label file (:func:`~simlidar.convert.kitti_files.read_frames`):
+        the scans of those without objects count in the input's hash, and their numbers are
+        stored (``frames_without_objects``)
+    splits : the train and test frames (:func:`split_frames`)
+    config : the crops and their delays (:class:`~simlidar.convert.config.KittiConfig`)
+    progress : a progress bar on stderr
     simulated : :func:`simulated_from` of ``base``, stored as the attribute ``simulated_from``
     """
     from tqdm import tqdm

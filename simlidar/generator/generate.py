@@ -219,7 +219,14 @@ def checked_request(
     """Refuse, before anything touches the disk, a batch size, worker count or shard size out
     of range, classes the catalog (the sensor's, ``Catalog.for_sensor``) cannot give and a
     receiver that does not fit the sensor and the catalog; the batch size to use (a batch's
-    stored waveforms held at once: at most :data:`WAVEFORM_BATCH_BYTES`)."""
+    stored waveforms held at once: at most :data:`WAVEFORM_BATCH_BYTES`).
+
+    config : the request (its classes, sensor, profile's receiver, return mode, waveform bins)
+    catalog : the scene recipes, the sensor's part (``Catalog.for_sensor``)
+    batch_size : samples simulated at a time, 1 .. :data:`MAX_BATCH`
+    workers : processes that simulate batches, an int of at least 1
+    shard_samples : samples a shard file holds at most, an int of at least 1
+    """
     if not 1 <= batch_size <= MAX_BATCH:
         raise DatasetError(f"batch_size={batch_size}: expected 1..{MAX_BATCH}")
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
@@ -242,7 +249,15 @@ def write_local(
     """Write every shard of every noise level's dataset (``configs``, into ``temps``) from
     ``batches``, in order (the test split first); with ``titles``, start drawing each dataset's
     preview once the test split is written (:class:`Previews`, entered into ``stack``) and
-    return it (where processes cannot be forked, None: the caller draws it at the end)."""
+    return it (where processes cannot be forked, None: the caller draws it at the end).
+
+    catalog : the scene recipes, the sensor's part, recorded in every file's attributes
+    shards : every file of every split (:func:`~simlidar.generator.shard.split_shards`), the
+        test split's first, in the order of ``batches``' jobs
+    batches : the :class:`Batches` of every shard's jobs, in order; closed once all are written
+    batch_size : samples a batch, as ``batches``' jobs were cut (``Shard.batches``)
+    on_rows : told the samples written after each batch (the progress bar's update)
+    """
     previews = None
     last_test = [shard for shard in shards if shard.split == "test"][-1]
     fork = "fork" in multiprocessing.get_all_start_methods()

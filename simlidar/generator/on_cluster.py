@@ -15,7 +15,17 @@ from simlidar.scene.recipe import load_catalog
 
 def write_on_cluster(client, config, noise_levels, catalog, shards, temps, batch_size, bar):
     """Every file as one task on the Dask cluster of ``client``; the bar counts finished files'
-    samples."""
+    samples.
+
+    config, noise_levels : the request and its noise levels, one dataset each (a task writes
+        its file of every level's dataset, :func:`~simlidar.generator.shard.write_shard`)
+    catalog : the scene recipes, the sensor's part: each worker loads the same (shipped, or
+        from ``catalog.root``) and refuses one of another sha256
+    shards : every file of every split (:func:`~simlidar.generator.shard.split_shards`), one
+        task each
+    temps : each noise level's hidden dataset folder, on a file system every worker shares
+    batch_size : samples a task simulates at a time
+    """
     shipped = Path(catalog.root).resolve() == content_dir("scenes").resolve()
     where = (None if shipped else str(catalog.root), catalog.fingerprint())
     tasks = [

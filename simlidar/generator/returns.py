@@ -208,7 +208,14 @@ def receive_hits(
     """The returns of a block of hits under ``config`` (a GeneratorConfig with a receiver):
     through each pulse's waveform where ``config.full_waveform`` (:func:`receive_beams`; hits
     (n, H, W, S) of the sub-rays of ``weights``, or (n, H, W) for one ray a pulse), else by
-    :func:`receive`; ``surface`` of the result is the returned surface (0: no return)."""
+    :func:`receive`; ``surface`` of the result is the returned surface (0: no return).
+
+    physics, choices, streams : :func:`receive`'s: the profile's receiver and materials, each
+        surface label's materials and each sample's receiver stream
+    range_m, surface, cos_incidence : the hits, (n, H, W) as :func:`receive`'s, or per sub-ray
+        (n, H, W, S) as :func:`receive_beams`'
+    weights : (S,) the sub-rays' shares of the beam's power (None: one ray a pulse)
+    """
     if config.full_waveform:
         if weights is None:  # one ray a pulse
             range_m, surface, cos_incidence = (
@@ -240,7 +247,10 @@ def receive(
 ) -> Returns:
     """The returns of a block of hits.
 
+    physics : the profile's receiver and materials (:func:`receiver_physics`)
     choices : per surface label, its materials (:func:`check_physics`)
+    sensor : the sensor, whose range resolution quantises each return and out of whose range
+        a return is none (:func:`simlidar.generator.pulses.quantise_range`)
     streams : (n,) each sample's receiver stream (:func:`receiver_stream`)
     range_m : (n, H, W) float64, unquantised range of each hit within the sensor's range; NaN
         where none
@@ -297,9 +307,11 @@ def receive_beams(
     4. a return's surface, reflectance and intensity are those of the sub-ray that adds most to
        its peak.
 
+    physics, choices, sensor, streams : :func:`receive`'s
     range_m, surface, cos_incidence : (n, H, W, S) as :func:`receive`'s, per sub-ray
     weights : (S,) the sub-rays' shares of the beam's power
     mode : of the receiver's ``return_modes``
+    extinction_per_m : :func:`receive`'s: the atmosphere's alpha (fog, rain; 0: clear air)
     visibility_m : a fog's visibility (its ``extinction_per_m`` the Koschmieder alpha): the
         fog's backscatter joins the waveform (:mod:`simlidar.sensor.weather`), and an echo
         the fog makes is a return of surface 0, NaN reflectance and the reflectivity byte of

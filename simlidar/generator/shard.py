@@ -77,7 +77,13 @@ def write_shard(
     """Write ``shard`` of every noise level's dataset (``configs``, into the folders ``temps``)
     from ``batches``, an iterator of its simulated batches in order. Each file is written
     under a hidden name of its own and renamed when complete; on any error the hidden files
-    are removed."""
+    are removed.
+
+    catalog : the scene recipes, the sensor's part, recorded in every file's attributes
+    batch_size : samples a batch, as ``batches`` was cut (:meth:`Shard.batches`)
+    on_rows : told the samples written after each batch (a progress bar's update; by default
+        nothing)
+    """
     first = configs[0]
     receiver = first.receiver is not None
     shapes = generated_shapes(

@@ -72,7 +72,13 @@ def class_plan(catalog: Catalog, classes: int) -> ClassPlan:
 
 
 def factors(plan: ClassPlan, labels: np.ndarray, free: np.ndarray, n_layouts: int, n_objects: int):
-    """(layout id, object id) of each label; ``free`` (n, 2) uniforms pick the unfixed factor."""
+    """(layout id, object id) of each label; ``free`` (n, 2) uniforms pick the unfixed factor.
+
+    plan : the labelling (:func:`class_plan`): a label is a layout x object pair, a layout or
+        an object
+    labels : (n,) int class labels, 0 .. ``plan.classes`` - 1
+    n_layouts, n_objects : the catalog's layouts and objects (object 0: the empty "none")
+    """
     pick_layout = np.minimum((free[:, 0] * n_layouts).astype(np.int64), n_layouts - 1)
     pick_object = np.minimum((free[:, 1] * n_objects).astype(np.int64), n_objects - 1)
     if plan.mode == "layout x object":
@@ -152,6 +158,13 @@ def batched_backend(
 ):
     """Scenes -> first hits for a whole batch: numpy triangles, one Embree scene, one call.
 
+    catalog, layout, obj, layout_uniforms, object_uniforms : the scenes, as
+        :func:`simlidar.scene.build.build_batch`'s: the scene recipes, each scene's (B,) layout
+        and object ids, and the uniforms of their parameters, (B, catalog.layout_columns) and
+        (B, catalog.object_columns)
+    origins, directions, slots, max_range_m : the rays, as :func:`simlidar.sensor.raycast.cast`'s:
+        (B, H, W, 3) in each sample's local frame, (B,) distinct grid cells, and the sensor's
+        range (m)
     incidence : also give each hit's |cos incidence| (asked only under a receiver)
     returns : Hits, object pose (B, 3)
     """

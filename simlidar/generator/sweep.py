@@ -200,7 +200,14 @@ def received(
     """Frames' hits through the profile's receiver (:func:`simlidar.generator.returns.
     receive_hits`; ``beam_hits`` (n, H, C x S) the sub-rays' hits where the beam has a
     footprint or the mode is not strongest, of ``weights``): its Returns, (n, H, C) and the
-    reported returns (n, H, C, R)."""
+    reported returns (n, H, C, R).
+
+    config : the sweep's scenes, sensor and receiver (its profile, seed and return mode)
+    catalog : the scene recipes, the sensor's part (its surface labels)
+    index : (n,) the frames' indices in the sweep, which key their receiver streams
+    hits, range_m : the frames' first hits (n, H, C) (of each beam's axis with ``beam_hits``)
+        and their quantised ranges (NaN: no return); read only without ``beam_hits``
+    """
     physics = receiver_physics(config.profile)
     choices = check_physics(physics, config.sensor, catalog.surfaces, config.return_mode)
     streams = [receiver_stream(config.seed, SPLIT_IDS["sweep"], i) for i in index]
