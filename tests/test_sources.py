@@ -1,5 +1,7 @@
 """Every source of datasets passes one conformance test (issue 44, item 3): the generator, the
-KITTI converter and the DVS barrel converter, each on a small input made here. What any
+KITTI converter and the DVS barrel converter, each on a small input made here (the generator
+twice: the paper profile, and the receiver profile `sensor` with dual returns and fog, whose
+splits carry the receiver's fields). What any
 dataset directory must be, whatever made it: its splits name the source and a version the
 source's release notes list; it verifies; the loaders read it; its card is what
 ``simlidar card`` renders from its files alone, and rewriting it changes no byte; its Croissant
@@ -19,19 +21,32 @@ from simlidar.dataset.version import GENERATOR, SOURCES
 from simlidar.release.checksums import read_sums
 from simlidar.release.verify import verify
 
-EXAMPLES = (GENERATOR, "kitti", "dvs-barrel")
+EXAMPLES = (GENERATOR, f"{GENERATOR}/sensor", "kitti", "dvs-barrel")  # source[/variant]
 
 
 def test_every_source_has_an_example_here():
-    assert set(EXAMPLES) == set(SOURCES)
+    assert {e.split("/")[0] for e in EXAMPLES} == set(SOURCES)
 
 
 @pytest.fixture(scope="module", params=EXAMPLES)
 def made(request, tmp_path_factory):
     """(source, a dataset directory it made from a small input)."""
-    out = tmp_path_factory.mktemp(request.param)
+    out = tmp_path_factory.mktemp(request.param.replace("/", "-"))
     if request.param == GENERATOR:
         return request.param, request.getfixturevalue("datasets")[0.1]
+    if request.param == f"{GENERATOR}/sensor":
+        from simlidar.generator.config import GeneratorConfig
+        from simlidar.generator.generate import generate
+        from simlidar.generator.profiles import load_profile
+
+        sensor = load_profile("sensor")
+        config = GeneratorConfig.from_profile(
+            sensor, train_size=64, test_size=32, return_mode="dual", fog_visibility_m=50.0
+        )
+        catalog = request.getfixturevalue("catalog")
+        (written,) = generate(config, [0.1], catalog, out, progress=False)
+        assert split_info(written.path, "train").attrs["return_mode"] == "dual"
+        return GENERATOR, written.path
     if request.param == "kitti":
         kitti = request.getfixturevalue("built_kitti")
         return request.param, convert_kitti(kitti, out, progress=False)
