@@ -26,19 +26,18 @@ twin's float32 arrival times give to within 0.3 ns; the decision time is then re
 twin's clock. The later columns would reach the network at least 593 us after the aligned ones,
 long after it has decided (every decision below is checked to come before the next firing).
 
-Trains ``snn_simlidar_tuned`` (the paper's protocol: all 3000 training samples, its 60 epochs of
-a cosine schedule, fresh noise every epoch, the last epoch scored) behind each gate of
-``--columns`` on each dataset of ``--datasets`` (profile:noise), every seed of ``--seeds``; each
-cell is a JSON file under ``--out``/cells (a rerun resumes). Beside each point it puts the
-early-information bound at the same moment: the row of ``--bound``
-(``benchmark/early_bound.py --columns``: two learner families with fresh noise, on the scan twin
-by the sensor's clock) for the same C, which sees every sensor time from E_C + tof_max until the
-next firing. Writes sweep.md / .json / .png: per point the accuracy (mean ± sample std [95 %
-interval, Student's t] over seeds), the median decision in sensor time (us; p10 / p90 over
-every test sample of every seed), the bound there and the gap (bound minus the interval's lower
-end), and the issue's targets: on ``paper`` noise 0.1 a point within 3 points of the bound with
-its median at most 6 ms into the window; on ``physical`` noise 0.2 the network with every column
-within 5 points of the bound.
+Trains ``snn_simlidar_tuned`` (the paper's protocol: all 3000 training samples, its 60 epochs of a
+cosine schedule, fresh noise every epoch, the last epoch scored) behind each gate of ``--columns``
+on each dataset of ``--datasets`` (profile:noise), every seed of ``--seeds``; each cell is a JSON
+file under ``--out``/cells (a rerun resumes). Beside each point it puts the early-information bound
+at the same moment: the row of ``--bound`` (``benchmark/early_bound.py --columns``: three learner
+families with fresh noise, on the scan twin by the sensor's clock) for the same C, which sees every
+sensor time from E_C + tof_max until the next firing. Writes sweep.md / .json / .png: per point the
+accuracy (mean ± sample std [95 % interval, Student's t] over seeds), the median decision in sensor
+time (us; p10 / p90 over every test sample of every seed), the bound there and the gap (bound minus
+the interval's lower end), and the issue's targets: on ``paper`` noise 0.1 a point within 3 points
+of the bound with its median at most 6 ms into the window; on ``physical`` noise 0.2 the network
+with every column within 5 points of the bound.
 """
 
 import argparse
@@ -76,18 +75,20 @@ def cell_name(dataset: str, columns: int, seed: int, recipe: str = RECIPE, hidde
 COMMITTED = {"snn_simlidar_tuned": "sweep-decisions", "scnn_simlidar_tuned": "sweep-decisions-scnn"}
 
 
-def committed_cell(dataset: Path, recipe: str, seed: int) -> tuple[dict, dict]:
-    """The committed cell of ``recipe`` (a network of :data:`COMMITTED`) with every column of
-    the flash dataset ``dataset``, seed ``seed``, and the recipe as that cell was trained (the
-    paper's protocol: :func:`paper_table.run_cells`' cells hold no validation rows; the cell's
-    architecture); a ConfigError where there is no such cell."""
+def committed_cell(
+    dataset: Path, recipe: str, seed: int, columns: int | None = None
+) -> tuple[dict, dict]:
+    """The committed cell of ``recipe`` (a network of :data:`COMMITTED`) behind ``columns``
+    (None: every column) of the flash dataset ``dataset``, seed ``seed``, and the recipe as
+    that cell was trained (the paper's protocol: :func:`paper_table.run_cells`' cells hold no
+    validation rows; the cell's architecture); a ConfigError where there is no such cell."""
     from simlidar.dataset.loaders import split_info
     from simlidar.errors import ConfigError
     from simlidar.models.registry import load_recipe
 
-    width = split_info(dataset, "test").width
+    columns = columns or split_info(dataset, "test").width
     folder = ROOT / "benchmark/results" / COMMITTED[recipe] / "cells"
-    path = folder / cell_name(dataset.name, width, seed, recipe)
+    path = folder / cell_name(dataset.name, columns, seed, recipe)
     if not path.is_file():
         raise ConfigError(f"{path}: no committed cell for this dataset, network and seed")
     cell = json.loads(path.read_text())
@@ -344,10 +345,11 @@ def write(
         "the mean, Student's t]; decision: sensor time, us after the window's first firing "
         "(median and p10 / p90 over every test sample of every seed); `t_out`: the network's "
         "own latency after its aligned input (median, ns). Bound: the early-information bound "
-        "once the first C columns are back (`benchmark/early_bound.py --columns`, two learner "
-        "families with fresh noise, the best of their seed means and ensembles; the best row "
-        "with as much information or less, named where it is another row), at the median "
-        "time shown; gap: bound minus the lower end of the 95 % interval.",
+        "once the first C columns are back (`benchmark/early_bound.py --columns`, three learner "
+        "families (two MLPs, the paper's CNN) with fresh noise, the best of their seed means "
+        "and ensembles; the best row with as much information or less, named where it is "
+        "another row), at the median time shown; gap: bound minus the lower end of the 95 % "
+        "interval.",
         "",
     ]
     for name, rows in points.items():
