@@ -220,6 +220,7 @@ def test_the_bound_is_above_every_committed_spiking_cell_it_covers():
 MID_SWEEP_ABOVE_THE_BOUND = {
     ("simlidar-32c-noise0.1-paper-v2.0.0", 6, 2),
     *(("simlidar-32c-noise0.2-physical-v1.0.0", 4, seed) for seed in range(5)),
+    ("simlidar-32c-noise0.2-physical-v1.0.0", 6, 2),
 }
 
 
@@ -228,7 +229,7 @@ def test_the_bound_is_above_every_committed_mid_sweep_cell_but_the_known_ones():
     and -scnn) is at or below the bound for its columns on its scan twin (the sensor time it
     decides at: the best row with as much information or less), seed by seed, except exactly
     the cells
-    listed above (at 4 and 6 columns, 19.8-33.7 % against 18.9 and 31.7 %); and every
+    listed above (at 4 and 6 columns, 19.8-33.7 % against 19.0, 31.8 and 32.3 %); and every
     decision came before the next column fired."""
     import json
 
@@ -261,7 +262,8 @@ def test_the_mid_sweep_cells_above_the_bound_lead_it_by_less_than_the_test_split
     of their committed cells was trained again to the bit (its right or wrong on every test
     sample scores its committed accuracy); and, recomputed here from those records and the
     bound run's, the seeds' lead over the bound's best seed ensemble has a 95 % interval over
-    the test samples that holds 0, and no seed's McNemar test rejects at 5 %."""
+    the test samples that holds 0, and no seed's McNemar test finds the network better at
+    5 %."""
     import json
 
     exceptions = _script("ablation/mid_sweep_exceptions")
@@ -287,7 +289,8 @@ def test_the_mid_sweep_cells_above_the_bound_lead_it_by_less_than_the_test_split
         assert found == point["comparison"]  # the committed figures, recomputed
         low, high = found["difference_ci95"]
         assert low < 0 < high
-        assert all(s["mcnemar_p"] > 0.05 for s in found["seeds"]), found["seeds"]
+        better = [s for s in found["seeds"] if s["only_network"] > s["only_bound"]]
+        assert all(s["mcnemar_p"] > 0.05 for s in better), found["seeds"]
 
 
 def test_early_objectives_reads_the_bound_and_the_targets_by_hand():
