@@ -81,11 +81,13 @@ def seeds_of(name: str, columns: int, recipe: str) -> list[int]:
 def retrained(dataset: Path, recipe: str, seed: int, columns: int) -> dict:
     """One committed cell trained again: its test accuracy, the committed one and its right
     or wrong on every test sample; kept beside the dataset (``mid-sweep-exceptions/``), so a
-    rerun reads it instead of training again."""
+    rerun reads it instead of training again (and checks it against the committed cell as it
+    is now)."""
     kept = dataset.parent / "mid-sweep-exceptions" / f"{dataset.name}__{recipe}__columns{columns}"
     kept = kept.with_name(f"{kept.name}__seed{seed}.json")
+    committed, trained = committed_cell(dataset, recipe, seed, columns)
     if kept.is_file():
-        return json.loads(kept.read_text())
+        return json.loads(kept.read_text()) | {"committed_accuracy": committed["test_accuracy"]}
     import torch
 
     from simlidar.bench.bound import pack
@@ -93,7 +95,6 @@ def retrained(dataset: Path, recipe: str, seed: int, columns: int) -> dict:
     from simlidar.dataset.loaders import load_split
 
     torch.set_num_threads(1)  # the cells' own thread count: the same network
-    committed, trained = committed_cell(dataset, recipe, seed, columns)
     result = train(trained, dataset, seed=seed, max_seconds=float("inf"), progress=False)
     labels = load_split(dataset, "test")[1]
     found = {
