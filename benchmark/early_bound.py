@@ -10,7 +10,10 @@ For each dataset and encoding (``direction/missing``, :func:`simlidar.models.ttf
 input spike, k in ``--ks`` and each sample's own count, for every seed. Each (dataset,
 encoding) is a JSON file under ``--out``/runs (a rerun skips the ones present, or adds to a
 run of several families those of ``--learners`` it lacks, at its own seeds, k and columns:
-``--learners mlp,wide,cnn`` adds the CNN); then
+``--learners mlp,wide,cnn`` adds the CNN; given more ``--seeds`` than a run of several
+families has, including all of its own, it trains that run again with them, at its k and
+columns, and refuses before writing if a seed it had scores otherwise: ``--seeds 0,1,2,3,4``
+takes a 3-seed run to 5); then
 ``bound.json`` (every run), ``bound.md`` (a table) and ``bound.png`` (accuracy against input
 spikes consumed, one curve per dataset and encoding, seed spread as error bars, with the
 committed ``snn_simlidar_tuned`` cells of benchmark/results/paper and /physical as points: their
@@ -139,24 +142,37 @@ def main(argv=None) -> int:
             if path.exists():
                 present = json.loads(path.read_text())
                 lacking = [n for n in options.get("learners", {}) if n not in present["learner"]]
-                if not of_families(present) or not lacking:
+                more = of_families(present) and set(args.seeds) > set(present["seeds"])
+                if not more and (not of_families(present) or not lacking):
                     print(f"{path.name}: present, skipped")
                     continue
-                print(f"{path.name}: present, adding the families {lacking}")
+                if more:  # every seed again: an ensemble needs the scores, which runs do not keep
+                    print(f"{path.name}: present with seeds {present['seeds']}, trained again "
+                          f"with seeds {list(args.seeds)}")  # fmt: skip
+                else:
+                    print(f"{path.name}: present, adding the families {lacking}")
                 result = dataset_bound(
                     dataset,
                     direction,
                     missing,
                     args.clock,
                     ks=[row["k"] for row in present["rows"] if row["k"] is not None],
-                    seeds=present["seeds"],
+                    seeds=args.seeds if more else present["seeds"],
                     **{
                         **{k: v for k, v in options.items() if k != "per_sample"},
-                        "learners": {n: LEARNERS[n] for n in lacking},
+                        **({"per_sample": LEARNERS["wide"]} if more and "per_sample" in present
+                           else {}),
+                        "learners": {
+                            n: LEARNERS[n] for n in ([*present["learner"], *lacking] if more
+                                                     else lacking)
+                        },
                         "columns": [row["columns"] for row in present.get("column_rows", [])],
                     },
-                )  # fmt: skip; the present run's per-sample form stays
-                result = with_families(present, result)
+                )  # fmt: skip
+                if more:
+                    reproduced(present, result, path.name)
+                else:  # the present run's per-sample form stays
+                    result = with_families(present, result)
                 seconds = present["seconds"] + time.perf_counter() - start
             else:
                 result = dataset_bound(
@@ -180,6 +196,26 @@ def main(argv=None) -> int:
                 )
     report(args.out)
     return 0
+
+
+def reproduced(present: dict, result: dict, name: str) -> None:
+    """Refuse, in one line and before anything is written, a run with more seeds whose seeds
+    in common with the ``present`` run do not score as they did there, in every row and
+    family (the learners are seeded: the same seed is the same learner)."""
+    from simlidar.errors import ConfigError
+
+    index = {seed: i for i, seed in enumerate(result["seeds"])}
+    for key in ("rows", "column_rows"):
+        for old, new in zip(present.get(key, []), result.get(key, [])):
+            where = f"k = {old['k']}" if key == "rows" else f"columns = {old['columns']}"
+            for family, found in old["learners"].items():
+                again = [new["learners"][family]["accuracy"][index[s]] for s in present["seeds"]]
+                if again != found["accuracy"]:
+                    raise ConfigError(
+                        f"{name}: seeds {present['seeds']} of {family} at {where} "
+                        f"scored {found['accuracy']}, now {again}: expected the present run's "
+                        "figures again; nothing written"
+                    )
 
 
 def of_families(run: dict) -> bool:

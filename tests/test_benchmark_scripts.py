@@ -448,6 +448,42 @@ def test_early_bound_adds_the_families_a_run_lacks(datasets, tmp_path):
         )
 
 
+def test_early_bound_takes_a_run_to_more_seeds_and_refuses_one_that_does_not_reproduce(
+    datasets, tmp_path
+):
+    """More ``--seeds`` than a present run of several families has (all of its own among them)
+    train it again with all of them at its own k: its seed keeps its figures and the new one
+    joins; a present run whose figures the same seed does not give again is refused in one
+    line, and its file is left as it was."""
+    dataset = str(datasets[0.1])
+    common = ["--ks", "4", "--encodings", "near_first/as_value", "--learners", "mlp"]
+    run_script("early_bound.py", dataset, *common, "--seeds", "0", "--out", str(tmp_path),
+               timeout=600)  # fmt: skip
+    (path,) = (tmp_path / "runs").glob("*.json")
+    before = json.loads(path.read_text())
+    again = run_script("early_bound.py", dataset, "--ks", "8", "--seeds", "0,1", "--encodings",
+                       "near_first/as_value", "--learners", "mlp", "--out", str(tmp_path),
+                       timeout=600)  # fmt: skip
+    assert "trained again with seeds [0, 1]" in again
+    after = json.loads(path.read_text())
+    assert after["seeds"] == [0, 1] and [r["k"] for r in after["rows"]] == [4, None]
+    for old, new in zip(before["rows"], after["rows"]):
+        assert new["learners"]["mlp"]["accuracy"][0] == old["learners"]["mlp"]["accuracy"][0]
+        assert len(new["learners"]["mlp"]["accuracy"]) == 2
+    tampered = dict(before)
+    tampered["rows"][0]["learners"]["mlp"]["accuracy"] = [0.123]
+    path.write_text(json.dumps(tampered))
+    written = path.read_bytes()
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "benchmark/early_bound.py"), dataset, *common, "--seeds",
+         "0,1", "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
+    assert "of mlp at k = 4 scored [0.123]" in done.stderr and "nothing written" in done.stderr
+    assert path.read_bytes() == written
+
+
 BAD_ARGUMENTS = [
     ("early_objectives.py", ["--variants", "near,nonsense"], "argument --variants: 'nonsense'"),
     ("early_objectives.py", ["--seeds", "0,-1"], "argument --seeds: '0,-1': expected"),
