@@ -146,29 +146,28 @@ def main(argv=None) -> int:
                 if not more and (not of_families(present) or not lacking):
                     print(f"{path.name}: present, skipped")
                     continue
+                kept = ("per_sample", "learners", "columns")  # set below, from the present run
+                again = {k: v for k, v in options.items() if k not in kept}
                 if more:  # every seed again: an ensemble needs the scores, which runs do not keep
                     print(f"{path.name}: present with seeds {present['seeds']}, trained again "
                           f"with seeds {list(args.seeds)}")  # fmt: skip
+                    seeds, families = args.seeds, [*present["learner"], *lacking]
+                    if "per_sample" in present:
+                        again["per_sample"] = LEARNERS["wide"]
                 else:
                     print(f"{path.name}: present, adding the families {lacking}")
+                    seeds, families = present["seeds"], lacking
                 result = dataset_bound(
                     dataset,
                     direction,
                     missing,
                     args.clock,
                     ks=[row["k"] for row in present["rows"] if row["k"] is not None],
-                    seeds=args.seeds if more else present["seeds"],
-                    **{
-                        **{k: v for k, v in options.items() if k != "per_sample"},
-                        **({"per_sample": LEARNERS["wide"]} if more and "per_sample" in present
-                           else {}),
-                        "learners": {
-                            n: LEARNERS[n] for n in ([*present["learner"], *lacking] if more
-                                                     else lacking)
-                        },
-                        "columns": [row["columns"] for row in present.get("column_rows", [])],
-                    },
-                )  # fmt: skip
+                    seeds=seeds,
+                    **again,
+                    learners={n: LEARNERS[n] for n in families},
+                    columns=[row["columns"] for row in present.get("column_rows", [])],
+                )
                 if more:
                     reproduced(present, result, path.name)
                 else:  # the present run's per-sample form stays

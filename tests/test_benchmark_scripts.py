@@ -274,16 +274,17 @@ def test_the_mid_sweep_cells_above_the_bound_lead_it_by_less_than_the_test_split
     listed = {(name, columns) for name, columns, _ in MID_SWEEP_ABOVE_THE_BOUND}
     assert {(name, columns) for name, columns, _ in points} == listed
     assert set(exceptions.above_the_bound()) == set(points)
+    sweep = _script("sweep_decisions")
     for key, point in points.items():
-        folder = ROOT / "benchmark/results/sweep-decisions/cells"
+        folder = ROOT / "benchmark/results" / sweep.COMMITTED[key[2]] / "cells"
         for cell in point["cells"]:
             committed = json.loads(
-                (folder / f"{key[0]}__columns{key[1]}__seed{cell['seed']}.json").read_text()
+                (folder / sweep.cell_name(key[0], key[1], cell["seed"], key[2])).read_text()
             )
             right = unpack(cell["correct"], (1, cell["samples"]))[0]
             assert float(right.mean()) == pytest.approx(committed["test_accuracy"], abs=1e-6)
         assert [c["seed"] for c in point["cells"]] == exceptions.seeds_of(*key)
-        rows = _script("sweep_decisions").bound_rows(exceptions.BOUND, exceptions.scan_name(key[0]))
+        rows = sweep.bound_rows(exceptions.BOUND, exceptions.scan_name(key[0]))
         row = exceptions.bound_for(rows, key[1], exceptions.WIDTH)
         found = exceptions.compare(point["cells"], row, point["cells"][0]["samples"])
         assert found == point["comparison"]  # the committed figures, recomputed

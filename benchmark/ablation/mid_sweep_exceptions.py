@@ -37,7 +37,15 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from paper_table import ROOT
 from scan_timing import twin_datasets
-from sweep_decisions import COMMITTED, NOISES, PROFILES, bound_for, bound_rows, committed_cell
+from sweep_decisions import (
+    COMMITTED,
+    NOISES,
+    PROFILES,
+    bound_for,
+    bound_rows,
+    cell_name,
+    committed_cell,
+)
 
 from simlidar.script_args import command_line, integers, run
 
@@ -57,11 +65,14 @@ def above_the_bound(bound_json: Path = BOUND) -> dict[tuple[str, int, str], list
     """(flash dataset, columns, recipe) -> the seeds whose committed cell scores above the
     bound for its columns on its scan twin (as tests/test_benchmark_scripts.py reads it)."""
     found: dict[tuple[str, int, str], list[int]] = {}
+    bounds: dict[str, dict] = {}  # scan twin -> its rows, bound.json read once a dataset
     for recipe, folder in COMMITTED.items():
         for path in sorted((ROOT / "benchmark/results" / folder / "cells").glob("*.json")):
             cell = json.loads(path.read_text())
             columns, name = cell["architecture"]["input_columns"], cell["dataset"]
-            rows = bound_rows(bound_json, scan_name(name))
+            if name not in bounds:
+                bounds[name] = bound_rows(bound_json, scan_name(name))
+            rows = bounds[name]
             if (
                 columns in rows
                 and cell["test_accuracy"] > bound_for(rows, columns, WIDTH)["accuracy_mean"]
@@ -73,8 +84,7 @@ def above_the_bound(bound_json: Path = BOUND) -> dict[tuple[str, int, str], list
 def seeds_of(name: str, columns: int, recipe: str) -> list[int]:
     """Every committed seed of a point."""
     folder = ROOT / "benchmark/results" / COMMITTED[recipe] / "cells"
-    suffix = "" if recipe == "snn_simlidar_tuned" else f"-{recipe}"
-    paths = folder.glob(f"{name}__columns{columns}{suffix}__seed*.json")
+    paths = folder.glob(cell_name(name, columns, "*", recipe))  # every seed
     return sorted(int(p.stem.rsplit("seed", 1)[1]) for p in paths)
 
 
