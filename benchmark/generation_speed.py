@@ -84,9 +84,19 @@ def _unit_mesh(kind: str, segments: int):
 
 
 def naive_backend(
-    catalog, layout, obj, layout_uniforms, object_uniforms, origins, directions, slots, max_range_m
+    catalog,
+    layout,
+    obj,
+    layout_uniforms,
+    object_uniforms,
+    origins,
+    directions,
+    slots,
+    max_range_m,
+    compiled=False,
 ):
-    """The naive way: per sample, trimesh primitives in one scene and trimesh's ray API."""
+    """The naive way: per sample, trimesh primitives in one scene and trimesh's ray API
+    (``compiled``, asked of a long run, has no meaning here: trimesh casts)."""
     import trimesh
 
     results, poses = [], []
@@ -125,9 +135,19 @@ def naive_backend(
 
 
 def per_sample_cast_backend(
-    catalog, layout, obj, layout_uniforms, object_uniforms, origins, directions, slots, max_range_m
+    catalog,
+    layout,
+    obj,
+    layout_uniforms,
+    object_uniforms,
+    origins,
+    directions,
+    slots,
+    max_range_m,
+    compiled=False,
 ):
-    """simlidar's numpy builder, but one trimesh mesh and one ray query per sample."""
+    """simlidar's numpy builder, but one trimesh mesh and one ray query per sample
+    (``compiled`` as in :func:`naive_backend`)."""
     import trimesh
 
     scene = build_batch(catalog, layout, obj, layout_uniforms, object_uniforms)

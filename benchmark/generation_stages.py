@@ -1,6 +1,7 @@
 """Where generation spends its time: CPU microseconds per sample for each stage, on one core.
 
-    python benchmark/generation_stages.py [--samples 6144] [--profile paper]
+    python benchmark/generation_stages.py [--samples 6144] [--profile paper] \
+        [--cast auto|numpy|compiled]
     python benchmark/generation_stages.py --profile sensor [--beam-samples 2] \
         [--return-mode dual] [--fog 50] [--rain 50] [--waveform-bin 1]
 
@@ -10,7 +11,10 @@ preview, card, Croissant file and checksums included) with timers around the pip
 stages, after one untimed warm-up run, and prints each stage's share and the mean draws a
 sample (the splits' ``attempts``). The preview is drawn by a process of its own while the
 train split is written; on the one core both share, its figure is that process's CPU time.
-"Other" is the whole run less the timed stages: the visibility checks and redraw
+The ray cast takes the form the run's size chooses (``--cast auto``; docs/performance.md), or
+the one ``--cast`` names; through the compiled kernels, their packing of vertices and rays
+and their exact range are stages of their own (the culling is "back-face culling" in either
+form). "Other" is the whole run less the timed stages: the visibility checks and redraw
 bookkeeping, the numpy around the cast, pulses, claiming and installing the folder. The
 timers add a few microseconds a sample; ``benchmark/generation_speed.py`` gives the untimed
 throughput. The process's start-up imports are not in the run (``python -X importtime -m
@@ -122,7 +126,11 @@ def main() -> None:
     receiver.add_argument("--fog", type=numbers(1e-9, one=True), default=math.inf, help="m")
     receiver.add_argument("--rain", type=numbers(0.0, MAX_RAIN_MM_H, one=True), default=0.0)
     receiver.add_argument("--waveform-bin", type=numbers(0.0, one=True), default=0.0, help="ns")
+    parser.add_argument("--cast", choices=("auto", "numpy", "compiled"), default="auto",
+                        help="the ray cast's form (auto: as the run's size chooses)")  # fmt: skip
     args = parser.parse_args()
+    if args.cast != "auto":
+        raycast.COMPILED_FROM_RAYS = 0 if args.cast == "compiled" else 2**62
     physics = {
         "beam_samples": args.beam_samples,
         "return_mode": args.return_mode,
@@ -140,7 +148,9 @@ def main() -> None:
     )
     n = config.train_size + config.test_size
     catalog = load_catalog()
-    print(f"shared Embree buffers: {'on' if embree.shared_buffers() else 'off'}")
+    compiled = raycast.compiled_for(simulate.run_rays(config))
+    print(f"shared Embree buffers: {'on' if embree.shared_buffers() else 'off'}; the cast: "
+          f"{'compiled kernels' if compiled else 'numpy'}")  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
         generate(config, [0.2], catalog, f"{tmp}/warm", progress=False, preview=False)
         for method in ("__init__", "random", "random_float32"):  # made and drawn, batched
@@ -149,6 +159,14 @@ def main() -> None:
         simulate.build_batch = timed("scene building (numpy)", simulate.build_batch)
         raycast.visible_triangles = timed("back-face culling", raycast.visible_triangles)
         raycast.attach_triangles = timed("Embree geometry", raycast.attach_triangles)
+        raycast.attach_vertices = timed("Embree geometry", raycast.attach_vertices)
+        if compiled:  # loaded by the warm-up run
+            from simlidar.sensor import cast_kernels
+
+            for name in ("pack_vertices", "ray_origins"):
+                stage = timed("packing vertices and rays (compiled)", getattr(cast_kernels, name))
+                setattr(cast_kernels, name, stage)
+            cast_kernels.first_hits = timed("exact range (compiled)", cast_kernels.first_hits)
         rtcs.EmbreeScene = TimedScene
         for module, name, stage in RECEIVER_STAGES if config.receiver is not None else ():
             setattr(module, name, timed(stage, getattr(module, name)))

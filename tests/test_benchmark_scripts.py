@@ -56,10 +56,13 @@ def test_generation_stages_times_the_receivers_physics_apart():
     assert all(stages[name] > 0 for name in receiver) and stages["other"] >= 0
 
 
-def test_generation_stages_times_every_stage():
-    lines = run_script("generation_stages.py", "--samples", "192", timeout=300).splitlines()
+@pytest.mark.parametrize("cast", ["numpy", "compiled"])
+def test_generation_stages_times_every_stage(cast):
+    args = "--samples", "192", *(("--cast", cast) if cast == "compiled" else ())
+    lines = run_script("generation_stages.py", *args, timeout=300).splitlines()
+    assert lines[0].endswith(f"the cast: {'compiled kernels' if cast == 'compiled' else cast}")
     if sys.platform.startswith("linux"):
-        assert lines[0] == "shared Embree buffers: on"
+        assert lines[0].startswith("shared Embree buffers: on;")
     assert "192 samples (paper) in" in lines[1]  # the users' command's profile
     draws = float(lines[1].split("; ")[1].split()[0])
     assert 1.0 <= draws < 2.0 and lines[1].endswith("draws a sample; CPU time a stage:")
@@ -77,8 +80,21 @@ def test_generation_stages_times_every_stage():
         "Embree geometry",
         "preview.png (own process)",
         "card, Croissant, checksums",
-    }
+    } | ({"exact range (compiled)", "packing vertices and rays (compiled)"} if cast == "compiled"
+         else set())  # fmt: skip
     assert all(us > 0 for name, us in stages.items() if name != "other")
+
+
+def test_cast_speed_compares_both_forms_and_their_bytes():
+    args = "--samples", "192", "--runs", "1", "--rounds", "1"
+    lines = run_script("cast_speed.py", *args, timeout=600).splitlines()
+    assert "  hits the same to the last bit: True" in lines
+    ratio = next(line for line in lines if line.startswith("  compiled / numpy"))
+    assert 0 < float(ratio.split()[-1])
+    load = next(line for line in lines if line.startswith("loading the kernels"))
+    assert 0 < float(load.split("median ")[1]) < 30
+    end = lines[-1].split()
+    assert end[0] == "192" and float(end[3]) > 0 and end[4] == "True"
 
 
 @pytest.mark.parametrize("script", ["generation_speed.py", "generation_stages.py"])

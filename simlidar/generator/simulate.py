@@ -28,7 +28,7 @@ from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.footprint import subray_count, subray_directions
 from simlidar.sensor.model import tof_ns
-from simlidar.sensor.raycast import MAX_BATCH, Hits, cast
+from simlidar.sensor.raycast import MAX_BATCH, Hits, cast, compiled_for
 from simlidar.sensor.rays import column_centres_deg, emission_times_ns, window_rays
 
 SPLIT_IDS = {"train": 0, "test": 1, "sweep": 2}  # random stream keys (sweep: full frames)
@@ -155,6 +155,7 @@ def batched_backend(
     slots,
     max_range_m,
     incidence=False,
+    compiled=False,
 ):
     """Scenes -> first hits for a whole batch: numpy triangles, one Embree scene, one call.
 
@@ -166,11 +167,23 @@ def batched_backend(
         (B, H, W, 3) in each sample's local frame, (B,) distinct grid cells, and the sensor's
         range (m)
     incidence : also give each hit's |cos incidence| (asked only under a receiver)
+    compiled : cast by the compiled kernels (the same hits; asked only on long runs,
+        :func:`simlidar.sensor.raycast.compiled_for`)
     returns : Hits, object pose (B, 3)
     """
     scene = build_batch(catalog, layout, obj, layout_uniforms, object_uniforms)
-    hits = cast(scene, origins, directions, slots, max_range_m, incidence=incidence)
+    hits = cast(
+        scene, origins, directions, slots, max_range_m, incidence=incidence, compiled=compiled
+    )
     return hits, scene.object_pose
+
+
+def run_rays(config: GeneratorConfig) -> int:
+    """The rays a whole run of ``config`` casts, first draws only: what
+    :func:`simlidar.sensor.raycast.compiled_for` reads to choose the cast's form."""
+    beams = config.receiver is not None and config.full_waveform
+    subrays = subray_count(config.beam_samples) if beams else 1
+    return sum(config.split_sizes.values()) * config.sensor.beams * config.width * subrays
 
 
 def simulate(
@@ -225,6 +238,8 @@ def simulate(
         cos_incidence = np.zeros(shape, np.float32)
         hit_surface = np.zeros(shape, np.uint8)
     more = {} if physics is None else {"incidence": True}  # other backends take no such key
+    if compiled_for(run_rays(config)):  # the kernels' loading pays on long runs
+        more["compiled"] = True
     pending = np.arange(n)
     while len(pending):
         attempts[pending] += 1

@@ -66,7 +66,7 @@ from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.footprint import subray_directions
 from simlidar.sensor.model import row_order
-from simlidar.sensor.raycast import MAX_BATCH, cast
+from simlidar.sensor.raycast import MAX_BATCH, cast, compiled_for
 from simlidar.sensor.rays import cycles_per_rotation, sweep_emission_ns, sweep_rays
 from simlidar.settings import Range, check, setting
 
@@ -112,9 +112,13 @@ class Frames:
     returns_surface: np.ndarray | None = None  # (n, H, C, R) uint8, 0: none
 
 
-def simulate_frames(config: GeneratorConfig, catalog: Catalog, start: int, stop: int) -> Frames:
+def simulate_frames(
+    config: GeneratorConfig, catalog: Catalog, start: int, stop: int, total: int | None = None
+) -> Frames:
     """Frames ``start .. stop - 1`` of a sweep of ``config``'s sensor and scenes (its classes,
-    seed and variation; at most MAX_BATCH frames)."""
+    seed and variation; at most MAX_BATCH frames) from ``catalog``'s recipes. ``total``: the
+    sweep's frames, by default these (the whole run's rays choose the ray caster's form, not
+    the bytes: :func:`simlidar.sensor.raycast.compiled_for`)."""
     if not 0 < stop - start <= MAX_BATCH:
         raise ConfigError(f"batch of {stop - start} frames: expected 1..{MAX_BATCH}")
     sensor = config.sensor
@@ -145,7 +149,9 @@ def simulate_frames(config: GeneratorConfig, catalog: Catalog, start: int, stop:
         u[:, FIXED_COLUMNS : FIXED_COLUMNS + lc],
         u[:, FIXED_COLUMNS + lc :],
     )
-    hits = cast(scene, origins, directions, index % MAX_BATCH, sensor.max_range_m, incidence=True)
+    rays = (total or len(index)) * origins[0, ..., 0].size  # the kernels pay on long runs
+    hits = cast(scene, origins, directions, index % MAX_BATCH, sensor.max_range_m, incidence=True,
+                compiled=compiled_for(rays))  # fmt: skip
     cycles = cycles_per_rotation(sensor)
     beam_hits, hits = (hits, axis_hits(hits, cycles)) if beams else (None, hits)
     r = quantise_range(hits.range_m, sensor)
@@ -342,7 +348,7 @@ def sweep(
             writer.file.create_dataset("emission_ns", data=sweep_emission_ns(sensor))
             bar = tqdm(total=n, desc="sweep", unit="frame", disable=not progress)
             for first in range(0, n, batch):
-                frames = simulate_frames(config, catalog, first, min(first + batch, n))
+                frames = simulate_frames(config, catalog, first, min(first + batch, n), n)
                 writer.append({name: getattr(frames, name) for name in schema})
                 bar.update(len(frames.labels))
             bar.close()

@@ -156,13 +156,34 @@ def attach_triangles(embree_scene, triangles: np.ndarray, shared: bool = True):
             _say_fallback()
 
         return mc.TriangleMesh(embree_scene, triangles)
-    lib, scene_type = opened
-    if not isinstance(embree_scene, scene_type):
-        raise TypeError(f"expected an embreex EmbreeScene, got {type(embree_scene).__name__}")
     n = len(triangles)
     # 16-byte rows, as TriangleMesh lays them out: Embree reads a vertex with one 16-byte load
     vertices = np.zeros((3 * n, 4), np.float32)
     vertices[:, :3] = triangles.reshape(-1, 3)
+    return attach_vertices(embree_scene, vertices)
+
+
+def attach_vertices(embree_scene, vertices: np.ndarray):
+    """Add a triangle mesh, already in Embree's layout, to an embreex ``EmbreeScene`` that has
+    not run yet, in place (the shared buffers: :func:`shared_buffers` must be true).
+
+    vertices : (3 T, 4) float32, C-contiguous: triangle k's corners are rows 3k, 3k + 1 and
+        3k + 2, one 16-byte row a vertex (the fourth column unused), as :func:`attach_triangles`
+        and :func:`simlidar.sensor.cast_kernels.pack_vertices` lay them out
+    returns : what must stay alive until the scene has run (the vertices and their indices)
+    """
+    opened = _embree()
+    if opened is None:
+        raise RuntimeError(f"shared buffers are unavailable: {_probe()[1]}")
+    lib, scene_type = opened
+    if not isinstance(embree_scene, scene_type):
+        raise TypeError(f"expected an embreex EmbreeScene, got {type(embree_scene).__name__}")
+    if vertices.dtype != np.float32 or vertices.ndim != 2 or vertices.shape[1] != 4:
+        got = f"{vertices.dtype} {vertices.shape}"
+        raise ValueError(f"expected (3 T, 4) float32 vertices, got {got}")
+    if len(vertices) % 3 or not vertices.flags.c_contiguous:
+        raise ValueError(f"expected C-contiguous vertices, 3 a triangle, got {len(vertices)} rows")
+    n = len(vertices) // 3
     indices = np.arange(3 * n, dtype=np.uint32).reshape(n, 3)
     scene = _word(embree_scene, _SCENE_AT)
     handle = lib.rtcGetSceneDevice(scene)

@@ -13,6 +13,13 @@ per-triangle cost (its BVH build, and embreex's copy where the shared buffers of
 :mod:`simlidar.sensor.embree` are unavailable), which it cuts by 60 %. Tests for
 the horizontal wedge, the vertical beam cones and the range limit were tried and removed: they
 cost more numpy time than the few triangles they drop save.
+
+Two forms give the same hits to the last bit: numpy's, and compiled kernels
+(:mod:`simlidar.sensor.cast_kernels`: culling, packing and the exact range in one pass each,
+1.7 times faster for the whole cast, Embree included). The kernels cost a process about 0.4 s
+of CPU time and 100 MB of memory to load (numba and LLVM), so they pay only on long runs:
+:func:`compiled_for` says when, from the number of rays a process will cast
+(docs/performance.md).
 """
 
 from dataclasses import dataclass
@@ -21,13 +28,18 @@ import numpy as np
 
 from simlidar.errors import ConfigError
 from simlidar.scene.build import CELL_HALF_EXTENT_M, SceneBatch
-from simlidar.sensor.embree import attach_triangles, new_scene
+from simlidar.sensor.embree import attach_triangles, attach_vertices, new_scene, shared_buffers
 
 GRID_CELLS = 16  # per axis
 # A ray reaches at most max range + 1 m from an origin near the cell centre; a neighbour's
 # geometry starts CELL_SPACING_M - CELL_HALF_EXTENT_M away. cast() checks the margin.
 CELL_SPACING_M = 320.0
 MAX_BATCH = GRID_CELLS**3
+# From this many rays a process casts, the compiled kernels save more than they cost to load:
+# 0.41 s of loading against 0.13 us saved a ray pays from 3.2 M rays (`benchmark/cast_speed.py`;
+# `simlidar generate` of 22,400 samples, 5.7 M rays, took 0.96 of the numpy form's time, of
+# 100,000 0.88; docs/performance.md).
+COMPILED_FROM_RAYS = 4_000_000
 
 
 @dataclass(frozen=True)
@@ -50,7 +62,12 @@ def cell_offsets(slots: np.ndarray) -> np.ndarray:
     return (ijk - GRID_CELLS // 2) * CELL_SPACING_M
 
 
-def visible_triangles(scene: SceneBatch, origins: np.ndarray):
+def compiled_for(rays: int) -> bool:
+    """Whether a process that casts ``rays`` rays in all should use the compiled kernels."""
+    return rays >= COMPILED_FROM_RAYS
+
+
+def visible_triangles(scene: SceneBatch, origins: np.ndarray, compiled: bool = False):
     """Mask (T,) of the triangles a ray could hit first; normals (T, 3) and planes (T,) of all.
 
     Triangle k lies in the plane ``normal[k] . x = plane[k]``.
@@ -62,10 +79,16 @@ def visible_triangles(scene: SceneBatch, origins: np.ndarray):
     nothing. The origins of a window lie on one short segment (the lasers' vertical offsets),
     so a face turned away from both ends of the segment is turned away from all of them.
     Degenerate (zero-area) triangles are dropped too.
+
+    compiled : by the compiled kernel (the same numbers)
     """
     tris = scene.triangles
     flat = origins.reshape(-1, 3)
     ends = flat[[np.argmin(flat[:, 2]), np.argmax(flat[:, 2])]]  # (2, 3)
+    if compiled:
+        from simlidar.sensor import cast_kernels
+
+        return cast_kernels.cull(np.ascontiguousarray(tris, np.float64), scene.closed, ends)
     e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
     normal = np.stack(
         [
@@ -90,6 +113,7 @@ def cast(
     cull: bool = True,
     shared: bool = True,
     incidence: bool = False,
+    compiled: bool = False,
 ) -> Hits:
     """First hit of every pulse.
 
@@ -102,6 +126,7 @@ def cast(
     shared : hand the triangles to Embree in place (:mod:`simlidar.sensor.embree`; off only to
         test that the hits are those of embreex's own copy)
     incidence : also give each hit's |cos incidence| (an intensity proxy: full sweeps)
+    compiled : by the compiled kernels (the same hits, to the last bit; :func:`compiled_for`)
     """
     batch = origins.shape[0]
     if len(np.unique(slots)) != batch or not 0 <= np.min(slots) <= np.max(slots) < MAX_BATCH:
@@ -113,34 +138,36 @@ def cast(
             f"the cell centre: expected rays to stay within "
             f"{CELL_SPACING_M - CELL_HALF_EXTENT_M:.0f} m of it"
         )
-    mask, normal, plane = visible_triangles(scene, origins)
+    mask, normal, plane = visible_triangles(scene, origins, compiled)
     keep = np.nonzero(mask if cull else normal.any(axis=1))[0]
-    tris = np.take(scene.triangles, keep, axis=0)
-    sample = np.take(scene.sample, keep)
     offsets = cell_offsets(np.asarray(slots))  # (B, 3)
 
     shape = origins.shape[:-1]
-    hit_range = np.full(shape, np.nan)
-    surface = np.zeros(shape, np.uint8)
-    on_object = np.zeros(shape, bool)
-    cos_incidence = np.zeros(shape, np.float32) if incidence else None
-    if len(tris) == 0:
-        return Hits(hit_range, surface, on_object, cos_incidence)
+    if len(keep) == 0:
+        cos_incidence = np.zeros(shape, np.float32) if incidence else None
+        return Hits(np.full(shape, np.nan), np.zeros(shape, np.uint8), np.zeros(shape, bool),
+                    cos_incidence)  # fmt: skip
+    if compiled:
+        return _compiled_hits(scene, origins, directions, offsets, max_range_m, shared, incidence,
+                              keep, normal, plane)  # fmt: skip
 
+    tris = np.take(scene.triangles, keep, axis=0)
+    sample = np.take(scene.sample, keep)
     embree_scene = new_scene()
     world = tris + np.take(offsets, sample, axis=0)[:, None, :]
     buffers = attach_triangles(embree_scene, world, shared)
     ray_origin = (origins + offsets[:, None, None, :]).reshape(-1, 3).astype(np.float32)
-    ray_dir = directions.reshape(-1, 3).astype(np.float32)
-    far = np.full(len(ray_origin), max_range_m + 1.0, np.float32)
-    prim = embree_scene.run(ray_origin, ray_dir, dists=far).reshape(shape)  # primID, -1: none
-    del embree_scene, buffers  # Embree read the buffers when the run built the BVH
+    prim = _run(embree_scene, buffers, ray_origin, directions, max_range_m).reshape(shape)
 
+    hit_range = np.full(shape, np.nan)
+    surface = np.zeros(shape, np.uint8)
+    on_object = np.zeros(shape, bool)
+    cos_incidence = np.zeros(shape, np.float32) if incidence else None
     hit = prim >= 0
     flat = np.flatnonzero(hit)
     k = keep[prim.reshape(-1)[flat]]  # the hit triangle of each hitting ray
     if (scene.sample[k] != flat // (shape[1] * shape[2])).any():
-        raise RuntimeError("a ray hit another sample's scene: the cell isolation is broken")
+        raise RuntimeError(_NOT_ISOLATED)
     # Exact distance in float64: where the ray meets the hit triangle's plane.
     n = np.take(normal, k, axis=0)
     o = np.take(origins.reshape(-1, 3), flat, axis=0)  # np.take: ~3x faster than a[flat]
@@ -152,3 +179,51 @@ def cast(
     if incidence:
         cos_incidence[hit] = np.abs(n_dot_d) / np.sqrt(np.einsum("ij,ij->i", n, n))
     return Hits(hit_range, surface, on_object, cos_incidence)
+
+
+_NOT_ISOLATED = "a ray hit another sample's scene: the cell isolation is broken"
+
+
+def _run(embree_scene, buffers, ray_origin, directions, max_range_m):
+    """Embree's first hits (primitive ids, -1: none) of float32 rays; the scene and its
+    buffers are released after the run (Embree read them when it built the BVH)."""
+    ray_dir = directions.reshape(-1, 3).astype(np.float32)
+    far = np.full(len(ray_origin), max_range_m + 1.0, np.float32)
+    prim = embree_scene.run(ray_origin, ray_dir, dists=far)
+    del embree_scene, buffers
+    return prim
+
+
+def _compiled_hits(scene, origins, directions, offsets, max_range_m, shared, incidence, keep,
+                   normal, plane):  # fmt: skip
+    """The rest of :func:`cast` by the compiled kernels, from the culling pass's results."""
+    from simlidar.sensor import cast_kernels
+
+    embree_scene = new_scene()
+    if shared and shared_buffers():
+        vertices = cast_kernels.pack_vertices(scene.triangles, keep, scene.sample, offsets)
+        buffers = attach_vertices(embree_scene, vertices)
+    else:  # embreex's own copy of the same float32 vertices
+        world = np.take(scene.triangles, keep, axis=0)
+        world += np.take(offsets, np.take(scene.sample, keep), axis=0)[:, None, :]
+        buffers = attach_triangles(embree_scene, world, shared)
+    per_sample = (len(offsets), -1, 3)
+    local_origins = origins.reshape(per_sample)
+    ray_origin = cast_kernels.ray_origins(local_origins, offsets)
+    prim = _run(embree_scene, buffers, ray_origin, directions, max_range_m)
+    hit_range, surface, on_object, cos, isolated = cast_kernels.first_hits(
+        prim,
+        keep,
+        normal,
+        plane,
+        local_origins,
+        directions.reshape(per_sample),
+        scene.sample,
+        scene.surface,
+        scene.is_object,
+    )
+    if not isolated:
+        raise RuntimeError(_NOT_ISOLATED)
+    shape = origins.shape[:-1]
+    hits = hit_range.reshape(shape), surface.reshape(shape), on_object.reshape(shape)
+    return Hits(*hits, cos.reshape(shape) if incidence else None)

@@ -107,3 +107,14 @@ def test_the_version_says_which_ray_casting_path_is_in_use(monkeypatch, cli):
         "ray casting: embreex's TriangleMesh, a copy a triangle: slower, the same hits "
         "(embreex's Embree is version 3)"
     )
+
+
+def test_vertices_in_another_layout_are_refused():
+    if not embree.shared_buffers():
+        pytest.skip("shared buffers unavailable here")
+    for bad in (np.zeros((6, 4)), np.zeros((6, 3), np.float32), np.zeros((5, 4), np.float32),
+                np.zeros((6, 8), np.float32)[:, ::2]):  # fmt: skip
+        with pytest.raises(ValueError, match="expected"):
+            embree.attach_vertices(embree.new_scene(), bad)
+    vertices = np.zeros((6, 4), np.float32)
+    assert embree.attach_vertices(embree.new_scene(), vertices)[0] is vertices

@@ -1,0 +1,185 @@
+"""The ray cast's two forms, numpy and the compiled kernels: speed, cost to load, and when they pay.
+
+    python benchmark/cast_speed.py [--samples 22400,100000 | --no-end-to-end] [--runs 3] \
+                                   [--rounds 10]
+
+Pins itself to one CPU core and measures, one after the other:
+
+* **the cast of one batch**: the first 1,024 training samples of ``simlidar generate --classes
+  32 --noise 0.2`` (the users' command: profile ``paper``, the default catalog and sensor), their
+  scenes and rays taken from the generator itself, cast by :func:`simlidar.sensor.raycast.cast`
+  in numpy and through the kernels (Embree's BVH and queries included), the best of
+  ``--rounds`` each, in turn; the hits of the two are checked to be the same to the last bit;
+* **the kernels' cost to load**: in fresh processes, the CPU time of the first compiled cast of
+  one sample (numba's import, its CPU target and the cached kernels) less that of the second;
+* **end to end**: for each ``--samples`` N, ``simlidar generate --classes 32 --noise 0.2``
+  with N samples (5/6 train, 1/6 test), the whole process, with the kernels forced on and
+  forced off (``COMPILED_FROM_RAYS`` set before the run), ``--runs`` pairs, in turn; the
+  median seconds of each and the median of the pairs' ratios. The two datasets' files are
+  checked to be the same bytes.
+
+What the default chooses is :func:`simlidar.sensor.raycast.compiled_for`: the kernels from
+``COMPILED_FROM_RAYS`` rays a process, where they start to pay.
+"""
+
+import os
+
+if hasattr(os, "sched_setaffinity"):
+    os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import filecmp  # noqa: E402
+import statistics  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import simlidar.generator.simulate as simulate_module  # noqa: E402
+from simlidar.generator.config import GeneratorConfig  # noqa: E402
+from simlidar.generator.profiles import load_profile  # noqa: E402
+from simlidar.scene.recipe import load_catalog  # noqa: E402
+from simlidar.script_args import integers, run  # noqa: E402
+from simlidar.sensor import raycast  # noqa: E402
+
+BATCH = 1024
+
+# A fresh process: CPU seconds of its first compiled cast of one sample, then of its second.
+LOAD = """
+import sys, time
+sys.path.insert(0, {here!r})
+from cast_speed import first_batch
+from simlidar.sensor.raycast import cast
+args = first_batch(1)
+spent = []
+for _ in range(2):
+    start = time.process_time()
+    cast(*args, compiled=True)
+    spent.append(time.process_time() - start)
+print(spent[0] - spent[1])
+"""
+
+# A fresh process: simlidar generate with the kernels forced on or off.
+GENERATE = """
+import sys
+import simlidar.sensor.raycast as raycast
+raycast.COMPILED_FROM_RAYS = {threshold}
+from simlidar.cli import main
+main(sys.argv[1:], prog_name="simlidar")
+"""
+
+
+def first_batch(size: int = BATCH):
+    """The cast's arguments for the first ``size`` training samples of the users' command."""
+    config = GeneratorConfig.from_profile(load_profile("paper"), noise=0.2)
+    taken = []
+
+    def keep(*args, **kwargs):
+        taken.append(args)
+        return cast(*args, **kwargs)
+
+    cast, simulate_module.cast = simulate_module.cast, keep
+    try:
+        simulate_module.simulate(config, load_catalog(), "train", 0, size)
+    finally:
+        simulate_module.cast = cast
+    return taken[0]  # the first draw of every sample (redraws are cast apart)
+
+
+def best(step, rounds: int) -> float:
+    times = []
+    for _ in range(rounds):
+        start = time.process_time()
+        step()
+        times.append(time.process_time() - start)
+    return min(times)
+
+
+def same_hits(a, b) -> bool:
+    """The two casts' hits, byte for byte."""
+    fields = ("range_m", "surface", "on_object")
+    return all(getattr(a, f).tobytes() == getattr(b, f).tobytes() for f in fields)
+
+
+def generate_seconds(samples: int, threshold: int, out: Path) -> float:
+    """Wall seconds of one ``simlidar generate`` process with COMPILED_FROM_RAYS = threshold."""
+    test = samples // 6
+    command = [sys.executable, "-c", GENERATE.format(threshold=threshold), "generate",
+               "--classes", "32", "--noise", "0.2", "--train-size", str(samples - test),
+               "--test-size", str(test), "--out", str(out), "--force"]  # fmt: skip
+    start = time.perf_counter()
+    subprocess.run(command, check=True, capture_output=True)
+    return time.perf_counter() - start
+
+
+def same_folders(a: Path, b: Path) -> bool:
+    names = sorted(p.relative_to(a) for p in a.rglob("*") if p.is_file())
+    if names != sorted(p.relative_to(b) for p in b.rglob("*") if p.is_file()):
+        return False
+    return all(filecmp.cmp(a / n, b / n, shallow=False) for n in names)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--samples", type=integers(12), default=(22400, 100000),
+                        help="end-to-end run sizes (comma-separated)")  # fmt: skip
+    parser.add_argument("--no-end-to-end", action="store_true", help="skip the end-to-end runs")
+    parser.add_argument("--runs", type=integers(1, 20, one=True), default=3)
+    parser.add_argument("--rounds", type=integers(1, 100, one=True), default=10)
+    args = parser.parse_args()
+    print(f"one core (cpu {sorted(os.sched_getaffinity(0))[0]}); default: the kernels from "
+          f"{raycast.COMPILED_FROM_RAYS:,} rays a process")  # fmt: skip
+
+    batch = first_batch()
+    scene, origins = batch[0], batch[1]
+    numpy_hits = raycast.cast(*batch)
+    compiled_hits = raycast.cast(*batch, compiled=True)  # loads the kernels
+    numpy_s = best(lambda: raycast.cast(*batch), args.rounds)
+    compiled_s = best(lambda: raycast.cast(*batch, compiled=True), args.rounds)
+    n = len(origins)
+    print(f"\ncast of one batch ({n} samples, {origins[0, ..., 0].size} rays each, "
+          f"{len(scene.triangles) / n:.1f} triangles a sample before culling), CPU us a "
+          f"sample, best of {args.rounds}:")  # fmt: skip
+    print(f"  numpy              {1e6 * numpy_s / n:8.1f}")
+    print(f"  compiled kernels   {1e6 * compiled_s / n:8.1f}")
+    print(f"  compiled / numpy   {compiled_s / numpy_s:8.3f}")
+    print(f"  hits the same to the last bit: {same_hits(numpy_hits, compiled_hits)}")
+    saved_per_ray = (numpy_s - compiled_s) / numpy_hits.range_m.size
+
+    loads = []
+    for _ in range(3):
+        probe = [sys.executable, "-c", LOAD.format(here=str(Path(__file__).resolve().parent))]
+        loads.append(float(subprocess.run(probe, capture_output=True, check=True).stdout))
+    load_s = statistics.median(loads)
+    print(f"\nloading the kernels (a fresh process's first compiled cast less its second, CPU s, "
+          f"3 processes): {', '.join(f'{x:.3f}' for x in loads)}; median {load_s:.3f}")  # fmt: skip
+    if saved_per_ray > 0:
+        print(f"  saved a ray in the batch above: {1e6 * saved_per_ray:.3f} us; the kernels pay "
+              f"from about {load_s / saved_per_ray / 1e6:.1f} million rays a process")  # fmt: skip
+
+    sizes = () if args.no_end_to_end else args.samples
+    if sizes:
+        print(f"\nend to end, simlidar generate --classes 32 --noise 0.2, wall s, {args.runs} "
+              "pairs in turn (median):")  # fmt: skip
+        print(f"  {'samples':>8} {'numpy':>8} {'kernels':>8} {'ratio':>7}  same bytes")
+    with tempfile.TemporaryDirectory() as tmp:
+        for samples in sizes:
+            folders = Path(tmp) / "numpy", Path(tmp) / "kernels"
+            times, ratios = ([], []), []
+            for _ in range(args.runs):
+                a = generate_seconds(samples, 2**62, folders[0])
+                b = generate_seconds(samples, 0, folders[1])
+                times[0].append(a)
+                times[1].append(b)
+                ratios.append(b / a)
+            same = same_folders(*folders)
+            numpy_s, kernels_s = (statistics.median(t) for t in times)
+            ratio = statistics.median(ratios)
+            print(f"  {samples:>8} {numpy_s:8.2f} {kernels_s:8.2f} {ratio:7.3f}  {same}")
+
+
+if __name__ == "__main__":
+    run(main)
