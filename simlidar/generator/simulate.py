@@ -238,13 +238,14 @@ def simulate(
         cos_incidence = np.zeros(shape, np.float32)
         hit_surface = np.zeros(shape, np.uint8)
     more = {} if physics is None else {"incidence": True}  # other backends take no such key
-    if compiled_for(run_rays(config)):  # the kernels' loading pays on long runs
+    compiled = compiled_for(run_rays(config))  # the kernels' loading pays on long runs
+    if compiled:
         more["compiled"] = True
     pending = np.arange(n)
     while len(pending):
         attempts[pending] += 1
         u = streams.random(columns, pending)
-        origins, directions = window_rays(sensor, width, config.fov_deg, u[:, 0])
+        origins, directions = window_rays(sensor, width, config.fov_deg, u[:, 0], compiled)
         if beams:  # every sub-ray, cast with the others; sub-ray 0 is the beam's axis
             directions, weights = subray_directions(
                 directions,

@@ -64,7 +64,7 @@ from simlidar.generator.simulate import (
 from simlidar.generator.streams import Streams
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
-from simlidar.sensor.footprint import subray_directions
+from simlidar.sensor.footprint import subray_count, subray_directions
 from simlidar.sensor.model import row_order
 from simlidar.sensor.raycast import MAX_BATCH, cast, compiled_for
 from simlidar.sensor.rays import cycles_per_rotation, sweep_emission_ns, sweep_rays
@@ -131,8 +131,11 @@ def simulate_frames(
     layout, obj = factors(plan, labels, free, len(catalog.layouts), len(catalog.objects))
     lc = catalog.layout_columns
     u = streams.random(FIXED_COLUMNS + lc + catalog.object_columns)
-    origins, directions = sweep_rays(sensor, u[:, 0])
     beams = stores_returns(config)
+    subrays = subray_count(config.beam_samples) if beams else 1
+    rays = (total or len(index)) * sensor.beams * cycles_per_rotation(sensor) * subrays
+    compiled = compiled_for(rays)  # the sweep's rays: the kernels pay on long runs
+    origins, directions = sweep_rays(sensor, u[:, 0], compiled)
     if beams:  # every sub-ray, cast with the others; sub-ray 0 is the beam's axis
         receiver = receiver_physics(config.profile).receiver
         directions, weights = subray_directions(
@@ -149,9 +152,8 @@ def simulate_frames(
         u[:, FIXED_COLUMNS : FIXED_COLUMNS + lc],
         u[:, FIXED_COLUMNS + lc :],
     )
-    rays = (total or len(index)) * origins[0, ..., 0].size  # the kernels pay on long runs
     hits = cast(scene, origins, directions, index % MAX_BATCH, sensor.max_range_m, incidence=True,
-                compiled=compiled_for(rays))  # fmt: skip
+                compiled=compiled)  # fmt: skip
     cycles = cycles_per_rotation(sensor)
     beam_hits, hits = (hits, axis_hits(hits, cycles)) if beams else (None, hits)
     r = quantise_range(hits.range_m, sensor)

@@ -1,4 +1,4 @@
-"""Compiled (numba) kernels of the batched ray cast: culling, packing and the exact range.
+"""Compiled (numba) kernels of the batched ray cast: the rays, culling, packing, the exact range.
 
 Each kernel does in one pass over its rows what :mod:`simlidar.sensor.raycast` did with a dozen
 numpy calls (temporaries, gathers, casts): the same numbers, bit for bit, because each one
@@ -46,6 +46,35 @@ def _dot3(ax, ay, az, bx, by, bz):
     """numpy's three-term ``einsum`` dot product, in its order (from a zeroed accumulator: an
     exact zero is +0, never -0)."""
     return 0.0 + ((ax * bx + az * bz) + ay * by)
+
+
+@njit(cache=True, nogil=True)
+def rays(cos_start, sin_start, cos_firing, sin_firing, cos_elevation, sin_elevation, row_origins):
+    """The origins and directions of :func:`simlidar.sensor.rays.window_rays` (and of
+    ``sweep_rays``) from the cosines and sines numpy computed, one pass (the products are
+    numpy's, one operation at a time).
+
+    cos_start, sin_start : (B, W) float64, of each column's cycle start (radians)
+    cos_firing, sin_firing : (H,) float64, of each row's firing offset
+    cos_elevation, sin_elevation : (H,) float64, of each row's laser elevation
+    row_origins : (H, 3) float64, each row's emitter
+    returns : origins, directions (B, H, W, 3) float64 (untilted: the pitch is applied after)
+    """
+    batch, width = cos_start.shape
+    height = cos_firing.shape[0]
+    origins = np.empty((batch, height, width, 3))
+    directions = np.empty((batch, height, width, 3))
+    for b in range(batch):
+        for h in range(height):
+            for w in range(width):
+                cos_a = cos_start[b, w] * cos_firing[h] - sin_start[b, w] * sin_firing[h]
+                sin_a = sin_start[b, w] * cos_firing[h] + cos_start[b, w] * sin_firing[h]
+                directions[b, h, w, 0] = cos_elevation[h] * cos_a
+                directions[b, h, w, 1] = -cos_elevation[h] * sin_a  # clockwise azimuth
+                directions[b, h, w, 2] = sin_elevation[h]
+                for c in range(3):
+                    origins[b, h, w, c] = row_origins[h, c]
+    return origins, directions
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

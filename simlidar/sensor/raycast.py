@@ -16,7 +16,8 @@ cost more numpy time than the few triangles they drop save.
 
 Two forms give the same hits to the last bit: numpy's, and compiled kernels
 (:mod:`simlidar.sensor.cast_kernels`: culling, packing and the exact range in one pass each,
-1.7 times faster for the whole cast, Embree included). The kernels cost a process about 0.4 s
+1.7 times faster for the whole cast, Embree included; the rays too,
+:func:`simlidar.sensor.rays.window_rays`). The kernels cost a process about 0.4 s
 of CPU time and 100 MB of memory to load (numba and LLVM), so they pay only on long runs:
 :func:`compiled_for` says when, from the number of rays a process will cast
 (docs/performance.md).
@@ -36,9 +37,9 @@ GRID_CELLS = 16  # per axis
 CELL_SPACING_M = 320.0
 MAX_BATCH = GRID_CELLS**3
 # From this many rays a process casts, the compiled kernels save more than they cost to load:
-# 0.41 s of loading against 0.13 us saved a ray pays from 3.2 M rays (`benchmark/cast_speed.py`;
-# `simlidar generate` of 22,400 samples, 5.7 M rays, took 0.96 of the numpy form's time, of
-# 100,000 0.88; docs/performance.md).
+# 0.34-0.41 s of loading against 0.10-0.13 us saved a ray pays from 3.2-3.5 M rays
+# (`benchmark/cast_speed.py`; `simlidar generate` of 22,400 samples, 5.7 M rays, took 0.96 of
+# the numpy form's time, of 100,000 0.84-0.88; docs/performance.md).
 COMPILED_FROM_RAYS = 4_000_000
 
 

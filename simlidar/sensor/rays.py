@@ -112,11 +112,11 @@ def _sweep_parts(sensor: Sensor, phase):
     return start[:, None, :], _firing_offsets_deg(sensor)
 
 
-def sweep_rays(sensor: Sensor, phase):
+def sweep_rays(sensor: Sensor, phase, compiled: bool = False):
     """Origins and unit directions of every firing of B full rotations (frames), as
     :func:`window_rays` gives those of a window: (B, H, C, 3) each, C =
     :func:`cycles_per_rotation`."""
-    return _rays(sensor, *_sweep_parts(sensor, phase))
+    return _rays(sensor, *_sweep_parts(sensor, phase), compiled)
 
 
 def scan_window_ns(sensor: Sensor, width: int, fov_deg: float) -> float:
@@ -138,36 +138,51 @@ def _pitch(vectors: np.ndarray, pitch_deg: float) -> np.ndarray:
     return np.stack([x * np.cos(t) + z * np.sin(t), y, z * np.cos(t) - x * np.sin(t)], axis=-1)
 
 
-def window_rays(sensor: Sensor, width: int, fov_deg: float, phase):
+def window_rays(sensor: Sensor, width: int, fov_deg: float, phase, compiled: bool = False):
     """Origins and unit directions of every pulse of B sample windows.
 
+    width, fov_deg : the window's columns and its horizontal field of view (degrees)
     phase : (B,) float in [0, 1)
+    compiled : the products in a compiled kernel (:func:`simlidar.sensor.cast_kernels.rays`:
+        the same numbers; asked on long runs, :func:`simlidar.sensor.raycast.compiled_for`)
     returns : origins (B, H, W, 3) float64, directions (B, H, W, 3) float64, in the sample's
         local frame (road at z = 0, rotation axis at x = y = 0).
     """
-    return _rays(sensor, *_azimuth_parts(sensor, width, fov_deg, phase))
+    return _rays(sensor, *_azimuth_parts(sensor, width, fov_deg, phase), compiled)
 
 
-def _rays(sensor: Sensor, cycle_start_deg: np.ndarray, firing_deg: np.ndarray):
+def _rays(sensor: Sensor, cycle_start_deg: np.ndarray, firing_deg: np.ndarray, compiled=False):
     """Origins and directions of the firings at azimuth cycle start (B, 1, W) + firing offset
-    (1, H, 1) degrees: (B, H, W, 3) each."""
+    (1, H, 1) degrees: (B, H, W, 3) each (``compiled``: the products by a kernel)."""
     cycle_start, firing = np.deg2rad(cycle_start_deg), np.deg2rad(firing_deg)
     lasers = row_order(sensor)
     elevation = np.deg2rad(np.asarray(sensor.elevations_deg)[lasers])[None, :, None]
-    # azimuth = cycle start + firing offset; expand cos/sin of the sum instead of (B, H, W) trig
-    cos_a = np.cos(cycle_start) * np.cos(firing) - np.sin(cycle_start) * np.sin(firing)
-    sin_a = np.sin(cycle_start) * np.cos(firing) + np.cos(cycle_start) * np.sin(firing)
-    directions = np.empty(cos_a.shape + (3,))
-    directions[..., 0] = np.cos(elevation) * cos_a
-    directions[..., 1] = -np.cos(elevation) * sin_a  # clockwise azimuth: positive looks right
-    directions[..., 2] = np.sin(elevation)
     # every window has the same H origins: the emitters on the axis, tilted with the sensor
     row_origins = np.zeros((sensor.beams, 3))
     row_origins[:, 2] = np.asarray(sensor.vertical_offsets_mm)[lasers] * 1e-3
     row_origins = _pitch(row_origins, sensor.pitch_deg)
     row_origins[:, 2] += sensor.mount_height_m
-    origins = np.empty(directions.shape)
-    origins[...] = row_origins[None, :, None, :]
+    # azimuth = cycle start + firing offset; expand cos/sin of the sum instead of (B, H, W) trig
+    # (numpy's own cos and sin, on these arrays, in either form)
+    cos_start, sin_start = np.cos(cycle_start), np.sin(cycle_start)
+    cos_firing, sin_firing = np.cos(firing), np.sin(firing)
+    cos_elevation, sin_elevation = np.cos(elevation), np.sin(elevation)
+    if compiled:
+        from simlidar.sensor import cast_kernels
+
+        origins, directions = cast_kernels.rays(
+            cos_start[:, 0], sin_start[:, 0], cos_firing[0, :, 0], sin_firing[0, :, 0],
+            cos_elevation[0, :, 0], sin_elevation[0, :, 0], row_origins,
+        )  # fmt: skip
+    else:
+        cos_a = cos_start * cos_firing - sin_start * sin_firing
+        sin_a = sin_start * cos_firing + cos_start * sin_firing
+        directions = np.empty(cos_a.shape + (3,))
+        directions[..., 0] = cos_elevation * cos_a
+        directions[..., 1] = -cos_elevation * sin_a  # clockwise azimuth: positive looks right
+        directions[..., 2] = sin_elevation
+        origins = np.empty(directions.shape)
+        origins[...] = row_origins[None, :, None, :]
     if sensor.pitch_deg:
         directions = _pitch(directions, sensor.pitch_deg)
     return origins, directions

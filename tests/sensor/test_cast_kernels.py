@@ -1,6 +1,7 @@
 """The cast's compiled kernels against its numpy form, bit for bit: every dataset's bytes depend
 on it (long runs cast with the kernels, short ones with numpy)."""
 
+from dataclasses import replace
 from fractions import Fraction
 
 import numpy as np
@@ -13,8 +14,9 @@ from simlidar.generator.profiles import load_profile
 from simlidar.scene.build import SceneBatch
 from simlidar.sensor import cast_kernels, raycast, window_rays
 from simlidar.sensor.embree import shared_buffers
-from simlidar.sensor.model import default_sensor
+from simlidar.sensor.model import default_sensor, load_sensor
 from simlidar.sensor.raycast import cast, cell_offsets, visible_triangles
+from simlidar.sensor.rays import sweep_rays
 
 
 def same_bits(a: np.ndarray, b: np.ndarray) -> bool:
@@ -64,6 +66,23 @@ def test_culling_agrees_on_degenerate_signed_zero_and_nan_triangles():
     for g, ref in zip(got, visible_triangles(scene, origins), strict=True):
         assert same_bits(g, ref)
     assert not got[0][:50].any() and got[0][50:].any()
+
+
+@pytest.mark.parametrize("name", ["vlp16", "hdl32e", "hdl64e"])
+@pytest.mark.parametrize("pitch", [0.0, 3.5])
+def test_the_compiled_rays_are_numpys_to_the_bit(name, pitch):
+    sensor = replace(load_sensor(name), pitch_deg=pitch)
+    phase = np.random.default_rng(5).random(40)
+    for got, want in zip(
+        window_rays(sensor, 16, 36.0, phase, compiled=True),
+        window_rays(sensor, 16, 36.0, phase),
+        strict=True,
+    ):
+        assert same_bits(got, want)
+    for got, want in zip(
+        sweep_rays(sensor, phase[:2], compiled=True), sweep_rays(sensor, phase[:2]), strict=True
+    ):
+        assert same_bits(got, want)
 
 
 def test_fma_rounds_once():
