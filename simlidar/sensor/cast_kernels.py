@@ -1,9 +1,13 @@
 """Compiled (numba) kernels of the batched ray cast: the rays, culling, packing, the exact range.
 
-Each kernel does in one pass over its rows what :mod:`simlidar.sensor.raycast` did with a dozen
-numpy calls (temporaries, gathers, casts): the same numbers, bit for bit, because each one
-repeats numpy's own order of operations, found by measurement on this project's machines and
-held by ``tests/sensor/test_cast_kernels.py`` against the numpy forms kept there:
+Each kernel does in one pass over its rows what :mod:`simlidar.sensor.raycast` (and
+:func:`simlidar.sensor.rays.window_rays`) do with a dozen numpy calls (temporaries, gathers,
+casts): the same numbers, bit for bit, because each one repeats numpy's own order of
+operations. The orders were found by measurement on this project's machines (x86-64 with
+AVX-512; numpy 2.4's SIMD loops, OpenBLAS's SkylakeX kernels), and
+``tests/sensor/test_cast_kernels.py`` compares the two forms bit for bit (whole datasets
+included) wherever it runs, so a numpy or BLAS that orders otherwise fails there rather than
+making a dataset's bytes depend on its size:
 
 * a three-term ``np.einsum("ij,ij->i", a, b)`` sums ``0 + ((a0 b0 + a2 b2) + a1 b1)`` (numpy
   pairs the lanes of a SIMD register, 0 with 2, then 1, from zeroed accumulators);
