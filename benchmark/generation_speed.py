@@ -84,19 +84,12 @@ def _unit_mesh(kind: str, segments: int):
 
 
 def naive_backend(
-    catalog,
-    layout,
-    obj,
-    layout_uniforms,
-    object_uniforms,
-    origins,
-    directions,
-    slots,
-    max_range_m,
-    compiled=False,
-):
+    catalog, layout, obj, layout_uniforms, object_uniforms, origins, directions, slots, max_range_m,
+    **options,
+):  # fmt: skip
     """The naive way: per sample, trimesh primitives in one scene and trimesh's ray API
-    (``compiled``, asked of a long run, has no meaning here: trimesh casts)."""
+    (``options``, the batched backend's ``compiled`` on a long run, mean nothing here: trimesh
+    casts)."""
     import trimesh
 
     results, poses = [], []
@@ -135,19 +128,11 @@ def naive_backend(
 
 
 def per_sample_cast_backend(
-    catalog,
-    layout,
-    obj,
-    layout_uniforms,
-    object_uniforms,
-    origins,
-    directions,
-    slots,
-    max_range_m,
-    compiled=False,
-):
+    catalog, layout, obj, layout_uniforms, object_uniforms, origins, directions, slots, max_range_m,
+    **options,
+):  # fmt: skip
     """simlidar's numpy builder, but one trimesh mesh and one ray query per sample
-    (``compiled`` as in :func:`naive_backend`)."""
+    (``options`` as in :func:`naive_backend`)."""
     import trimesh
 
     scene = build_batch(catalog, layout, obj, layout_uniforms, object_uniforms)
