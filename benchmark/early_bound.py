@@ -304,7 +304,9 @@ def cell_bounds(results: list[dict], cells: list[dict]) -> list[dict]:
     learners on a test split of the cell's size has one: behind a gate of k the row at k (the
     network read at most k spikes); otherwise the per-sample form at the cell's own decision
     counts (the better of the seeds' mean and their ensemble) and the looser rounded-up form,
-    and the larger of the two."""
+    and the larger of the two. ``ensemble``: the bound's best seed ensemble there (a learner
+    with a right or wrong on each test sample, which a seed mean is not; None where the run
+    keeps none), ``samples`` the test split's size."""
     from simlidar.bench.bound import per_sample_accuracy, rounded_up_accuracy, test_samples
 
     runs = {
@@ -318,14 +320,16 @@ def cell_bounds(results: list[dict], cells: list[dict]) -> list[dict]:
         if run is None or test_samples(run) != len(cell["spikes"]):
             continue  # none, or a dataset of the same name and another size (a user's own)
         entry = {**{k: v for k, v in cell.items() if k != "spikes"}}
+        entry["samples"] = len(cell["spikes"])
         if cell["gate"] is not None:
             row = next((r for r in run["rows"] if r["k"] == cell["gate"]), None)
             if row is None:
                 continue
-            entry.update(form="at the gate's k", bound=row["accuracy_mean"])
+            ensemble = max(f["ensemble"] for f in row["learners"].values())
+            entry.update(form="at the gate's k", bound=row["accuracy_mean"], ensemble=ensemble)
         else:
             form = run.get("per_sample")
-            exact = None
+            exact = ensemble = None
             if form is not None:
                 seeds = [per_sample_accuracy(form, cell["spikes"], str(s)) for s in form["seeds"]]
                 ensemble = per_sample_accuracy(form, cell["spikes"], "ensemble")
@@ -336,9 +340,35 @@ def cell_bounds(results: list[dict], cells: list[dict]) -> list[dict]:
                 per_sample=exact,
                 rounded_up=rounded,
                 bound=max(rounded, exact if exact is not None else 0.0),
+                ensemble=ensemble,
             )
         found.append(entry)
     return found
+
+
+def above_the_bound(found: list[dict]) -> list[dict]:
+    """The cells of :func:`cell_bounds` that score above their bound, each with what its lead
+    can mean on its test split: ``lead`` in test samples over the bound's best seed ensemble
+    there (the learner that has a right or wrong on every sample), and ``mcnemar_p_min``, the
+    smallest two-sided exact McNemar p-value any pattern of right and wrong gives that lead (the
+    network alone right on ``lead`` samples and the ensemble alone right on none: 2 ** (1 -
+    lead), 1 for a lead of one sample or none; above 0.05 up to a lead of 5, so such a lead is
+    within the test split's sampling whichever samples it is made of); and the mean over its
+    variant's seeds (``seeds_mean``), which the bound may still hold."""
+    variants: dict[tuple, list[float]] = {}
+    for e in found:
+        variants.setdefault((e["source"], e["variant"], e["dataset"]), []).append(e["accuracy"])
+    above = []
+    for e in found:
+        if e["accuracy"] <= e["bound"]:
+            continue
+        lead = None
+        if e["ensemble"] is not None:
+            lead = round((e["accuracy"] - e["ensemble"]) * e["samples"])
+        p = None if lead is None else min(1.0, 2.0 ** (1 - lead))
+        seeds = variants[(e["source"], e["variant"], e["dataset"])]
+        above.append({**e, "lead": lead, "mcnemar_p_min": p, "seeds_mean": float(np.mean(seeds))})
+    return above
 
 
 def report(out: Path) -> None:
@@ -493,6 +523,29 @@ def _cells_table(found: list[dict]) -> str:
             f"{entries[0]['form']} | {shown(exact)} | {shown(rounded)} | {bound:.1%} | "
             f"{100 * margin:+.1f} |"
         )
+    above = above_the_bound(found)
+    if above:
+        lines += [
+            "",
+            "## Cells above the bound",
+            "",
+            "Lead: test samples right beyond the bound's best seed ensemble there; p: the",
+            "smallest two-sided exact McNemar p-value any pattern of right and wrong gives that",
+            "lead (`early_bound.above_the_bound`); seeds' mean: the variant's, beside the bound.",
+            "",
+            "| source | variant | dataset | seed | accuracy % | bound % | best ensemble % | "
+            "lead (samples) | p at least | seeds' mean % |",
+            "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        ]
+        for e in above:
+            ensemble = "-" if e["ensemble"] is None else f"{e['ensemble']:.2%}"
+            lead = "-" if e["lead"] is None else f"{e['lead']} of {e['samples']}"
+            p = "-" if e["mcnemar_p_min"] is None else f"{e['mcnemar_p_min']:.2f}"
+            lines.append(
+                f"| {e['source']} | {e['variant']} | {e['dataset']} | {e['seed']} | "
+                f"{e['accuracy']:.2%} | {e['bound']:.2%} | {ensemble} | {lead} | {p} | "
+                f"{e['seeds_mean']:.2%} |"
+            )
     return "\n".join(lines) + "\n"
 
 
