@@ -8,6 +8,7 @@ for ~1 %.
 import os
 import zlib
 from contextlib import contextmanager
+from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
@@ -67,6 +68,78 @@ def deflate_matches_hdf5() -> bool:
     return True
 
 
+def whole_chunks(rows: np.ndarray, step: int):
+    """``rows`` cut into chunks of ``step`` rows, the last padded with zeros (HDF5's fill
+    value, as HDF5 stores a dataset's last chunk)."""
+    for first in range(0, len(rows), step):
+        chunk = rows[first : first + step]
+        if len(chunk) < step:
+            pad = np.zeros((step - len(chunk), *chunk.shape[1:]), chunk.dtype)
+            chunk = np.concatenate([chunk, pad])
+        yield chunk
+
+
+def chunk_steps(
+    size: int, names, chunk: int = CHUNK_SAMPLES, chunk_rows: dict[str, int] | None = None
+) -> tuple[int, dict[str, int]]:
+    """The rows a :class:`SplitWriter` of ``size`` rows writes at a time (every dataset in
+    turn), and each dataset's rows a chunk (``chunk_rows`` where given, never more)."""
+    group = min(chunk, size)
+    return group, {name: min(group, (chunk_rows or {}).get(name, group)) for name in names}
+
+
+@dataclass(frozen=True)
+class Deflated:
+    """One dataset's rows of a block already cut into whole chunks of its file and compressed
+    (:func:`deflated_block`): what a worker process hands the writer in place of the rows."""
+
+    rows: int
+    chunks: tuple[bytes, ...]
+
+
+def deflated_block(
+    block: dict[str, np.ndarray],
+    offset: int,
+    size: int,
+    shapes: dict[str, tuple[str, tuple]],
+    shuffled: frozenset[str] = frozenset(),
+    chunk: int = CHUNK_SAMPLES,
+    chunk_rows: dict[str, int] | None = None,
+) -> dict[str, Deflated] | None:
+    """``block`` (rows ``offset`` .. of a file of ``size`` rows, the datasets of ``shapes``)
+    compressed as its :class:`SplitWriter` would compress it, for the writer to store as it is
+    (:meth:`SplitWriter.append`); so the compression runs where the rows are made. None where
+    the writer must cut the rows itself: the block does not start at a whole chunk of every
+    dataset and end at one or at the file's end, or :func:`deflated` does not give HDF5's
+    bytes here.
+
+    block : one array per dataset, equally long
+    offset : the file row of the block's first row
+    size : the file's rows
+    shapes : name -> (dtype, trailing shape), as the writer was given them
+    shuffled : the datasets stored shuffled
+    chunk : the writer's chunk rows
+    chunk_rows : per dataset, fewer rows a chunk (the writer's ``chunk_rows``)
+    """
+    group, steps = chunk_steps(size, shapes, chunk, chunk_rows)
+    rows = len(block[next(iter(shapes))])
+    aligned = offset % group == 0 and (rows % group == 0 or offset + rows == size)
+    if not aligned or any(group % step for step in steps.values()):
+        return None
+    if not deflate_matches_hdf5():
+        return None
+    return {
+        name: Deflated(
+            rows,
+            tuple(
+                deflated(chunk_, name in shuffled)
+                for chunk_ in whole_chunks(np.asarray(block[name], dtype=dtype), steps[name])
+            ),
+        )
+        for name, (dtype, _) in shapes.items()
+    }
+
+
 class SplitWriter:
     """Appends blocks of rows to the datasets of one HDF5 file; peak memory is a block plus
     one chunk.
@@ -92,7 +165,9 @@ class SplitWriter:
     ``write_direct_chunk``, the bytes HDF5's filters would store (checked once a process by
     :func:`deflate_matches_hdf5`, else HDF5 filters them): h5py's own path copied each chunk
     through HDF5's type conversion and filter pipeline, 1.1x the time (32.8 against 29.6 us a
-    sample, docs/performance.md).
+    sample, docs/performance.md). A block may also come compressed already
+    (:func:`deflated_block`, by a worker process): its chunks are stored as they are, in the
+    same order, so the file's bytes are the same.
     """
 
     def __init__(
@@ -107,7 +182,7 @@ class SplitWriter:
         chunk_rows: dict[str, int] | None = None,
     ):
         self.size = size
-        self.chunk = min(chunk, size)  # rows a chunk (full sweeps: one frame)
+        self.chunk, steps = chunk_steps(size, shapes, chunk, chunk_rows)  # (full sweeps: a frame)
         self.written = 0
         self.pending: dict[str, list[np.ndarray]] = {name: [] for name in shapes}
         self.path = Path(path)
@@ -127,7 +202,7 @@ class SplitWriter:
                 name,
                 shape=shape,
                 dtype=dtype,
-                chunks=(min(self.chunk, (chunk_rows or {}).get(name, self.chunk)), *shape[1:]),
+                chunks=(steps[name], *shape[1:]),
                 compression="gzip",
                 compression_opts=1,
                 shuffle=name in shuffled,
@@ -136,8 +211,12 @@ class SplitWriter:
         for key, value in attrs.items():
             self.file.attrs[key] = value
 
-    def append(self, block: dict[str, np.ndarray]) -> None:
-        """Add the next rows (in file order): one array per dataset, equally long."""
+    def append(self, block: dict[str, np.ndarray] | dict[str, Deflated]) -> None:
+        """Add the next rows (in file order): one array per dataset, equally long, or the
+        :class:`Deflated` rows of every dataset (:func:`deflated_block`)."""
+        if isinstance(next(iter(block.values())), Deflated):
+            self._append_deflated(block)
+            return
         for name in self.pending:
             self.pending[name].append(block[name])
         first = next(iter(self.pending))
@@ -152,6 +231,26 @@ class SplitWriter:
             self.written += rows
             ready -= rows
 
+    def _append_deflated(self, block: dict[str, Deflated]) -> None:
+        """Store compressed chunks as :meth:`append` would store their rows: a group of
+        ``self.chunk`` rows at a time, every dataset's chunks of the group in turn."""
+        rows = block[next(iter(self.pending))].rows
+        waiting = any(len(part) for parts in self.pending.values() for part in parts)
+        if not self.direct or waiting or self.written % self.chunk:
+            raise RuntimeError(f"{self.path}: compressed rows at row {self.written}")
+        start = self.written
+        for first in range(0, rows, self.chunk):
+            stop = min(first + self.chunk, rows)
+            for name in self.pending:
+                data = self.datasets[name]
+                step, tail = data.chunks[0], (0,) * (data.ndim - 1)
+                with self._failing():
+                    for index in range(first // step, -(-stop // step)):
+                        data.id.write_direct_chunk(
+                            (start + index * step, *tail), block[name].chunks[index]
+                        )
+            self.written = start + stop
+
     def _write(self, name: str, rows: np.ndarray) -> None:
         """Write ``rows`` of dataset ``name`` from row ``self.written``: whole chunks (the last
         of the dataset padded with zeros, HDF5's fill value, as HDF5 stores it)."""
@@ -162,14 +261,9 @@ class SplitWriter:
             return
         rows = np.asarray(rows, dtype=data.dtype)
         tail = (0,) * (rows.ndim - 1)
-        for first in range(0, len(rows), step):
-            chunk = rows[first : first + step]
-            if len(chunk) < step:
-                chunk = np.concatenate(
-                    [chunk, np.zeros((step - len(chunk), *chunk.shape[1:]), chunk.dtype)]
-                )
+        for index, chunk in enumerate(whole_chunks(rows, step)):
             data.id.write_direct_chunk(
-                (self.written + first, *tail), deflated(chunk, name in self.shuffled)
+                (self.written + index * step, *tail), deflated(chunk, name in self.shuffled)
             )
 
     def add_rows(self, name: str, values: np.ndarray, dtype: str, chunk: int = 65_536) -> None:

@@ -14,6 +14,7 @@ from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import ExitStack, closing
 from dataclasses import dataclass
+from functools import partial
 from itertools import islice
 from pathlib import Path
 
@@ -25,7 +26,7 @@ from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.generated_card import generated_card, generated_croissant
 from simlidar.generator.returns import check_physics, receiver_physics
-from simlidar.generator.shard import remove_partials, split_shards, write_shard
+from simlidar.generator.shard import compressed_rows, remove_partials, split_shards, write_shard
 from simlidar.generator.simulate import class_plan, simulate
 from simlidar.processes import capped_workers, die_with_parent, one_blas_thread
 from simlidar.release.card import write_card
@@ -45,7 +46,8 @@ WAVEFORM_BATCH_BYTES = 256 * 2**20  # stored waveforms a batch holds in memory, 
 # a stored waveform's bytes a pulse on disk: 32 measured (VLP-16, sensor profile, 1 ns bins,
 # 668 samples: gzip of a waveform that is zero but near its echoes), doubled as a margin
 WAVEFORM_DISK_BYTES_PER_PULSE = 64
-_SHARED: tuple | None = None  # (config, catalog) of the batches the worker processes simulate
+# (config, catalog, packing) of the batches the worker processes simulate
+_SHARED: tuple | None = None
 
 
 def _start_worker(parent: int) -> None:
@@ -66,8 +68,9 @@ def _forked_pool(workers: int) -> ProcessPoolExecutor:
 
 
 def _simulate_job(job: tuple[str, int, int]):
-    config, catalog = _SHARED
-    return simulate(config, catalog, *job)
+    config, catalog, packing = _SHARED
+    samples = simulate(config, catalog, *job)
+    return samples if packing is None else packing(job, samples)
 
 
 def _draw_preview(temp: Path, title: str) -> None:
@@ -113,9 +116,18 @@ class Batches:
     from the calling thread, which must outlive them: make it before opening any file or lock
     they must not hold (a forked child shares the parent's HDF5 file locks). ``close`` stops
     them. ``workers`` is capped at the batches and the cores (a one-line warning then says
-    so)."""
+    so). ``packing``, where given, is called by a worker with each job and its Samples, and
+    what it returns is what ``next`` gives in their place (:func:`compressed_rows`: the
+    compression then runs in the workers, not in the one process that writes)."""
 
-    def __init__(self, config: GeneratorConfig, catalog: Catalog, jobs: list, workers: int = 1):
+    def __init__(
+        self,
+        config: GeneratorConfig,
+        catalog: Catalog,
+        jobs: list,
+        workers: int = 1,
+        packing=None,
+    ):
         global _SHARED
         self.config, self.catalog = config, catalog
         self.todo = iter(jobs)
@@ -123,7 +135,7 @@ class Batches:
         self.pool = None
         workers = capped_workers(workers, len(jobs), "batches") if workers > 1 else 1
         if workers > 1:
-            _SHARED = (config, catalog)
+            _SHARED = (config, catalog, packing)
             self.pool = _forked_pool(workers)
             for job in islice(self.todo, 2 * workers):  # forks every worker now
                 self.pending.append((job, self.pool.submit(_simulate_job, job)))
@@ -342,7 +354,8 @@ def generate(
             client = stack.enter_context(connect(scheduler, workers))
         else:  # batches never straddle two files; forked before any file or lock is open
             jobs = [job for shard in shards for job in shard.batches(batch_size)]
-            batches = stack.enter_context(closing(Batches(config, catalog, jobs, workers)))
+            packing = partial(compressed_rows, configs, shards)
+            batches = stack.enter_context(closing(Batches(config, catalog, jobs, workers, packing)))
         created = claim_folder(out)
         claims: list[Temporary] = []
         bar = None

@@ -22,7 +22,7 @@ from simlidar.dataset.schema import (
 )
 from simlidar.dataset.shards import shard_bounds, split_file_names
 from simlidar.dataset.version import dataset_version
-from simlidar.dataset.writer import SplitWriter
+from simlidar.dataset.writer import SplitWriter, deflated_block
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.pulses import split_rows
 from simlidar.generator.returns import fingerprint, receiver_physics
@@ -65,6 +65,46 @@ def split_shards(config: GeneratorConfig, shard_samples: int) -> list[Shard]:
     return shards
 
 
+CHUNK_ROWS = {name: WAVEFORM_CHUNK for name in WAVEFORM_SCHEMA}  # the writers' chunk_rows
+
+
+def _shapes(config: GeneratorConfig) -> dict[str, tuple[str, tuple]]:
+    """The datasets of a generated split file of ``config``."""
+    return generated_shapes(
+        config.sensor.beams,
+        config.width,
+        config.timing,
+        config.receiver is not None,
+        config.reported_returns,
+        config.waveform_bins,
+    )
+
+
+def compressed_rows(configs: list[GeneratorConfig], shards: list[Shard], job, samples):
+    """A simulated batch (``job``: split, start, stop) as :func:`write_shard` takes it from a
+    worker process: every noise level's rows (``configs``), compressed as the writer of the
+    batch's file (in ``shards``) would compress them (:func:`~simlidar.dataset.writer.
+    deflated_block`), so the compression runs in the worker and the writing process stores
+    the chunks as they are, with the same bytes; or ``samples`` as they are where a batch does
+    not cover whole chunks (the writer then cuts them)."""
+    split, start, _ = job
+    shard = next(s for s in shards if s.split == split and s.first <= start < s.stop)
+    shapes, blocks = _shapes(configs[0]), []
+    for cfg in configs:
+        block = deflated_block(
+            split_rows(samples, cfg),
+            start - shard.first,
+            shard.stop - shard.first,
+            shapes,
+            SHUFFLED,
+            chunk_rows=CHUNK_ROWS,
+        )
+        if block is None:
+            return samples
+        blocks.append(block)
+    return blocks
+
+
 def write_shard(
     configs: list[GeneratorConfig],
     catalog: Catalog,
@@ -84,16 +124,7 @@ def write_shard(
     on_rows : told the samples written after each batch (a progress bar's update; by default
         nothing)
     """
-    first = configs[0]
-    receiver = first.receiver is not None
-    shapes = generated_shapes(
-        first.sensor.beams,
-        first.width,
-        first.timing,
-        receiver,
-        first.reported_returns,
-        first.waveform_bins,
-    )
+    shapes = _shapes(configs[0])
     token = secrets.token_hex(4)  # two runs of one shard (a retried task) never share a file
     writers: list[SplitWriter] = []
     try:
@@ -109,13 +140,16 @@ def write_shard(
                     shapes,
                     attrs,
                     SHUFFLED,
-                    chunk_rows={name: WAVEFORM_CHUNK for name in WAVEFORM_SCHEMA},
+                    chunk_rows=CHUNK_ROWS,
                 )  # fmt: skip
             )
         for _, start, stop in shard.batches(batch_size):
-            samples = next(batches)
-            for cfg, writer in zip(configs, writers):
-                writer.append(split_rows(samples, cfg))
+            samples = next(batches)  # or, from a worker, the rows already compressed
+            blocks = samples if isinstance(samples, list) else (
+                split_rows(samples, cfg) for cfg in configs
+            )  # fmt: skip
+            for block, writer in zip(blocks, writers):
+                writer.append(block)
             on_rows(stop - start)
         for writer, temp in zip(writers, temps):
             writer.close()

@@ -78,10 +78,21 @@ def test_same_seed_same_bytes_whatever_the_batch_size(tmp_path, catalog):
         assert (one.path / name).read_bytes() == (two.path / name).read_bytes(), name
 
 
-@pytest.mark.parametrize(("workers", "batch_size"), [(2, 7), (3, 40)])
-def test_the_same_bytes_whatever_the_number_of_workers(tmp_path, catalog, workers, batch_size):
+@pytest.mark.parametrize(("workers", "batch_size", "compressed"), [(2, 7, 0), (3, 40, 4)])
+def test_the_same_bytes_whatever_the_number_of_workers(
+    tmp_path, catalog, monkeypatch, workers, batch_size, compressed
+):
+    """The same files from one process and from workers; batches of whole chunks (40: a
+    split a batch) reach the writing process compressed by the workers (a block for each
+    split and noise level), others as rows."""
+    from simlidar.dataset.writer import SplitWriter
+
     config = GeneratorConfig(train_size=40, test_size=32, classes=8)
     one = generate(config, [0.2, 0.4], catalog, tmp_path / "one", batch_size=16, progress=False)
+    stored, real = [], SplitWriter._append_deflated
+    monkeypatch.setattr(
+        SplitWriter, "_append_deflated", lambda self, block: (stored.append(1), real(self, block))
+    )
     many = generate(
         config,
         [0.2, 0.4],
@@ -91,6 +102,7 @@ def test_the_same_bytes_whatever_the_number_of_workers(tmp_path, catalog, worker
         progress=False,
         workers=workers,
     )
+    assert len(stored) == compressed
     for a, b in zip(one, many):
         files = sorted(p.name for p in a.path.iterdir())
         assert files == sorted(p.name for p in b.path.iterdir())
