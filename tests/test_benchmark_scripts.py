@@ -110,6 +110,45 @@ def test_ttfs_speed_prints_both_ratios():
         assert ratio > 0 and ("target <= 5" in line or "target <= 3" in line)
 
 
+def test_ttfs_float32_speed_times_every_forward_walk_of_both_networks():
+    """One line per kernel call of a training step (2 dense layers; 2 convolutions and 2 dense
+    layers), each with both times and their ratio, the same neurons firing both ways, and a
+    summary per network whose figures follow from the layers'."""
+    lines = run_script("ttfs_float32_speed.py", "--rounds", "1", timeout=600).splitlines()
+    heads = [i for i, line in enumerate(lines) if not line.startswith(" ")]
+    assert [lines[i].split(",")[0] for i in heads] == ["snn_simlidar", "scnn_kitti"]
+    kernels = [line.split("(")[1].split(",")[0] for line in lines if "layer " in line]
+    assert kernels == ["forward"] * 2 + ["conv_forward"] * 2 + ["forward"] * 2
+    for line in lines:
+        if "layer " in line:
+            t64, t32 = (float(line.split(f"float{b} ")[1].split()[0]) for b in (64, 32))
+            ratio = float(line.split("ratio ")[1].split()[0])
+            assert t64 > 0 and t32 > 0 and abs(ratio - t64 / t32) <= 0.01 + 0.05 * ratio
+            fired = line.split("firing: ")[1].rstrip(")").split(" / ")
+            assert fired[0] == fired[1]
+    summaries = [line for line in lines if "the forward walks" in line]
+    assert len(summaries) == 2 and all("faster" in line for line in summaries)
+
+
+def test_the_float32_twins_sum_in_float32():
+    """The twins of ttfs_float32_speed are the kernels with float32 sums: on a random dense
+    layer they fire the same neurons, at times that differ (float32 rounding) by little."""
+    import numpy as np
+
+    from simlidar.models import ttfs, ttfs_kernels
+
+    twins = _script("ttfs_float32_speed").float32_twins()
+    rng = np.random.default_rng(0)
+    z = np.exp(rng.random((20, 64))).astype(np.float32)
+    w = rng.normal(0.05, 0.2, (64, 30)).astype(np.float32)
+    ours = ttfs_kernels.forward(z, w, ttfs.MIN_EXCESS, 1)[0]
+    theirs = twins["forward"](z, w, ttfs.MIN_EXCESS, 1)[0]
+    fired = np.isfinite(ours)
+    assert fired.mean() > 0.5 and (np.isfinite(theirs) == fired).all()
+    gap = np.abs(ours[fired].astype(np.float64) - theirs[fired])
+    assert 0 < gap.max() < 1e-3
+
+
 def test_ttfs_torch_speed_times_both_forms_in_one_run():
     (line,) = run_script("ttfs_torch_speed.py", "--steps", "1", timeout=600).splitlines()[1:]
     assert line.startswith("snn_simlidar (batch 60 x 1 x 16 x 16): kernels ")
@@ -579,8 +618,11 @@ BAD_ARGUMENTS = [
     ("torch_form_cells.py", ["/nonexistent/x", "--device", "cpu"], "expected a dataset dire"),
     ("ttfs_float32.py", ["/nonexistent/x"], "/nonexistent/x: expected a dataset directory"),
     ("ttfs_float32.py", ["x", "--recipe", "cnn"], "argument --recipe: invalid choice: 'cnn'"),
+    ("ttfs_float32_speed.py", ["--rounds", "0"], "argument --rounds: '0': expected an integer"),
     ("ttfs_torch_speed.py", ["--steps", "x"], "argument --steps: 'x': expected an integer in"),
     ("ttfs_torch_speed.py", ["--model", "cnn"], "argument --model: invalid choice: 'cnn'"),
+    ("ablation/scnn_variants.py", ["x", "--variants", "nosuch"], "'nosuch': expected comma-s"),
+    ("ablation/scnn_variants.py", ["/nonexistent/x"], "/nonexistent/x: expected a dataset dir"),
     ("ablation/physical_gap.py", ["--data", "/nonexistent/g", "--seeds", "x"], "'x': expected"),
     ("ablation/physical_gap.py", ["--data", "/nonexistent/g", "--noise", "1"], "'1': expected"),
     ("fog_check.py", ["--samples", "5"], "argument --samples: '5': expected an integer in"),
@@ -594,6 +636,7 @@ BAD_ARGUMENTS = [
 # the bad runs are sent to tmp_path / "out", which must not be made
 WRITES = {
     "ablation/physical_gap.py",
+    "ablation/scnn_variants.py",
     "fog_check.py",
     "rain_check.py",
     "weather.py",

@@ -1,0 +1,95 @@
+"""Which change to the spiking CNN closes its gap to the CNN learner on `physical`? (issue 42)
+
+    python benchmark/ablation/scnn_variants.py DATA/simlidar-32c-noise0.2-physical-v1.0.0 \\
+        --variants cnn-shape,e120 --seeds 0,1,2 [--device cuda] [--out scnn-variants.json]
+
+On `physical` noise 0.2 the spiking CNN ``scnn_simlidar_tuned`` with every column scores
+76.33 % (5 seeds, ``benchmark/results/sweep-decisions-scnn/``) where the bound's CNN family (the
+paper's CNN with the same fresh noise) scores 89.0 % on average and 92.2 % as an ensemble
+(docs/snn.md). This script trains variants of that network, each changing one thing, under the
+committed cells' protocol (``sweep_decisions.committed_cell``: every training row, a fresh
+noise draw every epoch, the cosine schedule's last epoch scored):
+
+* ``cnn-shape``: the CNN family's layers (48 channels of 5x5 stride 2, 24 of 5x5 stride 2,
+  dense 256) as TTFS layers, the rest of the recipe unchanged;
+* ``e120``: 120 epochs instead of 60;
+* ``wide``: 96 channels in both convolutions and a dense layer of 800;
+* ``tuned``: the recipe as committed (the reference, on the same device).
+
+One JSON line a cell (variant, seed, device, test accuracy, seconds, the first epoch's loss),
+appended to ``--out`` as it finishes, so an interrupted run keeps what it trained. On a GPU the
+spiking layers run their torch form: the same decisions as the CPU kernels from the same input
+spikes, but not the committed cells' bytes (docs/performance.md, "Training on the GPU"); the
+committed cells stay the CPU's.
+"""
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from sweep_decisions import committed_cell
+
+from simlidar.script_args import choices, integers, run
+
+VARIANTS = {  # name -> (architecture overrides, training overrides)
+    "tuned": ({}, {}),
+    "cnn-shape": ({"conv": [[48, 5, 2], [24, 5, 2]], "dense": [256]}, {}),
+    "e120": ({}, {"epochs": 120}),
+    "wide": ({"conv": [[96, 3, 1], [96, 3, 2]], "dense": [800]}, {}),
+}
+RECIPE = "scnn_simlidar_tuned"
+
+
+def variant_recipe(dataset: Path, name: str) -> dict:
+    """The committed cell's recipe (seed 0's: every seed's is the same) with the variant's
+    overrides."""
+    _, recipe = committed_cell(dataset, RECIPE, 0)
+    architecture, training = VARIANTS[name]
+    recipe["architecture"].update(architecture)
+    recipe["training"].update(training)
+    return recipe
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("dataset", type=Path, help="the flash dataset of the committed cells")
+    parser.add_argument("--variants", type=choices(VARIANTS), default="cnn-shape,e120")
+    parser.add_argument("--seeds", type=integers(0, 2**31 - 1), default="0,1,2")
+    parser.add_argument("--device", default="auto", help="auto (default), cpu, cuda, cuda:N")
+    parser.add_argument("--epochs", type=integers(1, 10_000, one=True), default=None,
+                        help="override every variant's epochs (a quick check)")  # fmt: skip
+    parser.add_argument("--out", type=Path, default=Path("scnn-variants.json"))
+    args = parser.parse_args()
+    from simlidar.bench.hardware import resolve_device
+    from simlidar.bench.train import train
+
+    device = resolve_device(args.device)
+    recipes = {name: variant_recipe(args.dataset, name) for name in args.variants}
+    for name in args.variants:
+        for seed in args.seeds:
+            recipe = json.loads(json.dumps(recipes[name]))  # train may not share one
+            if args.epochs is not None:
+                recipe["training"]["epochs"] = args.epochs
+            start = time.perf_counter()
+            result = train(recipe, args.dataset, seed=seed, max_seconds=float("inf"),
+                           progress=False, device=device)  # fmt: skip
+            row = {
+                "variant": name,
+                "seed": seed,
+                "device": str(device),
+                "epochs": recipe["training"]["epochs"],
+                "test_accuracy": result.test_accuracy,
+                "seconds": round(time.perf_counter() - start, 1),
+                "first_epoch_loss": result.history[0]["loss"],
+            }
+            line = json.dumps(row)
+            print(line, flush=True)
+            with args.out.open("a") as out:
+                out.write(line + "\n")
+
+
+if __name__ == "__main__":
+    run(main)
