@@ -360,7 +360,7 @@ def above_the_bound(found: list[dict]) -> list[dict]:
         variants.setdefault((e["source"], e["variant"], e["dataset"]), []).append(e["accuracy"])
     above = []
     for e in found:
-        if e["accuracy"] <= e["bound"]:
+        if e["accuracy"] <= e["bound"] + 1e-6:  # a tie in float32's rounding is no lead
             continue
         lead = None
         if e["ensemble"] is not None:

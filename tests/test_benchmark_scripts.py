@@ -286,7 +286,10 @@ def test_the_bound_is_above_every_committed_spiking_cell_it_covers():
 def test_a_lead_over_the_bound_is_read_in_test_samples():
     """early_bound.above_the_bound: a cell one sample above a bound that is a seed ensemble
     leads by 1 (p at least 1); 6 samples above an ensemble 2 below the bound, by 8 (p at least
-    2 ** -7, significant whatever samples make it); cells at or below are not listed."""
+    2 ** -7, significant whatever samples make it); cells at or below are not listed, nor a
+    tie that float32's rounding of the cell's accuracy puts a hair above."""
+    import numpy as np
+
     bound = _script("early_bound")
     base = {"source": "s", "dataset": "d", "samples": 600}
     found = [
@@ -296,6 +299,8 @@ def test_a_lead_over_the_bound_is_read_in_test_samples():
          "ensemble": 404 / 600},
         {**base, "variant": "b", "seed": 0, "accuracy": 0.51, "bound": 0.5, "ensemble": 0.4966667},
         {**base, "variant": "c", "seed": 0, "accuracy": 0.5, "bound": 0.5, "ensemble": 0.5},
+        {**base, "variant": "c", "seed": 1, "accuracy": float(np.float32(599 / 600)),
+         "bound": 599 / 600, "ensemble": 599 / 600},  # a tie, the cell's figure in float32
     ]  # fmt: skip
     above = bound.above_the_bound(found)
     assert [(e["variant"], e["seed"]) for e in above] == [("a", 0), ("b", 0)]
