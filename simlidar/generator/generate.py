@@ -318,9 +318,10 @@ def generate(
     force : replace a dataset directory of the same name (else an error names it)
     progress : a progress bar on stderr
     preview : draw each dataset's ``preview.png``
-    workers : processes that simulate batches (the calling process writes them, in order); the
-        bytes are the same for every count, as every sample draws from its own random streams.
-        With ``scheduler`` ``local``: the LocalCluster's worker processes
+    workers : processes that simulate batches and compress their rows (the calling process
+        writes them, in order); the bytes are the same for every count, as every sample draws
+        from its own random streams. With ``scheduler`` ``local``: the LocalCluster's worker
+        processes
     shard_samples : a split of more samples is written as shard files of this many samples
         (``train-00000-of-00004.h5``, ...; :mod:`simlidar.dataset.shards`); each file is
         written under a hidden name and renamed when complete
