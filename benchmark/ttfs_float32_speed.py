@@ -89,13 +89,16 @@ def recorded_calls(name: str, x, y, classes: int) -> list[tuple[str, tuple]]:
     return calls
 
 
-def best(call, rounds: int) -> float:
-    times = []
+def best(calls, rounds: int) -> list[float]:
+    """The best of ``rounds`` seconds of each function of ``calls``, called in turn in each
+    round (a change of load falls on all of them alike)."""
+    times = [[] for _ in calls]
     for _ in range(rounds):
-        start = time.perf_counter()
-        call()
-        times.append(time.perf_counter() - start)
-    return min(times)
+        for call, spent in zip(calls, times):
+            start = time.perf_counter()
+            call()
+            spent.append(time.perf_counter() - start)
+    return [min(spent) for spent in times]
 
 
 def main() -> None:
@@ -123,8 +126,10 @@ def main() -> None:
             twin = twins[kernel]
             fired64 = np.isfinite(real(*call_args)[0]).mean()  # also compiles both
             fired32 = np.isfinite(twin(*call_args)[0]).mean()
-            t64 = best(lambda f=real, a=call_args: f(*a), args.rounds)
-            t32 = best(lambda f=twin, a=call_args: f(*a), args.rounds)
+            t64, t32 = best(
+                [lambda f=real, a=call_args: f(*a), lambda f=twin, a=call_args: f(*a)],
+                args.rounds,
+            )
             print(
                 f"  layer {layer} ({kernel}, input {tuple(call_args[0].shape)}): float64 "
                 f"{1e3 * t64:.2f} ms, float32 {1e3 * t32:.2f} ms, ratio {t64 / t32:.2f} "
