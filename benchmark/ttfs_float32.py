@@ -20,25 +20,15 @@ test split, best of three), to set what float32 would buy beside what it would c
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from sweep_decisions import COMMITTED, committed_cell
-from ttfs_speed import differences
+from ttfs_speed import best_seconds, differences
 
 from simlidar.script_args import integers, run
-
-
-def best_seconds(step, rounds: int = 3) -> float:
-    times = []
-    for _ in range(rounds):
-        start = time.perf_counter()
-        step()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def main() -> None:
@@ -88,7 +78,7 @@ def main() -> None:
         seconds = []
         for sums in ttfs.SUM_DTYPES:
             with ttfs.torch_form(sums=sums):
-                seconds.append(best_seconds(lambda: net.propagate(z)))
+                seconds.append(best_seconds(3, lambda: net.propagate(z))[0])
         print(
             f"  torch form's forward on the test split, one thread: {seconds[0]:.3f} s "
             f"(float64 sums), {seconds[1]:.3f} s (float32): {seconds[0] / seconds[1]:.2f}x"

@@ -21,14 +21,13 @@ the cells' bytes are float64's. docs/performance.md records the figures.
 import argparse
 import inspect
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ttfs_speed import PAIRS, batch, step_seconds, trainer
+from ttfs_speed import PAIRS, batch, best_seconds, step_seconds, trainer
 
 from simlidar.bench.hardware import MAX_THREADS
 from simlidar.script_args import integers, run
@@ -89,18 +88,6 @@ def recorded_calls(name: str, x, y, classes: int) -> list[tuple[str, tuple]]:
     return calls
 
 
-def best(calls, rounds: int) -> list[float]:
-    """The best of ``rounds`` seconds of each function of ``calls``, called in turn in each
-    round (a change of load falls on all of them alike)."""
-    times = [[] for _ in calls]
-    for _ in range(rounds):
-        for call, spent in zip(calls, times):
-            start = time.perf_counter()
-            call()
-            spent.append(time.perf_counter() - start)
-    return [min(spent) for spent in times]
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--rounds", type=integers(1, MAX_ROUNDS, one=True), default=7)
@@ -126,9 +113,8 @@ def main() -> None:
             twin = twins[kernel]
             fired64 = np.isfinite(real(*call_args)[0]).mean()  # also compiles both
             fired32 = np.isfinite(twin(*call_args)[0]).mean()
-            t64, t32 = best(
-                [lambda f=real, a=call_args: f(*a), lambda f=twin, a=call_args: f(*a)],
-                args.rounds,
+            t64, t32 = best_seconds(
+                args.rounds, lambda f=real, a=call_args: f(*a), lambda f=twin, a=call_args: f(*a)
             )
             print(
                 f"  layer {layer} ({kernel}, input {tuple(call_args[0].shape)}): float64 "

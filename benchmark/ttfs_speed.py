@@ -111,6 +111,18 @@ def agreement(name: str, x, classes: int, device) -> dict:
     }
 
 
+def best_seconds(rounds: int, *steps) -> list[float]:
+    """The least seconds of each function of no arguments over ``rounds`` rounds, the functions
+    called in turn in each round (a change of load falls on all of them alike)."""
+    times = [[] for _ in steps]
+    for _ in range(rounds):
+        for step, spent in zip(steps, times):
+            start = time.perf_counter()
+            step()
+            spent.append(time.perf_counter() - start)
+    return [min(spent) for spent in times]
+
+
 def step_seconds(steps: int, *trainers) -> list[float]:
     """Median seconds of a step of each trainer, their steps taken in turn (so that a change of
     load on the machine falls on all of them alike), after two warm-up rounds."""

@@ -70,17 +70,14 @@ def main() -> None:
     recipes = {name: variant_recipe(args.dataset, name) for name in args.variants}
     for name in args.variants:
         for seed in args.seeds:
-            recipe = json.loads(json.dumps(recipes[name]))  # train may not share one
-            if args.epochs is not None:
-                recipe["training"]["epochs"] = args.epochs
             start = time.perf_counter()
-            result = train(recipe, args.dataset, seed=seed, max_seconds=float("inf"),
-                           progress=False, device=device)  # fmt: skip
+            result = train(recipes[name], args.dataset, seed=seed, epochs=args.epochs,
+                           max_seconds=float("inf"), progress=False, device=device)  # fmt: skip
             row = {
                 "variant": name,
                 "seed": seed,
                 "device": str(device),
-                "epochs": recipe["training"]["epochs"],
+                "epochs": args.epochs or recipes[name]["training"]["epochs"],
                 "test_accuracy": result.test_accuracy,
                 "seconds": round(time.perf_counter() - start, 1),
                 "first_epoch_loss": result.history[0]["loss"],
