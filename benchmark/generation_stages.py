@@ -14,10 +14,14 @@ train split is written; on the one core both share, its figure is that process's
 The ray cast takes the form the run's size chooses (``--cast auto``; docs/performance.md), or
 the one ``--cast`` names; through the compiled kernels, their packing of vertices and rays
 and their exact range are stages of their own (the culling is "back-face culling" in either
-form). "Other" is the whole run less the timed stages: the visibility checks and redraw
-bookkeeping, the numpy around the cast, pulses, claiming and installing the folder. The
-timers add a few microseconds a sample; ``benchmark/generation_speed.py`` gives the untimed
-throughput. The process's start-up imports are not in the run (``python -X importtime -m
+form). The numpy around the cast (its checks, the culling's mask to indices, the cells'
+offsets, the float32 copies of vertices and rays and, in the numpy form, the exact float64
+range) and the draws with their visibility checks (the batch's factors, each draw's checks of
+the object's hits and the layout's visible surfaces, the redraws' bookkeeping) are stages of
+their own, each less the timed stages it calls. "Other" is the whole run less the timed
+stages: sharding the splits into batches, the workers' plumbing, claiming and installing the
+folder. The timers add a few microseconds a sample; ``benchmark/generation_speed.py`` gives
+the untimed throughput. The process's start-up imports are not in the run (``python -X importtime -m
 simlidar.cli --version`` shows them).
 
 With a receiver (``--profile sensor``, and the options of ``simlidar generate`` that shape its
@@ -156,6 +160,11 @@ def main() -> None:
         for method in ("__init__", "random", "random_float32"):  # made and drawn, batched
             setattr(Streams, method, timed("random streams", getattr(Streams, method)))
         simulate.window_rays = timed("window rays", simulate.window_rays)
+        stage = "draws and visibility checks"  # simulate's own work, less its timed callees
+        generate_module.simulate = timed(stage, generate_module.simulate)
+        simulate.cast = timed("numpy around the cast", simulate.cast)
+        for name in ("delays_from_range", "shift_delays"):
+            setattr(simulate, name, timed("pulses (range to delays)", getattr(simulate, name)))
         simulate.build_batch = timed("scene building (numpy)", simulate.build_batch)
         raycast.visible_triangles = timed("back-face culling", raycast.visible_triangles)
         raycast.attach_triangles = timed("Embree geometry", raycast.attach_triangles)

@@ -58,6 +58,8 @@ def test_generation_stages_times_the_receivers_physics_apart():
 
 @pytest.mark.parametrize("cast", ["numpy", "compiled"])
 def test_generation_stages_times_every_stage(cast):
+    """Issue 43, item 3: every stage of the issue's table is named, the numpy around the cast
+    and the draws' visibility checks apart from "other" (which held both)."""
     args = "--samples", "192", *(("--cast", cast) if cast == "compiled" else ())
     lines = run_script("generation_stages.py", *args, timeout=300).splitlines()
     assert lines[0].endswith(f"the cast: {'compiled kernels' if cast == 'compiled' else cast}")
@@ -80,6 +82,9 @@ def test_generation_stages_times_every_stage(cast):
         "Embree geometry",
         "preview.png (own process)",
         "card, Croissant, checksums",
+        "draws and visibility checks",
+        "numpy around the cast",
+        "pulses (range to delays)",
     } | ({"exact range (compiled)", "packing vertices and rays (compiled)"} if cast == "compiled"
          else set())  # fmt: skip
     assert all(us > 0 for name, us in stages.items() if name != "other")
@@ -217,6 +222,29 @@ def test_physical_gap_counts_the_gap_from_the_intervals_lower_end(tmp_path):
     assert row["gap"] == round(90.0 - low, 1)
     gap.write(tmp_path, {"physical": {"mlp": {"dataset": "d", **row}}}, "cmd")
     assert "| physical (`d`) | mlp | 3 | 72.00 ± 2.00 [" in (tmp_path / "gap.md").read_text()
+
+
+def test_the_relu_control_is_the_cnn_shape_variant_with_relu_trained_the_same_way():
+    """scnn_variants' ``relu-cnn`` is ``cnn-shape``'s control: the paper's CNN, whose layers
+    ``cnn-shape`` copies as TTFS layers, trained under the spiking recipe's protocol (no
+    validation rows, fresh noise, its epochs on a cosine schedule, its batch) with its own
+    optimiser and rate."""
+    from simlidar.models.registry import load_recipe
+
+    variants = _script("ablation/scnn_variants")
+    spiking = load_recipe("scnn_simlidar_tuned")
+    spiking["training"]["validation"] = 0
+    control = variants.relu_control(spiking)
+    shape, _ = variants.VARIANTS["cnn-shape"]
+    assert control["model"] == "cnn"
+    assert (control["architecture"]["conv"], control["architecture"]["dense"]) == (
+        shape["conv"],
+        shape["dense"],
+    )
+    protocol = ("validation", "noise_augment", "lr_schedule", "epochs", "batch_size")
+    assert all(control["training"][k] == spiking["training"][k] for k in protocol)
+    assert (control["training"]["optimizer"], control["training"]["lr"]) == ("adam", 1e-3)
+    assert "fire_penalty" not in control["training"]
 
 
 def test_the_late_profile_makes_every_pixel_a_spike_and_a_missing_return_the_window_end(
