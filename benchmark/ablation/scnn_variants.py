@@ -14,10 +14,16 @@ noise draw every epoch, the cosine schedule's last epoch scored):
   dense 256) as TTFS layers, the rest of the recipe unchanged;
 * ``e120``: 120 epochs instead of 60;
 * ``wide``: 96 channels in both convolutions and a dense layer of 800;
-* ``tuned``: the recipe as committed (the reference, on the same device).
+* ``tuned``: the recipe as committed (the reference, on the same device);
+* ``relu-cnn``: the control of ``cnn-shape``: the same layers with ReLU, the paper's CNN
+  baseline (``baselines/cnn.toml``: Adam 1e-3), trained under the same protocol (every training
+  row, a fresh noise draw every epoch, 60 epochs of a cosine schedule, the last scored), so
+  that ``cnn-shape`` and ``relu-cnn`` differ in the neuron and its training terms only.
 
-One JSON line a cell (variant, seed, device, test accuracy, seconds, the first epoch's loss),
-appended to ``--out`` as it finishes, so an interrupted run keeps what it trained. On a GPU the
+One JSON line a cell (variant, seed, device, test accuracy, the accuracy on the train split as
+stored, that is on the file's own noise draw, which no epoch trained on: how well the network
+fits its training scenes; seconds, the first epoch's loss), appended to ``--out`` as it
+finishes, so an interrupted run keeps what it trained. On a GPU the
 spiking layers run their torch form: the same decisions as the CPU kernels from the same input
 spikes, but not the committed cells' bytes (docs/performance.md, "Training on the GPU"); the
 committed cells stay the CPU's.
@@ -39,18 +45,50 @@ VARIANTS = {  # name -> (architecture overrides, training overrides)
     "cnn-shape": ({"conv": [[48, 5, 2], [24, 5, 2]], "dense": [256]}, {}),
     "e120": ({}, {"epochs": 120}),
     "wide": ({"conv": [[96, 3, 1], [96, 3, 2]], "dense": [800]}, {}),
+    "relu-cnn": None,  # the paper's CNN under the committed cells' protocol (relu_control)
 }
 RECIPE = "scnn_simlidar_tuned"
+
+
+def relu_control(spiking: dict) -> dict:
+    """The paper's CNN (``baselines/cnn.toml``, its optimiser and rate) trained as the spiking
+    recipe ``spiking`` is: no validation rows, fresh noise every epoch, its epochs on a cosine
+    schedule, the last scored."""
+    from simlidar.models.registry import load_recipe
+
+    recipe = load_recipe("cnn")
+    protocol = ("validation", "noise_augment", "lr_schedule", "epochs", "batch_size")
+    recipe["training"].update({key: spiking["training"][key] for key in protocol})
+    return recipe
 
 
 def variant_recipe(dataset: Path, name: str) -> dict:
     """The committed cell's recipe (seed 0's: every seed's is the same) with the variant's
     overrides."""
     _, recipe = committed_cell(dataset, RECIPE, 0)
+    if VARIANTS[name] is None:
+        return relu_control(recipe)
     architecture, training = VARIANTS[name]
     recipe["architecture"].update(architecture)
     recipe["training"].update(training)
     return recipe
+
+
+def train_accuracy(result, dataset: Path) -> float:
+    """The trained network's accuracy on the train split as stored (the file's noise draw)."""
+    import torch
+
+    from simlidar.bench.scoring import predictions
+    from simlidar.dataset.loaders import load_split
+
+    x, y = (torch.from_numpy(a) for a in load_split(dataset, "train"))
+    spec, silent_from = result.spec, result.silent_from
+    return (
+        (predictions(result.model, x[:, None], spec=spec, silent_from=silent_from) == y)
+        .float()
+        .mean()
+        .item()
+    )
 
 
 def main() -> None:
@@ -79,6 +117,7 @@ def main() -> None:
                 "device": str(device),
                 "epochs": args.epochs or recipes[name]["training"]["epochs"],
                 "test_accuracy": result.test_accuracy,
+                "train_accuracy": train_accuracy(result, args.dataset),
                 "seconds": round(time.perf_counter() - start, 1),
                 "first_epoch_loss": result.history[0]["loss"],
             }
