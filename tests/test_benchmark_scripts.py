@@ -247,6 +247,30 @@ def test_the_relu_control_is_the_cnn_shape_variant_with_relu_trained_the_same_wa
     assert "fire_penalty" not in control["training"]
 
 
+def test_scnn_variants_summary_reads_its_cells_as_a_file_from_elsewhere(tmp_path):
+    """``--summary``: per variant and device the seeds, test and train accuracy over seeds with
+    the test's 95 % interval (Student's t), and their gap; a line that is not such a cell is
+    a one-line ResultsError naming the file and the line."""
+    from simlidar.errors import ResultsError
+
+    variants = _script("ablation/scnn_variants")
+    rows = [("tuned", 0, 0.70, 0.90), ("tuned", 1, 0.72, 0.94), ("tuned", 2, 0.74, 0.92)]
+    rows.append(("relu-cnn", 0, 0.88, 0.99))
+    path = tmp_path / "cells.jsonl"
+    path.write_text("".join(json.dumps({"variant": v, "device": "cpu", "seed": s,
+        "test_accuracy": a, "train_accuracy": t}) + "\n" for v, s, a, t in rows))  # fmt: skip
+    table = variants.summary(path).splitlines()
+    low = 72.0 - 4.302652729911275 * 2.0 / math.sqrt(3)  # t(0.975, 2) * std / sqrt(n)
+    assert table[2] == (
+        f"| tuned | cpu | 0, 1, 2 | 72.00 ± 2.00 | [{low:.2f}, {144 - low:.2f}] | 92.00 ± 2.00 "
+        "| +20.00 |"
+    )
+    assert table[3] == "| relu-cnn | cpu | 0 | 88.00 ± 0.00 | [nan, nan] | 99.00 ± 0.00 | +11.00 |"
+    path.write_text(path.read_text() + '{"variant": "wide", "seed": 0}\n')
+    with pytest.raises(ResultsError, match=r"cells.jsonl, line 5: expected a cell of scnn_var"):
+        variants.summary(path)
+
+
 def test_the_late_profile_makes_every_pixel_a_spike_and_a_missing_return_the_window_end(
     tmp_path, cli
 ):
@@ -656,6 +680,7 @@ BAD_ARGUMENTS = [
     ("ttfs_torch_speed.py", ["--model", "cnn"], "argument --model: invalid choice: 'cnn'"),
     ("ablation/scnn_variants.py", ["x", "--variants", "nosuch"], "'nosuch': expected comma-s"),
     ("ablation/scnn_variants.py", ["/nonexistent/x"], "/nonexistent/x: expected a dataset dir"),
+    ("ablation/scnn_variants.py", [], "expected a dataset directory to train on (or --summ"),
     ("ablation/physical_gap.py", ["--data", "/nonexistent/g", "--seeds", "x"], "'x': expected"),
     ("ablation/physical_gap.py", ["--data", "/nonexistent/g", "--noise", "1"], "'1': expected"),
     ("fog_check.py", ["--samples", "5"], "argument --samples: '5': expected an integer in"),

@@ -2,6 +2,7 @@
 
     python benchmark/ablation/scnn_variants.py DATA/simlidar-32c-noise0.2-physical-v1.0.0 \\
         --variants cnn-shape,e120 --seeds 0,1,2 [--device cuda] [--out scnn-variants.json]
+    python benchmark/ablation/scnn_variants.py --summary scnn-variants.json   # the table
 
 On `physical` noise 0.2 the spiking CNN ``scnn_simlidar_tuned`` with every column scores
 76.33 % (5 seeds, ``benchmark/results/sweep-decisions-scnn/``) where the bound's CNN family (the
@@ -23,7 +24,9 @@ noise draw every epoch, the cosine schedule's last epoch scored):
 One JSON line a cell (variant, seed, device, test accuracy, the accuracy on the train split as
 stored, that is on the file's own noise draw, which no epoch trained on: how well the network
 fits its training scenes; seconds, the first epoch's loss), appended to ``--out`` as it
-finishes, so an interrupted run keeps what it trained. On a GPU the
+finishes, so an interrupted run keeps what it trained. ``--summary FILE`` prints such a file's
+table: per variant and device, the seeds, the test and train accuracy (mean ± sample std over
+seeds, the test's 95 % interval of the mean, Student's t) and the gap between the two. On a GPU the
 spiking layers run their torch form: the same decisions as the CPU kernels from the same input
 spikes, but not the committed cells' bytes (docs/performance.md, "Training on the GPU"); the
 committed cells stay the CPU's.
@@ -35,7 +38,10 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from paper_table import interval
 from sweep_decisions import committed_cell
 
 from simlidar.script_args import choices, integers, run
@@ -91,16 +97,63 @@ def train_accuracy(result, dataset: Path) -> float:
     )
 
 
+def summary(path: Path) -> str:
+    """The table of a file of cells this script wrote (a file from elsewhere: read as such)."""
+    from simlidar.bench.outdir import MAX_JSON_BYTES
+    from simlidar.content import read_text
+    from simlidar.errors import ResultsError
+
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for number, line in enumerate(read_text(path, MAX_JSON_BYTES, ResultsError).splitlines()):
+        try:
+            row = json.loads(line)
+            key = (str(row["variant"]), str(row["device"]))
+            cell = {k: float(row[k]) for k in ("seed", "test_accuracy", "train_accuracy")}
+        except (ValueError, KeyError, TypeError):
+            raise ResultsError(
+                f"{path}, line {number + 1}: expected a cell of scnn_variants.py with its train "
+                "accuracy (a JSON object: variant, device, seed, test_accuracy, train_accuracy)"
+            ) from None
+        groups.setdefault(key, []).append(cell)
+    lines = [
+        "| variant | device | seeds | test % | 95 % interval | train % (the file's draw) | "
+        "train - test |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for (variant, device), cells in groups.items():
+        test = 100 * np.array([c["test_accuracy"] for c in cells])
+        train = 100 * np.array([c["train_accuracy"] for c in cells])
+        low, high = interval(test) or (np.nan, np.nan)
+        seeds = ", ".join(str(int(c["seed"])) for c in cells)
+        lines.append(
+            f"| {variant} | {device} | {seeds} | {_spread(test)} | [{low:.2f}, {high:.2f}] | "
+            f"{_spread(train)} | {train.mean() - test.mean():+.2f} |"
+        )
+    return "\n".join(lines)
+
+
+def _spread(values: np.ndarray) -> str:
+    """Mean ± sample standard deviation (0 for one value)."""
+    return f"{values.mean():.2f} ± {values.std(ddof=1) if len(values) > 1 else 0.0:.2f}"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("dataset", type=Path, help="the flash dataset of the committed cells")
+    parser.add_argument("dataset", type=Path, nargs="?",
+                        help="the flash dataset of the committed cells")  # fmt: skip
     parser.add_argument("--variants", type=choices(VARIANTS), default="cnn-shape,e120")
     parser.add_argument("--seeds", type=integers(0, 2**31 - 1), default="0,1,2")
     parser.add_argument("--device", default="auto", help="auto (default), cpu, cuda, cuda:N")
     parser.add_argument("--epochs", type=integers(1, 10_000, one=True), default=None,
                         help="override every variant's epochs (a quick check)")  # fmt: skip
     parser.add_argument("--out", type=Path, default=Path("scnn-variants.json"))
+    parser.add_argument("--summary", type=Path, help="print this file of cells' table, train none")
     args = parser.parse_args()
+    if args.summary is not None:
+        print(summary(args.summary))
+        return
+    if args.dataset is None:
+        parser.error("expected a dataset directory to train on (or --summary FILE)")
     from simlidar.bench.hardware import resolve_device
     from simlidar.bench.train import train
 
