@@ -271,6 +271,33 @@ def test_scnn_variants_summary_reads_its_cells_as_a_file_from_elsewhere(tmp_path
         variants.summary(path)
 
 
+def test_cnn_learner_inputs_changes_the_view_one_way_at_a_time(tmp_path):
+    """The ablation's variants: the arrived channel kept or zeroed, and the standardisation;
+    its summary reads its cells as a file from elsewhere."""
+    import numpy as np
+
+    from simlidar.errors import ResultsError
+
+    inputs = _script("ablation/cnn_learner_inputs")
+    assert inputs.VARIANTS["bound"] == (True, "pixel")
+    view = np.arange(12, dtype=np.float32).reshape(2, 2, 3)
+    assert inputs.masked(view, True) is view
+    gone = inputs.masked(view, False)
+    assert (gone[:, 1] == 0).all() and np.array_equal(gone[:, 0], view[:, 0])
+    assert view[0, 1, 0] == 3  # the view itself unchanged
+    path = tmp_path / "cells.jsonl"
+    cells = [("bound", 0, 0.88), ("bound", 1, 0.90), ("no-mask", 0, 0.80)]
+    path.write_text("".join(json.dumps({"variant": v, "seed": s, "test_accuracy": a}) + "\n"
+                            for v, s, a in cells))  # fmt: skip
+    table = inputs.summary(path).splitlines()
+    low = 89.0 - 12.706204736174698 * math.sqrt(2) / math.sqrt(2)  # t(0.975, 1) std / sqrt(n)
+    assert table[2] == f"| bound | 0, 1 | 89.00 ± 1.41 | [{low:.2f}, {178 - low:.2f}] |"
+    assert table[3] == "| no-mask | 0 | 80.00 ± 0.00 | [nan, nan] |"
+    path.write_text("[1]\n")
+    with pytest.raises(ResultsError, match=r"cells.jsonl, line 1: expected a cell of cnn_learne"):
+        inputs.summary(path)
+
+
 def test_the_late_profile_makes_every_pixel_a_spike_and_a_missing_return_the_window_end(
     tmp_path, cli
 ):
@@ -681,6 +708,9 @@ BAD_ARGUMENTS = [
     ("ablation/scnn_variants.py", ["x", "--variants", "nosuch"], "'nosuch': expected comma-s"),
     ("ablation/scnn_variants.py", ["/nonexistent/x"], "/nonexistent/x: expected a dataset dir"),
     ("ablation/scnn_variants.py", [], "expected a dataset directory to train on (or --summ"),
+    ("ablation/cnn_learner_inputs.py", ["x", "--variants", "mask"], "'mask': expected comma-"),
+    ("ablation/cnn_learner_inputs.py", ["/nonexistent/x"], "/nonexistent/x: expected a datase"),
+    ("ablation/cnn_learner_inputs.py", [], "expected a dataset directory to train on (or --su"),
     ("ablation/physical_gap.py", ["--data", "/nonexistent/g", "--seeds", "x"], "'x': expected"),
     ("ablation/physical_gap.py", ["--data", "/nonexistent/g", "--noise", "1"], "'1': expected"),
     ("fog_check.py", ["--samples", "5"], "argument --samples: '5': expected an integer in"),
@@ -693,6 +723,7 @@ BAD_ARGUMENTS = [
 # where a script writes by default (the repository's benchmark/results, or --out required):
 # the bad runs are sent to tmp_path / "out", which must not be made
 WRITES = {
+    "ablation/cnn_learner_inputs.py",
     "ablation/physical_gap.py",
     "ablation/scnn_variants.py",
     "fog_check.py",

@@ -128,6 +128,7 @@ def train_learner(
     config: BoundConfig = BoundConfig(),
     draw=None,
     height: int = 1,
+    standardise: str = "pixel",
 ):
     """Train the learner on (x, y) (N, 2, P), selecting on a validation split.
 
@@ -143,11 +144,20 @@ def train_learner(
         and with ``draw`` "refit_epochs"
     height : the samples' rows H (P = H x W): the CNN sees the view as (2, H, W) images; the
         MLP reads (2, 1, P), the same numbers in the same order
+    standardise : "pixel" (the bound's): each feature (pixel and channel) by its own mean and
+        standard deviation over the training rows; "channel": each channel by one mean and
+        deviation over every pixel (benchmark/ablation/cnn_learner_inputs.py)
     """
     # each feature standardised by the training rows (a time that differs by 0.01 between
     # classes must not look like a constant), then (N, 2, 1, P): the MLP's (C, H, W), or the
     # samples' own (N, 2, H, W) for the CNN
-    mean, std = x.mean(axis=0), np.maximum(x.std(axis=0), 1e-3)
+    if standardise == "pixel":
+        mean, std = x.mean(axis=0), np.maximum(x.std(axis=0), 1e-3)
+    elif standardise == "channel":
+        mean = np.broadcast_to(x.mean(axis=(0, 2))[:, None], x.shape[1:])
+        std = np.broadcast_to(np.maximum(x.std(axis=(0, 2)), 1e-3)[:, None], x.shape[1:])
+    else:
+        raise ValueError(f"standardise={standardise!r}: expected 'pixel' or 'channel'")
     view = (x.shape[1], height, x.shape[-1] // height) if config.model == "cnn" else None
 
     def shaped(a: np.ndarray) -> torch.Tensor:

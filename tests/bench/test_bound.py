@@ -24,6 +24,7 @@ from simlidar.bench.bound import (
     bound,
     rounded_up_accuracy,
     spike_times,
+    train_learner,
     with_families,
 )
 
@@ -77,6 +78,24 @@ def test_a_class_in_the_earliest_spike_is_known_at_once():
         assert row["accuracy_mean"] >= 0.95, row["k"]
     assert [row["input_spikes_median"] for row in result["rows"]] == [1, 2, 4, 64]
     assert result["rows"][0]["input_spikes_authors_mean"] == 1.0  # no spike at t = 0 here
+
+
+def test_the_learner_standardises_pixel_by_pixel_unless_told_per_channel():
+    """The bound's standardisation (``pixel``) is the default, bit for bit; ``channel`` (one
+    mean and deviation a channel: benchmark/ablation/cnn_learner_inputs.py) learns the early
+    toy too, from another scaling; any other value is refused by name."""
+    (d, y), (d_test, y_test) = _toy(400, 0, late=False), _toy(100, 1, late=False)
+    x, x_test = (arrived(spike_times(a, math.inf), 1)[0] for a in (d, d_test))
+    found = {}
+    for form in (None, "pixel", "channel"):
+        options = {} if form is None else {"standardise": form}
+        scores, _ = train_learner(x, y, CLASSES, 0, FAST, **options)
+        found[form] = scores(x_test)
+    assert np.array_equal(found[None], found["pixel"])
+    assert not np.array_equal(found["pixel"], found["channel"])
+    assert (found["channel"].argmax(1) == y_test).mean() >= 0.95
+    with pytest.raises(ValueError, match="standardise='pixels': expected 'pixel' or 'channel'"):
+        train_learner(x, y, CLASSES, 0, FAST, standardise="pixels")
 
 
 def test_a_class_in_the_last_spikes_is_at_chance_until_they_arrive():
