@@ -254,18 +254,23 @@ def test_scnn_variants_summary_reads_its_cells_as_a_file_from_elsewhere(tmp_path
     from simlidar.errors import ResultsError
 
     variants = _script("ablation/scnn_variants")
-    rows = [("tuned", 0, 0.70, 0.90), ("tuned", 1, 0.72, 0.94), ("tuned", 2, 0.74, 0.92)]
-    rows.append(("relu-cnn", 0, 0.88, 0.99))
+    # the spiking CNN's cells, written before cells named their network, and a dense one's
+    rows = [{"variant": "tuned", "seed": s, "test_accuracy": a, "train_accuracy": t}
+            for s, a, t in ((0, 0.70, 0.90), (1, 0.72, 0.94), (2, 0.74, 0.92))]  # fmt: skip
+    rows.append({"recipe": "snn_simlidar_tuned", "variant": "no-return-channel", "seed": 0,
+                 "test_accuracy": 0.88, "train_accuracy": 0.99})  # fmt: skip
     path = tmp_path / "cells.jsonl"
-    path.write_text("".join(json.dumps({"variant": v, "device": "cpu", "seed": s,
-        "test_accuracy": a, "train_accuracy": t}) + "\n" for v, s, a, t in rows))  # fmt: skip
+    path.write_text("".join(json.dumps({"device": "cpu", **row}) + "\n" for row in rows))
     table = variants.summary(path).splitlines()
     low = 72.0 - 4.302652729911275 * 2.0 / math.sqrt(3)  # t(0.975, 2) * std / sqrt(n)
     assert table[2] == (
-        f"| tuned | cpu | 0, 1, 2 | 72.00 ± 2.00 | [{low:.2f}, {144 - low:.2f}] | 92.00 ± 2.00 "
-        "| +20.00 |"
+        f"| scnn_simlidar_tuned | tuned | cpu | 0, 1, 2 | 72.00 ± 2.00 | [{low:.2f}, "
+        f"{144 - low:.2f}] | 92.00 ± 2.00 | +20.00 |"
     )
-    assert table[3] == "| relu-cnn | cpu | 0 | 88.00 ± 0.00 | [nan, nan] | 99.00 ± 0.00 | +11.00 |"
+    assert table[3] == (
+        "| snn_simlidar_tuned | no-return-channel | cpu | 0 | 88.00 ± 0.00 | [nan, nan] | "
+        "99.00 ± 0.00 | +11.00 |"
+    )
     path.write_text(path.read_text() + '{"variant": "wide", "seed": 0}\n')
     with pytest.raises(ResultsError, match=r"cells.jsonl, line 5: expected a cell of scnn_var"):
         variants.summary(path)

@@ -2,6 +2,8 @@
 
     python benchmark/ablation/scnn_variants.py DATA/simlidar-32c-noise0.2-physical-v1.0.0 \\
         --variants cnn-shape,e120 --seeds 0,1,2 [--device cuda] [--out scnn-variants.json]
+    python benchmark/ablation/scnn_variants.py DATA/simlidar-32c-noise0.2-physical-v1.0.0 \\
+        --recipe snn_simlidar_tuned --variants tuned,no-return-channel --seeds 0,1,2,3,4
     python benchmark/ablation/scnn_variants.py --summary scnn-variants.json   # the table
 
 On `physical` noise 0.2 the spiking CNN ``scnn_simlidar_tuned`` with every column scores
@@ -19,7 +21,15 @@ noise draw every epoch, the cosine schedule's last epoch scored):
 * ``relu-cnn``: the control of ``cnn-shape``: the same layers with ReLU, the paper's CNN
   baseline (``baselines/cnn.toml``: Adam 1e-3), trained under the same protocol (every training
   row, a fresh noise draw every epoch, 60 epochs of a cosine schedule, the last scored), so
-  that ``cnn-shape`` and ``relu-cnn`` differ in the neuron and its training terms only.
+  that ``cnn-shape`` and ``relu-cnn`` differ in the neuron and its training terms only;
+* ``no-return-channel``: a missing return is an input spike of a channel of its own at the
+  window's end (``missing = "own_channel"``, :func:`simlidar.models.ttfs.encode`), where the
+  committed network gets no spike: the arrived-or-not channel of the bound's view, which is
+  worth 6-7 points to the CNN learner (``benchmark/ablation/cnn_learner_inputs.py``).
+
+``--recipe snn_simlidar_tuned`` trains the dense network's committed cells
+(``benchmark/results/sweep-decisions/``) instead, with the variants that apply to it
+(``tuned``, ``e120``, ``no-return-channel``).
 
 One JSON line a cell (variant, seed, device, test accuracy, the accuracy on the train split as
 stored, that is on the file's own noise draw, which no epoch trained on: how well the network
@@ -52,8 +62,11 @@ VARIANTS = {  # name -> (architecture overrides, training overrides)
     "e120": ({}, {"epochs": 120}),
     "wide": ({"conv": [[96, 3, 1], [96, 3, 2]], "dense": [800]}, {}),
     "relu-cnn": None,  # the paper's CNN under the committed cells' protocol (relu_control)
+    "no-return-channel": ({"missing": "own_channel"}, {}),
 }
 RECIPE = "scnn_simlidar_tuned"
+DENSE = "snn_simlidar_tuned"  # the dense network: the variants that change no layer shape
+DENSE_VARIANTS = ("tuned", "e120", "no-return-channel")
 
 
 def relu_control(spiking: dict) -> dict:
@@ -68,10 +81,14 @@ def relu_control(spiking: dict) -> dict:
     return recipe
 
 
-def variant_recipe(dataset: Path, name: str) -> dict:
-    """The committed cell's recipe (seed 0's: every seed's is the same) with the variant's
-    overrides."""
-    _, recipe = committed_cell(dataset, RECIPE, 0)
+def variant_recipe(dataset: Path, name: str, network: str = RECIPE) -> dict:
+    """The committed cell's recipe of ``network`` (seed 0's: every seed's is the same) with the
+    variant's overrides."""
+    from simlidar.errors import ConfigError
+
+    if network == DENSE and name not in DENSE_VARIANTS:
+        raise ConfigError(f"variant {name!r}: expected one of {list(DENSE_VARIANTS)} for {DENSE}")
+    _, recipe = committed_cell(dataset, network, 0)
     if VARIANTS[name] is None:
         return relu_control(recipe)
     architecture, training = VARIANTS[name]
@@ -103,11 +120,11 @@ def summary(path: Path) -> str:
     from simlidar.content import read_text
     from simlidar.errors import ResultsError
 
-    groups: dict[tuple[str, str], list[dict]] = {}
+    groups: dict[tuple[str, str, str], list[dict]] = {}
     for number, line in enumerate(read_text(path, MAX_JSON_BYTES, ResultsError).splitlines()):
         try:
             row = json.loads(line)
-            key = (str(row["variant"]), str(row["device"]))
+            key = (str(row.get("recipe", RECIPE)), str(row["variant"]), str(row["device"]))
             cell = {k: float(row[k]) for k in ("seed", "test_accuracy", "train_accuracy")}
         except (ValueError, KeyError, TypeError):
             raise ResultsError(
@@ -116,18 +133,18 @@ def summary(path: Path) -> str:
             ) from None
         groups.setdefault(key, []).append(cell)
     lines = [
-        "| variant | device | seeds | test % | 95 % interval | train % (the file's draw) | "
-        "train - test |",
-        "| --- | --- | --- | --- | --- | --- | --- |",
+        "| network | variant | device | seeds | test % | 95 % interval | train % (the file's "
+        "draw) | train - test |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
-    for (variant, device), cells in groups.items():
+    for (network, variant, device), cells in groups.items():
         test = 100 * np.array([c["test_accuracy"] for c in cells])
         train = 100 * np.array([c["train_accuracy"] for c in cells])
         low, high = interval(test) or (np.nan, np.nan)
         seeds = ", ".join(str(int(c["seed"])) for c in cells)
         lines.append(
-            f"| {variant} | {device} | {seeds} | {_spread(test)} | [{low:.2f}, {high:.2f}] | "
-            f"{_spread(train)} | {train.mean() - test.mean():+.2f} |"
+            f"| {network} | {variant} | {device} | {seeds} | {_spread(test)} | "
+            f"[{low:.2f}, {high:.2f}] | {_spread(train)} | {train.mean() - test.mean():+.2f} |"
         )
     return "\n".join(lines)
 
@@ -142,6 +159,8 @@ def main() -> None:
     parser.add_argument("dataset", type=Path, nargs="?",
                         help="the flash dataset of the committed cells")  # fmt: skip
     parser.add_argument("--variants", type=choices(VARIANTS), default="cnn-shape,e120")
+    parser.add_argument("--recipe", choices=(RECIPE, DENSE), default=RECIPE,
+                        help="the network whose committed cells are varied")  # fmt: skip
     parser.add_argument("--seeds", type=integers(0, 2**31 - 1), default="0,1,2")
     parser.add_argument("--device", default="auto", help="auto (default), cpu, cuda, cuda:N")
     parser.add_argument("--epochs", type=integers(1, 10_000, one=True), default=None,
@@ -158,13 +177,14 @@ def main() -> None:
     from simlidar.bench.train import train
 
     device = resolve_device(args.device)
-    recipes = {name: variant_recipe(args.dataset, name) for name in args.variants}
+    recipes = {name: variant_recipe(args.dataset, name, args.recipe) for name in args.variants}
     for name in args.variants:
         for seed in args.seeds:
             start = time.perf_counter()
             result = train(recipes[name], args.dataset, seed=seed, epochs=args.epochs,
                            max_seconds=float("inf"), progress=False, device=device)  # fmt: skip
             row = {
+                "recipe": args.recipe,
                 "variant": name,
                 "seed": seed,
                 "device": str(device),

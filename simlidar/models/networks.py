@@ -70,9 +70,16 @@ class SpikingNet(nn.Module):
         self.input_budget = input_budget
         self.input_columns = input_columns
 
+    def encoded_shape(self, input_shape) -> tuple[int, int, int]:
+        """(C, H, W) of the input spikes of (C, H, W) delays: twice the channels where a missing
+        return has a channel of its own (:func:`simlidar.models.ttfs.input_channels`)."""
+        c, *rest = input_shape
+        return (c * ttfs.input_channels(self.missing), *rest)
+
     def arriving_fraction(self, input_shape) -> float:
         """The fraction of the inputs that can spike behind the gates: a first dense layer
         starts with weights that let a neuron fire on that many (:class:`DenseTTFS`)."""
+        input_shape = self.encoded_shape(input_shape)
         inputs = int(torch.tensor(input_shape).prod())
         fraction = 1.0 if self.input_budget is None else min(1.0, self.input_budget / inputs)
         if self.input_columns is not None:
@@ -143,7 +150,7 @@ def dense_snn(
     ``missing``, ``input_budget``, ``input_columns``).
 
     input_shape : (C, H, W) of one delay image, from the dataset; its C H W pixels are the
-        inputs
+        inputs (twice as many where a missing return has a channel of its own)
     classes : the output neurons, one per class
     generator : the ``torch.Generator`` the initial weights are drawn from (None: torch's global
         random state)
@@ -153,7 +160,7 @@ def dense_snn(
         so that every neuron can fire from the start (:class:`~simlidar.models.layers.DenseTTFS`)
     """
     net = SpikingNet(**encoding)
-    sizes = [int(torch.tensor(input_shape).prod())] + list(hidden) + [classes]
+    sizes = [int(torch.tensor(net.encoded_shape(input_shape)).prod())] + list(hidden) + [classes]
     arriving = [net.arriving_fraction(input_shape)] + [1.0] * len(hidden)
     net.layers.extend(
         DenseTTFS(a, b, excess, spread, generator, f) for a, b, f in zip(sizes, sizes[1:], arriving)
@@ -187,7 +194,7 @@ def spiking_cnn(
         convolutions counts its first layer's inputs by the fraction that can spike
     """
     net = SpikingNet(**encoding)
-    c, h, w = input_shape
+    c, h, w = net.encoded_shape(input_shape)
     layers: list[nn.Module] = []
     # behind a gate only a first dense layer starts for the inputs that arrive: a
     # convolution's patch arrives together or not at all (near returns first: the object and

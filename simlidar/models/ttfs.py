@@ -48,7 +48,14 @@ MIN_EXCESS = 1e-4
 NEAR_FIRST, FAR_FIRST = "near_first", "far_first"  # which delay spikes first
 DIRECTIONS = (NEAR_FIRST, FAR_FIRST)
 AS_VALUE, FARTHEST, NO_SPIKE = "as_value", "farthest", "no_spike"  # a missing return
-MISSING = (AS_VALUE, FARTHEST, NO_SPIKE)
+OWN_CHANNEL = "own_channel"  # ... or a spike of an input channel of its own (input_channels)
+MISSING = (AS_VALUE, FARTHEST, NO_SPIKE, OWN_CHANNEL)
+
+
+def input_channels(missing: str) -> int:
+    """How many input channels :func:`encode` makes of each channel of the delays: 2 where a
+    missing return has a channel of its own, else 1."""
+    return 2 if missing == OWN_CHANNEL else 1
 
 
 def encode(
@@ -72,6 +79,12 @@ def encode(
       "farthest"    spikes as the farthest value, d = 1.0: last near-first, at t = 0 far-first
                     (the authors' KITTI range maps)
       "no_spike"    no spike
+      "own_channel" no spike, and a spike of a second channel at the window's end (d = 1.0:
+                    t = scale near-first, t = 0 far-first) where a return is missing, none where
+                    one came back: the sensor knows a pulse found nothing once its window has
+                    closed, and the network is told so as an input spike of its own. The
+                    returns' channels come first, then the missing returns' (axis 1 of
+                    (B, C, H, W) or (N, P) delays, the only axis of 1-D ones): twice the inputs
 
     z = exp(t) lies in [1, exp(scale)]; no spike is z = inf. With the defaults and
     ``no_return = inf`` (the paper profile) every pixel is a spike at t = scale * d.
@@ -85,11 +98,16 @@ def encode(
         spike = delays < no_return
     else:
         absent = (delays >= no_return) | (delays >= 1.0)
-        spike = ~absent if missing == NO_SPIKE else torch.ones_like(absent)
+        spike = torch.ones_like(absent) if missing == FARTHEST else ~absent
         delays = torch.where(absent, 1.0, delays) if missing == FARTHEST else delays
     if direction == FAR_FIRST:
         delays = 1.0 - delays
-    return torch.where(spike, torch.exp(scale * torch.where(spike, delays, 0.0)), torch.inf)
+    z = torch.where(spike, torch.exp(scale * torch.where(spike, delays, 0.0)), torch.inf)
+    if missing != OWN_CHANNEL:
+        return z
+    end = torch.exp(torch.tensor(scale if direction == NEAR_FIRST else 0.0, dtype=z.dtype))
+    told = torch.where(absent, end, torch.tensor(torch.inf, dtype=z.dtype))
+    return torch.cat([z, told], dim=1 if z.dim() > 1 else 0)
 
 
 # Elements of one (rows, inputs, outputs) prefix tensor the torch form holds at a time: on a

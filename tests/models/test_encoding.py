@@ -61,6 +61,45 @@ def test_spike_times_by_hand(direction, missing, no_return, times):
     assert z.tolist() == pytest.approx(expected)
 
 
+@pytest.mark.parametrize(
+    "direction, no_return, times, told",
+    [
+        # the returns as "no_spike"; the missing return told by a second channel at the
+        # window's end: t = 2 near-first, t = 0 far-first
+        ("near_first", 1.0, [0.0, 0.5, None], [None, None, 2.0]),
+        ("far_first", 1.0, [2.0, 1.5, None], [None, None, 0.0]),
+        # under paper's rule only the window's end (1.0) is missing
+        ("near_first", math.inf, [0.0, 0.5, None], [None, None, 2.0]),
+    ],
+)
+def test_a_missing_return_in_a_channel_of_its_own_by_hand(direction, no_return, times, told):
+    z = ttfs.encode(DELAYS, 2.0, no_return, direction, "own_channel")
+    expected = [math.inf if t is None else math.exp(t) for t in times + told]
+    assert z.tolist() == pytest.approx(expected)
+    images = DELAYS.reshape(1, 1, 1, 3).repeat(1, 2, 2, 1)  # (B, C, H, W) = (1, 2, 2, 3)
+    z = ttfs.encode(images, 2.0, no_return, direction, "own_channel")
+    assert z.shape == (1, 4, 2, 3)  # the returns' two channels, then the missing returns'
+    assert torch.equal(z[:, :2], ttfs.encode(images, 2.0, no_return, direction, "no_spike"))
+    assert z[0, 2:].isfinite().sum() == 4 and torch.isfinite(z[0, 2:, :, 2]).all()
+
+
+def test_networks_read_twice_the_channels_where_a_missing_return_has_its_own():
+    g = torch.Generator().manual_seed(0)
+    assert ttfs.input_channels("own_channel") == 2 and ttfs.input_channels("no_spike") == 1
+    dense = dense_snn((1, 16, 16), 32, g, missing="own_channel", input_budget=64)
+    assert dense.layers[0].weight.shape[0] == 512
+    assert dense.arriving_fraction((1, 16, 16)) == 64 / 512
+    conv = build_model(load_recipe("scnn_simlidar_tuned"), (1, 16, 16), 32, g)
+    assert conv.layers[0].weight.shape[1] == 1
+    recipe = load_recipe("scnn_simlidar_tuned")
+    recipe["architecture"]["missing"] = "own_channel"
+    conv = build_model(recipe, (1, 16, 16), 32, g)
+    assert conv.layers[0].weight.shape[1] == 2
+    x = torch.rand(3, 1, 16, 16, generator=g)
+    x[x > 0.7] = 1.0
+    assert conv(x).shape == (3, 32) and dense(x).shape == (3, 32)
+
+
 def test_a_bad_choice_is_refused():
     with pytest.raises(ValueError, match="direction='sideways'"):
         ttfs.encode(DELAYS, 2.0, direction="sideways")
