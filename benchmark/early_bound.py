@@ -39,7 +39,10 @@ SUITE_CELLS = [ROOT / f"benchmark/results/{suite}/cells" for suite in ("paper", 
 
 # the learner's widest hidden layer: 16 times the published 256 (a 4096 x 4096 layer is 64 MiB)
 MAX_HIDDEN = 4096
-ENCODINGS = tuple(f"{d}/{m}" for d in ttfs.DIRECTIONS for m in ttfs.MISSING)
+# the view has an arrived channel of its own: a missing return's channel is not an encoding here
+ENCODINGS = tuple(
+    f"{d}/{m}" for d in ttfs.DIRECTIONS for m in ttfs.MISSING if m != ttfs.OWN_CHANNEL
+)
 LEARNER_CHOICES = (*LEARNERS, "published")  # the families, or the runs before issue 42
 
 

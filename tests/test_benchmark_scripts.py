@@ -583,6 +583,7 @@ def test_sweep_decisions_reads_each_decision_on_the_sensors_clock(tmp_path, cli)
         (["--hidden", "0"], "argument --hidden: '0': expected comma-separated integers in"),
         (["--hidden", "100000000"], "argument --hidden: '100000000': expected"),
         (["--encodings", "nonsense"], "argument --encodings: 'nonsense': expected"),
+        (["--encodings", "near_first/own_channel"], "'near_first/own_channel': expected"),
         (["--threads", "0"], "argument --threads: '0': expected an integer in [1, 1024]"),
         (["missing-dataset"], "missing-dataset: expected a dataset directory with train.h5"),
         ([], "no datasets given and no runs under"),

@@ -80,7 +80,12 @@ def spike_times(
     direction: str = ttfs.NEAR_FIRST,
     missing: str = ttfs.AS_VALUE,
 ) -> np.ndarray:
-    """(N, P) spike times t in [0, 1] of (N, ...) delays by the encoding (inf: no spike)."""
+    """(N, P) spike times t in [0, 1] of (N, ...) delays by the encoding (inf: no spike). A
+    missing return's channel of its own (``own_channel``) is refused: the view has an arrived
+    channel already (:func:`arrived`)."""
+    if missing == ttfs.OWN_CHANNEL:
+        raise ValueError(f"missing={missing!r}: expected one pixel a spike time (the view's own "
+                         "arrived channel tells a missing return)")  # fmt: skip
     d = torch.from_numpy(np.asarray(delays, dtype=np.float64).reshape(len(delays), -1))
     return torch.log(ttfs.encode(d, 1.0, no_return, direction, missing)).numpy()
 

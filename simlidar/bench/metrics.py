@@ -363,7 +363,9 @@ def spiking_figures(model: nn.Module, x: torch.Tensor, early: dict | None) -> di
     }
     if early is None:
         return figures
-    neurons, synapses = network_size(model, tuple(x.shape[1:]))  # hidden and output neurons
+    shape = tuple(x.shape[1:])  # the delays'; a spiking network's input spikes may have more
+    shape = model.encoded_shape(shape) if hasattr(model, "encoded_shape") else shape
+    neurons, synapses = network_size(model, shape)  # hidden and output neurons
     fired = early["hidden_spikes_mean"] + (1 - early["no_decision"] / early["samples"])
     figures["activation_sparsity"] = 1.0 - fired / neurons
     figures["synaptic_operations"]["effective_acs"] = early["accumulates_mean"]

@@ -61,7 +61,10 @@ class DenseTTFS(nn.Module):
 
 class ConvTTFS(nn.Module):
     """2D convolutional time-to-first-spike layer: see :func:`simlidar.models.ttfs.conv2d`.
-    Weights start as :class:`DenseTTFS`'s, over the kernel's fan-in."""
+    Weights start as :class:`DenseTTFS`'s, over the kernel's fan-in times ``arriving``, the
+    fraction of a patch's inputs expected to spike (1: all; one half where a missing return has
+    an input channel of its own, :func:`simlidar.models.ttfs.input_channels`: each pixel
+    spikes in one of its two channels)."""
 
     def __init__(
         self,
@@ -73,10 +76,11 @@ class ConvTTFS(nn.Module):
         excess: float = 2.0,
         spread: float = 1.0,
         generator: torch.Generator | None = None,
+        arriving: float = 1.0,
     ):
         super().__init__()
         check_layer(c_in * kernel * kernel, c_out, "TTFS convolution")
-        fan_in = c_in * kernel * kernel
+        fan_in = c_in * kernel * kernel * arriving
         mean, std = (1.0 + excess) / fan_in, spread / math.sqrt(fan_in)
         w = torch.randn(c_out, c_in, kernel, kernel, generator=generator) * std + mean
         self.weight = nn.Parameter(w)

@@ -78,10 +78,14 @@ class SpikingNet(nn.Module):
 
     def arriving_fraction(self, input_shape) -> float:
         """The fraction of the inputs that can spike behind the gates: a first dense layer
-        starts with weights that let a neuron fire on that many (:class:`DenseTTFS`)."""
+        starts with weights that let a neuron fire on that many (:class:`DenseTTFS`). Where a
+        missing return has a channel of its own, each pixel spikes in one of its two channels:
+        one half at most."""
         input_shape = self.encoded_shape(input_shape)
         inputs = int(torch.tensor(input_shape).prod())
-        fraction = 1.0 if self.input_budget is None else min(1.0, self.input_budget / inputs)
+        fraction = 1.0 / ttfs.input_channels(self.missing)
+        if self.input_budget is not None:
+            fraction = min(fraction, self.input_budget / inputs)
         if self.input_columns is not None:
             fraction = min(fraction, self.input_columns / input_shape[-1])
         return fraction
@@ -182,7 +186,8 @@ def spiking_cnn(
     then dense TTFS layers (the paper's KITTI network: 48 and 24 channels of 5x5 stride 2,
     dense 256, dense C). ``encoding``: as :func:`dense_snn`'s.
 
-    input_shape : (C, H, W) of one delay image, from the dataset
+    input_shape : (C, H, W) of one delay image, from the dataset (twice the channels reach the
+        first convolution where a missing return has a channel of its own)
     classes : the output neurons, one per class
     generator : the ``torch.Generator`` the initial weights are drawn from (None: torch's global
         random state)
@@ -201,9 +206,11 @@ def spiking_cnn(
     # the road close by), and scaled for the whole image's fraction its neurons blew up
     # (benchmark/results/early-objectives-crops/scaled-init/)
     arriving = 1.0 if conv else net.arriving_fraction(input_shape)
+    patch = 1.0 / ttfs.input_channels(net.missing)  # of the first patch's inputs, one a pixel
     for channels, kernel, stride in conv:
         pad = kernel // 2
-        layers.append(ConvTTFS(c, channels, kernel, stride, pad, excess, spread, generator))
+        layers.append(ConvTTFS(c, channels, kernel, stride, pad, excess, spread, generator, patch))
+        patch = 1.0
         c = channels
         h, w = (h + 2 * pad - kernel) // stride + 1, (w + 2 * pad - kernel) // stride + 1
     sizes = [c * h * w] + list(dense) + [classes]

@@ -105,8 +105,8 @@ def encode(
     z = torch.where(spike, torch.exp(scale * torch.where(spike, delays, 0.0)), torch.inf)
     if missing != OWN_CHANNEL:
         return z
-    end = torch.exp(torch.tensor(scale if direction == NEAR_FIRST else 0.0, dtype=z.dtype))
-    told = torch.where(absent, end, torch.tensor(torch.inf, dtype=z.dtype))
+    end = torch.exp(z.new_tensor(scale if direction == NEAR_FIRST else 0.0))  # z's device, dtype
+    told = torch.where(absent, end, z.new_tensor(torch.inf))
     return torch.cat([z, told], dim=1 if z.dim() > 1 else 0)
 
 

@@ -67,6 +67,9 @@ def test_the_view_by_hand():
     t = spike_times(np.array([[0.25, 1.0]]), 1.0, "far_first", "farthest")
     assert t[0].tolist() == pytest.approx([0.75, 0.0])
     assert spike_times(np.array([[0.25, 1.0]]), 1.0)[0, 1] == math.inf
+    # a missing return's channel of its own is not a view: the view has an arrived channel
+    with pytest.raises(ValueError, match="missing='own_channel': expected one pixel a spike"):
+        spike_times(np.array([[0.25, 1.0]]), 1.0, "near_first", "own_channel")
 
 
 def test_a_class_in_the_earliest_spike_is_known_at_once():

@@ -177,6 +177,22 @@ def test_spiking_figures_of_a_deeper_network_from_the_event_driven_run(datasets)
     assert figures["activation_sparsity"] == pytest.approx(1 - fired / (40 + 20 + 32))
 
 
+def test_spiking_figures_count_a_missing_returns_channel_of_its_own(datasets):
+    """With ``missing = "own_channel"`` the first convolution reads twice the channels: the
+    dense synapses count them (from the delays' shape alone the layers did not fit)."""
+    x, _ = load_split(datasets[0.5], "test")
+    found = {}
+    for missing in ("as_value", "own_channel"):
+        architecture = {"conv": [[4, 3, 2]], "dense": [8], "missing": missing}
+        recipe = {"name": "scnn", "model": "scnn", "architecture": architecture}
+        model = build_model(recipe, (1, 16, 16), 32, torch.Generator().manual_seed(0))
+        early = early_decisions(model, datasets[0.5])
+        figures = metrics.spiking_figures(model, torch.from_numpy(x)[:, None], early)
+        found[missing] = figures["synaptic_operations"]["dense"]
+    after = 4 * 8 * 8 * 8 + 8 * 32  # the dense layers': the same in both
+    assert found["own_channel"] - after == 2 * (found["as_value"] - after) > 0
+
+
 def test_confusion_matrix_counts_undecided_samples_apart():
     labels = np.array([0, 0, 1, 2, 2])
     predicted = np.array([0, 1, 1, -1, 2])

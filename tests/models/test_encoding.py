@@ -89,12 +89,19 @@ def test_networks_read_twice_the_channels_where_a_missing_return_has_its_own():
     dense = dense_snn((1, 16, 16), 32, g, missing="own_channel", input_budget=64)
     assert dense.layers[0].weight.shape[0] == 512
     assert dense.arriving_fraction((1, 16, 16)) == 64 / 512
+    # each pixel spikes in one of its two channels: the first layers start for half the inputs
+    g = torch.Generator().manual_seed(0)
+    assert (
+        dense_snn((1, 16, 16), 32, g, missing="own_channel").arriving_fraction((1, 16, 16)) == 0.5
+    )
     conv = build_model(load_recipe("scnn_simlidar_tuned"), (1, 16, 16), 32, g)
     assert conv.layers[0].weight.shape[1] == 1
     recipe = load_recipe("scnn_simlidar_tuned")
     recipe["architecture"]["missing"] = "own_channel"
     conv = build_model(recipe, (1, 16, 16), 32, g)
     assert conv.layers[0].weight.shape[1] == 2
+    first = conv.layers[0].weight.double()  # N((1 + excess) / (fan_in / 2), ...): 18 inputs
+    assert first.sum(dim=(1, 2, 3)).mean().item() == pytest.approx(2 * 3.0, rel=0.1)
     x = torch.rand(3, 1, 16, 16, generator=g)
     x[x > 0.7] = 1.0
     assert conv(x).shape == (3, 32) and dense(x).shape == (3, 32)
