@@ -271,9 +271,15 @@ def test_scnn_variants_summary_reads_its_cells_as_a_file_from_elsewhere(tmp_path
         "| snn_simlidar_tuned | no-return-channel | cpu | 0 | 88.00 ± 0.00 | [nan, nan] | "
         "99.00 ± 0.00 | +11.00 |"
     )
-    path.write_text(path.read_text() + '{"variant": "wide", "seed": 0}\n')
+    text = path.read_text()
+    path.write_text(text + json.dumps({"device": "cpu", **rows[0]}) + "\n")
+    with pytest.raises(ResultsError, match="line 5: seed 0 of tuned .scnn_simlidar_tuned, cpu. a"):
+        variants.summary(path)  # a seed twice would weigh twice in the mean
+    path.write_text(text + '{"variant": "wide", "seed": 0}\n')
     with pytest.raises(ResultsError, match=r"cells.jsonl, line 5: expected a cell of scnn_var"):
         variants.summary(path)
+    path.write_text('{"variant": "wide", "device": "cuda", "seed": 0, "test_accuracy": 0.8}\n')
+    assert variants.summary(path).splitlines()[2].endswith("| 80.00 ± 0.00 | [nan, nan] | - | - |")
 
 
 def test_cnn_learner_inputs_changes_the_view_one_way_at_a_time(tmp_path):

@@ -7,7 +7,8 @@
 
 On `physical` noise 0.2 with every spike, the bound's CNN family (``simlidar.bench.bound.
 LEARNERS["cnn"]``: the paper's CNN, fresh noise every epoch, its epochs chosen on validation
-rows) scores 89.0 % on average, where the paper's CNN trained as the spiking networks are
+rows) scores 89.0 % on average (the scan-timed bound, 5 seeds; this script's ``bound`` row is
+the same learner on the flash twin), where the paper's CNN trained as the spiking networks are
 (``benchmark/ablation/scnn_variants.py --variants relu-cnn``) scores 78.2 % and the spiking
 CNN 75.8-76.3 %. The learner differs from those networks in what it is shown: a view of two
 channels (each pixel's spike time, and whether it has arrived: a missing return is a 0 there)
@@ -17,8 +18,8 @@ missing return no spike: the bound's ``near_first/as_value`` row) on the view ch
 way at a time:
 
 * ``bound``: the view as the bound shows it;
-* ``no-mask``: the arrived channel all zeros (a missing return is then only a late time, as a
-  network sees it);
+* ``no-mask``: the arrived channel all zeros (a missing pixel then shows only the sample's
+  last spike time, as a late return would);
 * ``channel``: each channel standardised by one mean and deviation over every pixel, not
   pixel by pixel (``train_learner(standardise="channel")``);
 * ``no-mask-channel``: both.

@@ -125,12 +125,18 @@ def summary(path: Path) -> str:
         try:
             row = json.loads(line)
             key = (str(row.get("recipe", RECIPE)), str(row["variant"]), str(row["device"]))
-            cell = {k: float(row[k]) for k in ("seed", "test_accuracy", "train_accuracy")}
-        except (ValueError, KeyError, TypeError):
+            cell = {k: float(row[k]) for k in ("seed", "test_accuracy")}
+            cell["train_accuracy"] = float(row.get("train_accuracy", np.nan))  # older cells: none
+        except (ValueError, KeyError, TypeError, AttributeError):
             raise ResultsError(
-                f"{path}, line {number + 1}: expected a cell of scnn_variants.py with its train "
-                "accuracy (a JSON object: variant, device, seed, test_accuracy, train_accuracy)"
+                f"{path}, line {number + 1}: expected a cell of scnn_variants.py (a JSON object: "
+                "variant, device, seed, test_accuracy, train_accuracy)"
             ) from None
+        if any(c["seed"] == cell["seed"] for c in groups.get(key, [])):
+            raise ResultsError(
+                f"{path}, line {number + 1}: seed {cell['seed']:.0f} of {key[1]} ({key[0]}, "
+                f"{key[2]}) a second time; expected each seed once"
+            )
         groups.setdefault(key, []).append(cell)
     lines = [
         "| network | variant | device | seeds | test % | 95 % interval | train % (the file's "
@@ -144,13 +150,20 @@ def summary(path: Path) -> str:
         seeds = ", ".join(str(int(c["seed"])) for c in cells)
         lines.append(
             f"| {network} | {variant} | {device} | {seeds} | {_spread(test)} | "
-            f"[{low:.2f}, {high:.2f}] | {_spread(train)} | {train.mean() - test.mean():+.2f} |"
+            f"[{low:.2f}, {high:.2f}] | {_spread(train)} | {_gap(train, test)} |"
         )
     return "\n".join(lines)
 
 
+def _gap(train: np.ndarray, test: np.ndarray) -> str:
+    """Train minus test accuracy by the means; a dash without train accuracies."""
+    return "-" if np.isnan(train).any() else f"{train.mean() - test.mean():+.2f}"
+
+
 def _spread(values: np.ndarray) -> str:
-    """Mean ± sample standard deviation (0 for one value)."""
+    """Mean ± sample standard deviation (0 for one value); a dash where a value is missing."""
+    if np.isnan(values).any():
+        return "-"
     return f"{values.mean():.2f} ± {values.std(ddof=1) if len(values) > 1 else 0.0:.2f}"
 
 
@@ -183,6 +196,7 @@ def main() -> None:
             start = time.perf_counter()
             result = train(recipes[name], args.dataset, seed=seed, epochs=args.epochs,
                            max_seconds=float("inf"), progress=False, device=device)  # fmt: skip
+            seconds = round(time.perf_counter() - start, 1)  # training and the test, as before
             row = {
                 "recipe": args.recipe,
                 "variant": name,
@@ -191,7 +205,7 @@ def main() -> None:
                 "epochs": args.epochs or recipes[name]["training"]["epochs"],
                 "test_accuracy": result.test_accuracy,
                 "train_accuracy": train_accuracy(result, args.dataset),
-                "seconds": round(time.perf_counter() - start, 1),
+                "seconds": seconds,
                 "first_epoch_loss": result.history[0]["loss"],
             }
             line = json.dumps(row)
