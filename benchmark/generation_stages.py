@@ -17,7 +17,8 @@ and their exact range are stages of their own (the culling is "back-face culling
 form). The numpy around the cast (its checks, the culling's mask to indices, the cells'
 offsets, the float32 copies of vertices and rays and, in the numpy form, the exact float64
 range) and the draws with their visibility checks (the batch's factors, each draw's checks of
-the object's hits and the layout's visible surfaces, the redraws' bookkeeping) are stages of
+the object's hits and the layout's visible surfaces, the redraws' bookkeeping, the ranges'
+quantisation and the pulses' emission times) are stages of
 their own, each less the timed stages it calls. "Other" is the whole run less the timed
 stages: sharding the splits into batches, the workers' plumbing, claiming and installing the
 folder. The timers add a few microseconds a sample; ``benchmark/generation_speed.py`` gives
