@@ -1,25 +1,30 @@
-"""The ray cast's two forms, numpy and the compiled kernels: speed, cost to load, and when they pay.
+"""The two forms of the scenes and the ray cast, numpy and the compiled kernels: speed, cost to
+load, and when they pay.
 
     python benchmark/cast_speed.py [--samples 22400,100000 | --no-end-to-end] [--runs 3] \
                                    [--rounds 10]
 
 Pins itself to one CPU core and measures, one after the other:
 
-* **the cast of one batch**: the first 1,024 training samples of ``simlidar generate --classes
-  32 --noise 0.2`` (the users' command: profile ``paper``, the default catalog and sensor), their
-  scenes and rays taken from the generator itself, cast by :func:`simlidar.sensor.raycast.cast`
-  in numpy and through the kernels (Embree's BVH and queries included), the best of
-  ``--rounds`` each, in turn; the hits of the two are checked to be the same to the last bit;
-* **the kernels' cost to load**: in fresh processes, the CPU time of the first compiled cast of
-  one sample (numba's import, its CPU target and the cached kernels) less that of the second;
+* **the scenes of one batch**: the first 1,024 training samples of ``simlidar generate
+  --classes 32 --noise 0.2`` (the users' command: profile ``paper``, the default catalog and
+  sensor), their scenes' parameters taken from the generator itself, built by
+  :func:`simlidar.scene.build.build_batch` in numpy and with the kernel, the best of
+  ``--rounds`` each, in turn; the two batches are checked to be the same to the last bit;
+* **the cast of that batch**: their scenes and rays, cast by :func:`simlidar.sensor.raycast.cast`
+  in numpy and through the kernels (Embree's BVH and queries included), likewise; the hits of
+  the two are checked to be the same to the last bit;
+* **the kernels' cost to load**: in fresh processes, the CPU time of the first compiled build
+  and cast of one sample (numba's import, its CPU target and the cached kernels) less that of
+  the second;
 * **end to end**: for each ``--samples`` N, ``simlidar generate --classes 32 --noise 0.2``
   with N samples (5/6 train, 1/6 test), the whole process, with the kernels forced on and
   forced off (``COMPILED_FROM_RAYS`` set before the run), ``--runs`` pairs, in turn; the
   median seconds of each and the median of the pairs' ratios. The two datasets' files are
   checked to be the same bytes.
 
-What the default chooses is :func:`simlidar.sensor.raycast.compiled_for`: the kernels from
-``COMPILED_FROM_RAYS`` rays a process, where they start to pay.
+What the default chooses is :func:`simlidar.sensor.raycast.compiled_for`: the kernels (the
+scenes' and the cast's) from ``COMPILED_FROM_RAYS`` rays a process, where they start to pay.
 """
 
 import os
@@ -41,22 +46,26 @@ from pathlib import Path  # noqa: E402
 import simlidar.generator.simulate as simulate_module  # noqa: E402
 from simlidar.generator.config import GeneratorConfig  # noqa: E402
 from simlidar.generator.profiles import load_profile  # noqa: E402
+from simlidar.scene.build import build_batch  # noqa: E402
 from simlidar.scene.recipe import load_catalog  # noqa: E402
 from simlidar.script_args import integers, run  # noqa: E402
 from simlidar.sensor import raycast  # noqa: E402
 
 BATCH = 1024
 
-# A fresh process: CPU seconds of its first compiled cast of one sample, then of its second.
+# A fresh process: CPU seconds of its first compiled build and cast of one sample, then of its
+# second.
 LOAD = """
 import sys, time
 sys.path.insert(0, {here!r})
 from cast_speed import first_batch
+from simlidar.scene.build import build_batch
 from simlidar.sensor.raycast import cast
-args = first_batch(1)
+built, args = first_batch(1)
 spent = []
 for _ in range(2):
     start = time.process_time()
+    build_batch(*built, compiled=True)
     cast(*args, compiled=True)
     spent.append(time.process_time() - start)
 print(spent[0] - spent[1])
@@ -73,20 +82,27 @@ main(sys.argv[1:], prog_name="simlidar")
 
 
 def first_batch(size: int = BATCH):
-    """The cast's arguments for the first ``size`` training samples of the users' command."""
+    """The arguments of ``build_batch`` and of the cast for the first ``size`` training samples
+    of the users' command (their first draws: redraws are built and cast apart)."""
     config = GeneratorConfig.from_profile(load_profile("paper"), noise=0.2)
-    taken = []
+    taken = {"build_batch": [], "cast": []}
+    kept = {name: getattr(simulate_module, name) for name in taken}
 
-    def keep(*args, **kwargs):
-        taken.append(args)
-        return cast(*args, **kwargs)
+    def keeper(name):
+        def keep(*args, **kwargs):
+            taken[name].append(args)
+            return kept[name](*args, **kwargs)
 
-    cast, simulate_module.cast = simulate_module.cast, keep
+        return keep
+
+    for name in taken:
+        setattr(simulate_module, name, keeper(name))
     try:
         simulate_module.simulate(config, load_catalog(), "train", 0, size)
     finally:
-        simulate_module.cast = cast
-    return taken[0]  # the first draw of every sample (redraws are cast apart)
+        for name, function in kept.items():
+            setattr(simulate_module, name, function)
+    return taken["build_batch"][0], taken["cast"][0]
 
 
 def best(step, rounds: int) -> float:
@@ -96,6 +112,12 @@ def best(step, rounds: int) -> float:
         step()
         times.append(time.process_time() - start)
     return min(times)
+
+
+def same_scenes(a, b) -> bool:
+    """The two builds' scene batches, byte for byte."""
+    fields = ("triangles", "surface", "sample", "closed", "is_object", "object_pose")
+    return all(getattr(a, f).tobytes() == getattr(b, f).tobytes() for f in fields)
 
 
 def same_hits(a, b) -> bool:
@@ -133,13 +155,22 @@ def main() -> None:
     print(f"one core (cpu {sorted(os.sched_getaffinity(0))[0]}); default: the kernels from "
           f"{raycast.COMPILED_FROM_RAYS:,} rays a process")  # fmt: skip
 
-    batch = first_batch()
+    built, batch = first_batch()
     scene, origins = batch[0], batch[1]
+    n = len(origins)
+    numpy_scenes = build_batch(*built)
+    compiled_scenes = build_batch(*built, compiled=True)  # loads the kernel
+    build_numpy_s = best(lambda: build_batch(*built), args.rounds)
+    build_compiled_s = best(lambda: build_batch(*built, compiled=True), args.rounds)
+    print(f"\nscenes of one batch ({n} samples), CPU us a sample, best of {args.rounds}:")
+    print(f"  numpy              {1e6 * build_numpy_s / n:8.1f}")
+    print(f"  compiled kernel    {1e6 * build_compiled_s / n:8.1f}")
+    print(f"  compiled / numpy   {build_compiled_s / build_numpy_s:8.3f}")
+    print(f"  scenes the same to the last bit: {same_scenes(numpy_scenes, compiled_scenes)}")
     numpy_hits = raycast.cast(*batch)
     compiled_hits = raycast.cast(*batch, compiled=True)  # loads the kernels
     numpy_s = best(lambda: raycast.cast(*batch), args.rounds)
     compiled_s = best(lambda: raycast.cast(*batch, compiled=True), args.rounds)
-    n = len(origins)
     print(f"\ncast of one batch ({n} samples, {origins[0, ..., 0].size} rays each, "
           f"{len(scene.triangles) / n:.1f} triangles a sample before culling), CPU us a "
           f"sample, best of {args.rounds}:")  # fmt: skip
@@ -147,18 +178,21 @@ def main() -> None:
     print(f"  compiled kernels   {1e6 * compiled_s / n:8.1f}")
     print(f"  compiled / numpy   {compiled_s / numpy_s:8.3f}")
     print(f"  hits the same to the last bit: {same_hits(numpy_hits, compiled_hits)}")
-    saved_per_ray = (numpy_s - compiled_s) / numpy_hits.range_m.size
+    saved = (numpy_s + build_numpy_s) - (compiled_s + build_compiled_s)
+    saved_per_ray = saved / numpy_hits.range_m.size
 
     loads = []
     for _ in range(3):
         probe = [sys.executable, "-c", LOAD.format(here=str(Path(__file__).resolve().parent))]
         loads.append(float(subprocess.run(probe, capture_output=True, check=True).stdout))
     load_s = statistics.median(loads)
-    print(f"\nloading the kernels (a fresh process's first compiled cast less its second, CPU s, "
-          f"3 processes): {', '.join(f'{x:.3f}' for x in loads)}; median {load_s:.3f}")  # fmt: skip
+    print("\nloading the kernels (a fresh process's first compiled build and cast less its "
+          f"second, CPU s, 3 processes): {', '.join(f'{x:.3f}' for x in loads)}; median "
+          f"{load_s:.3f}")  # fmt: skip
     if saved_per_ray > 0:
-        print(f"  saved a ray in the batch above: {1e6 * saved_per_ray:.3f} us; the kernels pay "
-              f"from about {load_s / saved_per_ray / 1e6:.1f} million rays a process")  # fmt: skip
+        print(f"  saved a ray in the batch above (scenes and cast): {1e6 * saved_per_ray:.3f} "
+              f"us; the kernels pay from about {load_s / saved_per_ray / 1e6:.1f} million rays "
+              "a process")  # fmt: skip
 
     sizes = () if args.no_end_to_end else args.samples
     if sizes:

@@ -11,19 +11,20 @@ preview, card, Croissant file and checksums included) with timers around the pip
 stages, after one untimed warm-up run, and prints each stage's share and the mean draws a
 sample (the splits' ``attempts``). The preview is drawn by a process of its own while the
 train split is written; on the one core both share, its figure is that process's CPU time.
-The ray cast takes the form the run's size chooses (``--cast auto``; docs/performance.md), or
-the one ``--cast`` names; through the compiled kernels, their packing of vertices and rays
-and their exact range are stages of their own (the culling is "back-face culling" in either
-form). The numpy around the cast (its checks, the culling's mask to indices, the cells'
-offsets, the float32 copies of vertices and rays and, in the numpy form, the exact float64
-range) and the draws with their visibility checks (the batch's factors, each draw's checks of
-the object's hits and the layout's visible surfaces, the redraws' bookkeeping, the ranges'
-quantisation and the pulses' emission times) are stages of
-their own, each less the timed stages it calls. "Other" is the whole run less the timed
-stages: sharding the splits into batches, the workers' plumbing, claiming and installing the
-folder. The timers add a few microseconds a sample; ``benchmark/generation_speed.py`` gives
-the untimed throughput. The process's start-up imports are not in the run (``python -X importtime -m
-simlidar.cli --version`` shows them).
+The ray cast and the scenes' template copies take the form the run's size chooses (``--cast
+auto``; docs/performance.md), or the one ``--cast`` names; through the compiled kernels, their
+packing of vertices and rays, their exact range and the template copies are stages of their
+own (the culling is "back-face culling" in either form; in the numpy form the copies are part
+of "scene building", with the recipes' parameters and placement). The numpy around the cast
+(its checks, the culling's mask to indices, the cells' offsets, the float32 copies of vertices
+and rays and, in the numpy form, the exact float64 range) and the draws with their visibility
+checks (the batch's factors, each draw's checks of the object's hits and the layout's visible
+surfaces, the redraws' bookkeeping, the ranges' quantisation and the pulses' emission times)
+are stages of their own, each less the timed stages it calls. "Other" is the whole run less
+the timed stages: sharding the splits into batches, the workers' plumbing, claiming and
+installing the folder. The timers add a few microseconds a sample;
+``benchmark/generation_speed.py`` gives the untimed throughput. The process's start-up imports
+are not in the run (``python -X importtime -m simlidar.cli --version`` shows them).
 
 With a receiver (``--profile sensor``, and the options of ``simlidar generate`` that shape its
 physics: ``--beam-samples``, ``--return-mode``, ``--fog``, ``--rain``, ``--waveform-bin``) the
@@ -132,7 +133,8 @@ def main() -> None:
     receiver.add_argument("--rain", type=numbers(0.0, MAX_RAIN_MM_H, one=True), default=0.0)
     receiver.add_argument("--waveform-bin", type=numbers(0.0, one=True), default=0.0, help="ns")
     parser.add_argument("--cast", choices=("auto", "numpy", "compiled"), default="auto",
-                        help="the ray cast's form (auto: as the run's size chooses)")  # fmt: skip
+                        help="the form of the ray cast and the scenes' copies (auto: as the "
+                             "run's size chooses)")  # fmt: skip
     args = parser.parse_args()
     if args.cast != "auto":
         raycast.COMPILED_FROM_RAYS = 0 if args.cast == "compiled" else 2**62
@@ -166,7 +168,7 @@ def main() -> None:
         simulate.cast = timed("numpy around the cast", simulate.cast)
         for name in ("delays_from_range", "shift_delays"):
             setattr(simulate, name, timed("pulses (range to delays)", getattr(simulate, name)))
-        simulate.build_batch = timed("scene building (numpy)", simulate.build_batch)
+        simulate.build_batch = timed("scene building", simulate.build_batch)
         raycast.visible_triangles = timed("back-face culling", raycast.visible_triangles)
         raycast.attach_triangles = timed("Embree geometry", raycast.attach_triangles)
         raycast.attach_vertices = timed("Embree geometry", raycast.attach_vertices)
@@ -177,6 +179,11 @@ def main() -> None:
                 stage = timed("packing vertices and rays (compiled)", getattr(cast_kernels, name))
                 setattr(cast_kernels, name, stage)
             cast_kernels.first_hits = timed("exact range (compiled)", cast_kernels.first_hits)
+            from simlidar.scene import kernels as scene_kernels
+
+            scene_kernels.place_copies = timed(
+                "template copies (compiled)", scene_kernels.place_copies
+            )
         rtcs.EmbreeScene = TimedScene
         for module, name, stage in RECEIVER_STAGES if config.receiver is not None else ():
             setattr(module, name, timed(stage, getattr(module, name)))

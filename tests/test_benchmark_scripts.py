@@ -75,7 +75,7 @@ def test_generation_stages_times_every_stage(cast):
         "other",
         "HDF5 writing",
         "profile and noise",
-        "scene building (numpy)",
+        "scene building",
         "back-face culling",
         "random streams",
         "window rays",
@@ -85,8 +85,8 @@ def test_generation_stages_times_every_stage(cast):
         "draws and visibility checks",
         "numpy around the cast",
         "pulses (range to delays)",
-    } | ({"exact range (compiled)", "packing vertices and rays (compiled)"} if cast == "compiled"
-         else set())  # fmt: skip
+    } | ({"exact range (compiled)", "packing vertices and rays (compiled)",
+          "template copies (compiled)"} if cast == "compiled" else set())  # fmt: skip
     assert all(us > 0 for name, us in stages.items() if name != "other")
 
 
@@ -94,6 +94,7 @@ def test_cast_speed_compares_both_forms_and_their_bytes():
     args = "--samples", "192", "--runs", "1", "--rounds", "1"
     lines = run_script("cast_speed.py", *args, timeout=600).splitlines()
     assert "  hits the same to the last bit: True" in lines
+    assert "  scenes the same to the last bit: True" in lines
     ratio = next(line for line in lines if line.startswith("  compiled / numpy"))
     assert 0 < float(ratio.split()[-1])
     load = next(line for line in lines if line.startswith("loading the kernels"))

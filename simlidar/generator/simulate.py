@@ -157,7 +157,7 @@ def batched_backend(
     incidence=False,
     compiled=False,
 ):
-    """Scenes -> first hits for a whole batch: numpy triangles, one Embree scene, one call.
+    """Scenes -> first hits for a whole batch: one array of triangles, one Embree scene, one call.
 
     catalog, layout, obj, layout_uniforms, object_uniforms : the scenes, as
         :func:`simlidar.scene.build.build_batch`'s: the scene recipes, each scene's (B,) layout
@@ -167,11 +167,11 @@ def batched_backend(
         (B, H, W, 3) in each sample's local frame, (B,) distinct grid cells, and the sensor's
         range (m)
     incidence : also give each hit's |cos incidence| (asked only under a receiver)
-    compiled : cast by the compiled kernels (the same hits; asked only on long runs,
-        :func:`simlidar.sensor.raycast.compiled_for`)
+    compiled : build the scenes and cast by the compiled kernels (the same triangles and hits;
+        asked only on long runs, :func:`simlidar.sensor.raycast.compiled_for`)
     returns : Hits, object pose (B, 3)
     """
-    scene = build_batch(catalog, layout, obj, layout_uniforms, object_uniforms)
+    scene = build_batch(catalog, layout, obj, layout_uniforms, object_uniforms, compiled=compiled)
     hits = cast(
         scene, origins, directions, slots, max_range_m, incidence=incidence, compiled=compiled
     )

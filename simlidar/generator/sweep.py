@@ -151,6 +151,7 @@ def simulate_frames(
         obj,
         u[:, FIXED_COLUMNS : FIXED_COLUMNS + lc],
         u[:, FIXED_COLUMNS + lc :],
+        compiled=compiled,
     )
     hits = cast(scene, origins, directions, index % MAX_BATCH, sensor.max_range_m, incidence=True,
                 compiled=compiled)  # fmt: skip

@@ -55,16 +55,16 @@ def _instances(prim: Primitive, values: dict[str, np.ndarray], n: int):
     env = {k: v[:, None] for k, v in values.items()}
     env["i"] = np.arange(prim.repeat_max, dtype=np.float64)[None, :]
 
-    def field(compiled) -> np.ndarray:
+    at, size, yaw = np.empty(shape + (3,)), np.empty(shape + (3,)), np.empty(shape)
+    for out, compiled in (
+        *((at[..., k], t) for k, t in enumerate(prim.at)),
+        *((size[..., k], t) for k, t in enumerate(prim.size)),
+        (yaw, prim.yaw_deg),
+    ):
         try:
-            value = np.asarray(expr.evaluate(compiled, env), dtype=np.float64)
+            out[...] = np.asarray(expr.evaluate(compiled, env), dtype=np.float64)
         except (ArithmeticError, TypeError, ValueError) as exc:
             raise RecipeError(f"{prim.where}: {exc}: expected finite real values") from None
-        return np.broadcast_to(value, shape)
-
-    at = np.stack([field(t) for t in prim.at], axis=-1)
-    size = np.stack([field(t) for t in prim.size], axis=-1)
-    yaw = field(prim.yaw_deg)
     if prim.repeat_param is None:
         mask = np.ones(shape, dtype=bool)
     else:
@@ -154,12 +154,25 @@ def instance_triangles(inst: Instances) -> np.ndarray:
     return tris.reshape(len(c), *tmpl.shape)
 
 
+def _check_reach(inst: Instances, triangles: np.ndarray) -> None:
+    """Raise a RecipeError naming the primitive if a vertex of its ``triangles`` is not finite
+    or lies more than :data:`CELL_HALF_EXTENT_M` from the sensor along an axis."""
+    reach = np.abs(triangles).max(initial=0.0)
+    if not reach <= CELL_HALF_EXTENT_M:  # NaN fails too
+        raise RecipeError(
+            f"{inst.primitive.where}: geometry reaches {reach:.1f} m from the sensor: "
+            f"expected every vertex finite and within {CELL_HALF_EXTENT_M:.0f} m along "
+            "each axis"
+        )
+
+
 def build_batch(
     catalog: Catalog,
     layout_ids: np.ndarray,
     object_ids: np.ndarray,
     layout_uniforms: np.ndarray,
     object_uniforms: np.ndarray,
+    compiled: bool = False,
 ) -> SceneBatch:
     """Build the triangles of B scenes (arguments as :func:`place_instances`). A RecipeError
     names the primitive of any vertex that is not finite or lies more than
@@ -171,31 +184,43 @@ def build_batch(
     layout_uniforms : (B, catalog.layout_columns) float in [0, 1), the uniform variates of each
         scene's layout parameters
     object_uniforms : (B, catalog.object_columns) float in [0, 1), those of its object's
+    compiled : place the templates' copies by the compiled kernel
+        (:func:`simlidar.scene.kernels.place_copies`: the same triangles, bit for bit; asked on
+        long runs, as the ray cast's kernels are, :func:`simlidar.sensor.raycast.compiled_for`)
     """
     placed, pose = place_instances(
         catalog, layout_ids, object_ids, layout_uniforms, object_uniforms
     )
-    tris, surface, sample, closed, is_object = [], [], [], [], []
-    for inst in placed:
-        t = instance_triangles(inst)
-        reach = np.abs(t).max(initial=0.0)
-        if not reach <= CELL_HALF_EXTENT_M:  # NaN fails too
-            raise RecipeError(
-                f"{inst.primitive.where}: geometry reaches {reach:.1f} m from the sensor: "
-                f"expected every vertex finite and within {CELL_HALF_EXTENT_M:.0f} m along "
-                "each axis"
-            )
-        count = t.shape[0] * t.shape[1]
-        tris.append(t.reshape(-1, 3, 3))
-        surface.append(np.full(count, inst.primitive.surface, np.uint8))
-        sample.append(np.repeat(inst.sample, t.shape[1]))
-        closed.append(np.full(count, template(inst.primitive.kind, inst.primitive.segments).closed))
-        is_object.append(np.full(count, inst.is_object))
+    shapes = [template(inst.primitive.kind, inst.primitive.segments) for inst in placed]
+    counts = [len(inst.sample) * len(shape.triangles) for inst, shape in zip(placed, shapes)]
+    if compiled:
+        from simlidar.scene.kernels import place_copies
+
+        triangles = np.empty((sum(counts), 3, 3))
+        start = 0
+        for inst, shape, count in zip(placed, shapes, counts):
+            out = triangles[start : start + count]
+            yaw = np.deg2rad(inst.yaw_deg)
+            if not place_copies(
+                shape.triangles, np.cos(yaw), np.sin(yaw), inst.size, inst.at,
+                CELL_HALF_EXTENT_M, out,
+            ):  # fmt: skip
+                _check_reach(inst, out)
+            start += count
+    else:
+        pieces = []
+        for inst in placed:
+            t = instance_triangles(inst)
+            _check_reach(inst, t)
+            pieces.append(t.reshape(-1, 3, 3))
+        triangles = np.concatenate(pieces)
     return SceneBatch(
-        triangles=np.concatenate(tris),
-        surface=np.concatenate(surface),
-        sample=np.concatenate(sample),
-        closed=np.concatenate(closed),
-        is_object=np.concatenate(is_object),
+        triangles=triangles,
+        surface=np.repeat(np.array([inst.primitive.surface for inst in placed], np.uint8), counts),
+        sample=np.concatenate(
+            [np.repeat(inst.sample, len(shape.triangles)) for inst, shape in zip(placed, shapes)]
+        ),
+        closed=np.repeat(np.array([shape.closed for shape in shapes], bool), counts),
+        is_object=np.repeat(np.array([inst.is_object for inst in placed], bool), counts),
         object_pose=pose,
     )

@@ -11,6 +11,8 @@ parser sees it (which would otherwise recurse, or allocate, in proportion to the
 import ast
 import copy
 from collections.abc import Callable, Mapping
+from types import CodeType
+from typing import NamedTuple
 
 import numpy as np
 
@@ -145,19 +147,38 @@ class _NumpyConstants(ast.NodeTransformer):
         return ast.copy_location(ast.Name(id=name, ctx=ast.Load()), node)
 
 
-def compile_tree(tree: ast.expr):
-    """Compile a tree checked by :func:`parse`: (bytecode, its constants as numpy floats)."""
+class Compiled(NamedTuple):
+    """A compiled expression (:func:`compile_tree`)."""
+
+    code: CodeType  # the bytecode
+    namespace: dict  # what it reads besides the variables: FUNCTIONS, its numbers
+    # its value, where it reads no variable (numbers and functions only), else None: worked
+    # out once, as :func:`evaluate` would each time
+    constant: np.float64 | None
+
+
+def compile_tree(tree: ast.expr) -> Compiled:
+    """Compile a tree checked by :func:`parse` (its numbers as numpy floats)."""
     constants = _NumpyConstants()
     body = ast.fix_missing_locations(constants.visit(copy.deepcopy(tree)))
     code = compile(ast.Expression(body=body), "<recipe expression>", "eval")
-    return code, {"__builtins__": {}, **FUNCTIONS, **constants.values}
+    namespace = {"__builtins__": {}, **FUNCTIONS, **constants.values}
+    value = None
+    if not names(tree):
+        try:
+            with np.errstate(all="ignore"):  # inf and nan are caught by the caller's checks
+                value = eval(code, namespace, {})  # checked AST, no builtins
+        except (ArithmeticError, TypeError, ValueError):
+            value = None  # raised again by evaluate, where the caller says which key
+    return Compiled(code, namespace, value)
 
 
-def evaluate(compiled, env: Mapping[str, np.ndarray]) -> np.ndarray:
+def evaluate(compiled: Compiled, env: Mapping[str, np.ndarray]) -> np.ndarray:
     """Evaluate a compiled expression; ``env`` maps names to broadcastable float arrays.
 
     Only what :func:`parse` allowed can appear (numbers, names, arithmetic, FUNCTIONS).
     """
-    code, namespace = compiled
+    if compiled.constant is not None:
+        return compiled.constant
     with np.errstate(all="ignore"):  # inf and nan are caught by the caller's checks
-        return eval(code, namespace, dict(env))  # checked AST, no builtins
+        return eval(compiled.code, compiled.namespace, dict(env))  # checked AST, no builtins

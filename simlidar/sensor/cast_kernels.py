@@ -12,10 +12,11 @@ making a dataset's bytes depend on its size:
 * a three-term ``np.einsum("ij,ij->i", a, b)`` sums ``0 + ((a0 b0 + a2 b2) + a1 b1)`` (numpy
   pairs the lanes of a SIMD register, 0 with 2, then 1, from zeroed accumulators);
 * ``normals @ ends.T`` (a BLAS product) is ``fma(a2, b2, fma(a1, b1, fma(a0, b0, 0)))``: each
-  term fused into the running sum (:func:`_fma`, LLVM's ``llvm.fma``, exact on every CPU). Its
-  result is only compared with a plane's offset (which side of a face a laser origin lies on);
-  a BLAS built without fused products would round some of these differently, changing the side
-  only where an origin lies in a face's plane to the last bit, where no ray can hit the face;
+  term fused into the running sum (:func:`simlidar.fused.fma`, LLVM's ``llvm.fma``, exact on
+  every CPU). Its result is only compared with a plane's offset (which side of a face a laser
+  origin lies on); a BLAS built without fused products would round some of these differently,
+  changing the side only where an origin lies in a face's plane to the last bit, where no ray
+  can hit the face;
 * everything else is one operation at a time, in float64, rounded to float32 where numpy cast
   (``astype``, an assignment into a float32 array): LLVM fuses nothing here (no ``fastmath``).
 
@@ -23,26 +24,9 @@ Division by zero gives inf or NaN as numpy's does (``error_model="numpy"``), not
 """
 
 import numpy as np
-from llvmlite import ir
 from numba import njit
-from numba.core import types
-from numba.extending import intrinsic
 
-
-@intrinsic
-def _fma(typingctx, x, y, z):
-    """x * y + z rounded once (LLVM's ``llvm.fma``: the CPU's instruction, or libm's exact
-    software form where the CPU has none)."""
-    sig = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, signature, args):
-        double = ir.DoubleType()
-        fn = builder.module.declare_intrinsic(
-            "llvm.fma", [double], ir.FunctionType(double, [double] * 3)
-        )
-        return builder.call(fn, args)
-
-    return sig, codegen
+from simlidar.fused import fma
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -108,7 +92,7 @@ def cull(triangles, closed, ends):
         back = closed[t]
         for j in range(2):
             if back:
-                dot = _fma(nz, ends[j, 2], _fma(ny, ends[j, 1], _fma(nx, ends[j, 0], 0.0)))
+                dot = fma(nz, ends[j, 2], fma(ny, ends[j, 1], fma(nx, ends[j, 0], 0.0)))
                 back = dot - p <= 0.0  # NaN: not a back face, as numpy's comparison says
         keep[t] = not back and (nx != 0.0 or ny != 0.0 or nz != 0.0)
     return keep, normal, plane

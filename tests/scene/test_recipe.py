@@ -149,7 +149,8 @@ def test_a_missing_catalog_is_named(tmp_path):
         ),
     ],
 )
-def test_sampled_geometry_is_checked_at_build_time(catalog_copy, old, new, words):
+@pytest.mark.parametrize("compiled", [False, True])
+def test_sampled_geometry_is_checked_at_build_time(catalog_copy, old, new, words, compiled):
     from simlidar.scene.build import build_batch
 
     _edit(catalog_copy, "objects/truck.toml", old, new)
@@ -162,6 +163,7 @@ def test_sampled_geometry_is_checked_at_build_time(catalog_copy, old, new, words
             np.array([3]),
             u[:, : catalog.layout_columns],
             u[:, : catalog.object_columns],
+            compiled=compiled,
         )
 
 
@@ -184,6 +186,20 @@ def test_expressions_evaluate_on_arrays():
     }
     value = expr.evaluate(expr.compile_tree(tree), env)
     np.testing.assert_allclose(value, [[3, 13, 23], [4, 24, 44]])
+
+
+@pytest.mark.parametrize(
+    "text", ["2.5", "-0.0", "cos(90) * 3 - abs(-2) ** 0.5", "1 / 0", "sqrt(-1)", "min(-0.0, 0)"]
+)
+def test_an_expression_of_numbers_is_worked_out_once_to_the_same_bits(text):
+    compiled = expr.compile_tree(expr.parse(text))
+    assert isinstance(compiled.constant, np.float64)
+    namespace = {"__builtins__": {}, **compiled.namespace}
+    with np.errstate(all="ignore"):
+        each_time = eval(compiled.code, namespace, {})  # what evaluate did before
+    assert np.array([compiled.constant]).tobytes() == np.array([each_time]).tobytes()
+    assert expr.evaluate(compiled, {"i": np.arange(3.0)}) is compiled.constant
+    assert expr.compile_tree(expr.parse("i * 2")).constant is None
 
 
 def test_parameter_kinds_cover_their_ranges():

@@ -1,16 +1,16 @@
 """The cast's compiled kernels against its numpy form, bit for bit: every dataset's bytes depend
-on it (long runs cast with the kernels, short ones with numpy)."""
+on it (long runs cast with the kernels, short ones with numpy). Whole datasets compare the
+scene building's kernel too (tests/scene/test_build_kernels.py compares it alone)."""
 
 from dataclasses import replace
-from fractions import Fraction
 
 import numpy as np
 import pytest
-from numba import njit
 
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.generate import generate
 from simlidar.generator.profiles import load_profile
+from simlidar.scene import kernels as scene_kernels
 from simlidar.scene.build import SceneBatch
 from simlidar.sensor import cast_kernels, raycast, window_rays
 from simlidar.sensor.embree import shared_buffers
@@ -85,13 +85,6 @@ def test_the_compiled_rays_are_numpys_to_the_bit(name, pitch):
         assert same_bits(got, want)
 
 
-def test_fma_rounds_once():
-    fma = njit(lambda x, y, z: cast_kernels._fma(x, y, z))
-    x, y, z = 1 + 2.0**-30, 1 - 2.0**-30, -1.0  # x y = 1 - 2^-60 exactly
-    assert x * y + z == 0.0  # rounded twice
-    assert fma(x, y, z) == float(Fraction(x) * Fraction(y) + Fraction(z)) == -(2.0**-60)
-
-
 @pytest.mark.parametrize("seed", [0, 1])
 @pytest.mark.parametrize("shared", [True, False])
 def test_the_compiled_cast_is_the_numpy_casts_to_the_bit(scene_batch, seed, shared):
@@ -137,15 +130,16 @@ def test_a_long_run_writes_the_bytes_of_a_short_one(
         (written,) = generate(config, [0.1], catalog, out, progress=False, preview=False)
         return written.path
 
-    calls = []  # the kernel's calls: which path each run took
-    kernel = cast_kernels.first_hits
-    monkeypatch.setattr(cast_kernels, "first_hits", lambda *a: calls.append(1) or kernel(*a))
+    calls = []  # the kernels' calls: which path each run took
+    for module, name in ((cast_kernels, "first_hits"), (scene_kernels, "place_copies")):
+        kernel = getattr(module, name)
+        monkeypatch.setattr(module, name, lambda *a, k=kernel, n=name: calls.append(n) or k(*a))
     assert not raycast.compiled_for(rays)
     short = make(tmp_path / "numpy")
     assert not calls
     monkeypatch.setattr(raycast, "COMPILED_FROM_RAYS", rays)  # this run counts as long
     long = make(tmp_path / "compiled")
-    assert calls
+    assert set(calls) == {"first_hits", "place_copies"}  # the scenes built by the kernel too
     files = sorted(p.relative_to(short) for p in short.rglob("*") if p.is_file())
     assert len(files) >= 4  # train.h5, test.h5, the card, the checksums
     assert files == sorted(p.relative_to(long) for p in long.rglob("*") if p.is_file())
