@@ -7,6 +7,10 @@ last bit does the same with :func:`fma` (the ray cast's culling,
 :mod:`simlidar.sensor.cast_kernels`; the scenes' template copies, :mod:`simlidar.scene.kernels`).
 """
 
+# numba's cache (``cache=True``) recompiles a kernel when the file that defines it changes, not
+# when a function it calls from another file does: after changing :func:`fma`, clear the
+# cached kernels of its callers (``__pycache__/*.nbi`` and ``*.nbc`` beside their modules).
+
 from llvmlite import ir
 from numba.core import types
 from numba.extending import intrinsic

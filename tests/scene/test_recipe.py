@@ -7,6 +7,8 @@ empty, holds a space or a NUL, or is longer than 64 characters: refused when the
 loaded (and by ``simlidar generate --scenes``), one line naming the key and the name.
 """
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -194,12 +196,40 @@ def test_expressions_evaluate_on_arrays():
 def test_an_expression_of_numbers_is_worked_out_once_to_the_same_bits(text):
     compiled = expr.compile_tree(expr.parse(text))
     assert isinstance(compiled.constant, np.float64)
-    namespace = {"__builtins__": {}, **compiled.namespace}
-    with np.errstate(all="ignore"):
-        each_time = eval(compiled.code, namespace, {})  # what evaluate did before
+    each_time = expr.evaluate(compiled._replace(constant=None), {})  # the bytecode run again
     assert np.array([compiled.constant]).tobytes() == np.array([each_time]).tobytes()
     assert expr.evaluate(compiled, {"i": np.arange(3.0)}) is compiled.constant
     assert expr.compile_tree(expr.parse("i * 2")).constant is None
+
+
+def test_scenes_are_the_same_bits_with_every_constant_evaluated_on_each_batch(catalog):
+    from simlidar.scene.build import build_batch
+
+    def each_batch(recipe):
+        def again(field):
+            return field._replace(constant=None)
+
+        return replace(recipe, primitives=tuple(
+            replace(p, at=tuple(map(again, p.at)), size=tuple(map(again, p.size)),
+                    yaw_deg=again(p.yaw_deg))
+            for p in recipe.primitives
+        ))  # fmt: skip
+
+    plain = replace(
+        catalog,
+        layouts=tuple(map(each_batch, catalog.layouts)),
+        objects=tuple(map(each_batch, catalog.objects)),
+    )
+    fields = [f for r in catalog.layouts + catalog.objects for p in r.primitives
+              for f in (*p.at, *p.size, p.yaw_deg)]  # fmt: skip
+    assert sum(f.constant is not None for f in fields) > len(fields) // 2
+    rng = np.random.default_rng(4)
+    layout, obj = np.arange(64) % 8, np.arange(64) // 8 % 4
+    u = rng.random((64, 16))
+    args = layout, obj, u[:, : catalog.layout_columns], u[:, : catalog.object_columns]
+    want, got = build_batch(plain, *args), build_batch(catalog, *args)
+    for name in ("triangles", "surface", "sample", "closed", "is_object", "object_pose"):
+        assert getattr(got, name).tobytes() == getattr(want, name).tobytes(), name
 
 
 def test_parameter_kinds_cover_their_ranges():
