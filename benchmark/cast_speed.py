@@ -1,11 +1,14 @@
-"""The two forms of the scenes and the ray cast, numpy and the compiled kernels: speed, cost to
-load, and when they pay.
+"""The two forms of the random streams, the scenes and the ray cast, numpy and the compiled
+kernels: speed, cost to load, and when they pay.
 
     python benchmark/cast_speed.py [--samples 22400,100000 | --no-end-to-end] [--runs 3] \
                                    [--rounds 10]
 
 Pins itself to one CPU core and measures, one after the other:
 
+* **the random streams of one batch**: 1,024 samples' streams seeded and drawn as the
+  generator's first attempt draws them, in numpy and by the kernel, the best of ``--rounds``
+  each, in turn; the draws are checked to be the same to the last bit;
 * **the scenes of one batch**: the first 1,024 training samples of ``simlidar generate
   --classes 32 --noise 0.2`` (the users' command: profile ``paper``, the default catalog and
   sensor), their scenes' parameters taken from the generator itself, built by
@@ -14,9 +17,9 @@ Pins itself to one CPU core and measures, one after the other:
 * **the cast of that batch**: their scenes and rays, cast by :func:`simlidar.sensor.raycast.cast`
   in numpy and through the kernels (Embree's BVH and queries included), likewise; the hits of
   the two are checked to be the same to the last bit;
-* **the kernels' cost to load**: in fresh processes, the CPU time of the first compiled build
-  and cast of one sample (numba's import, its CPU target and the cached kernels) less that of
-  the second;
+* **the kernels' cost to load**: in fresh processes, the CPU time of the first compiled
+  draws, build and cast of one sample (numba's import, its CPU target and the cached kernels)
+  less that of the second;
 * **end to end**: for each ``--samples`` N, ``simlidar generate --classes 32 --noise 0.2``
   with N samples (5/6 train, 1/6 test), the whole process, with the kernels forced on and
   forced off (``COMPILED_FROM_RAYS`` set before the run), ``--runs`` pairs, in turn; the
@@ -24,7 +27,8 @@ Pins itself to one CPU core and measures, one after the other:
   checked to be the same bytes.
 
 What the default chooses is :func:`simlidar.sensor.raycast.compiled_for`: the kernels (the
-scenes' and the cast's) from ``COMPILED_FROM_RAYS`` rays a process, where they start to pay.
+streams', the scenes' and the cast's) from ``COMPILED_FROM_RAYS`` rays a process, where they
+start to pay.
 """
 
 import os
@@ -43,9 +47,12 @@ import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+import numpy as np  # noqa: E402
+
 import simlidar.generator.simulate as simulate_module  # noqa: E402
 from simlidar.generator.config import GeneratorConfig  # noqa: E402
 from simlidar.generator.profiles import load_profile  # noqa: E402
+from simlidar.generator.streams import Streams  # noqa: E402
 from simlidar.scene.build import build_batch  # noqa: E402
 from simlidar.scene.recipe import load_catalog  # noqa: E402
 from simlidar.script_args import integers, run  # noqa: E402
@@ -53,18 +60,21 @@ from simlidar.sensor import raycast  # noqa: E402
 
 BATCH = 1024
 
-# A fresh process: CPU seconds of its first compiled build and cast of one sample, then of its
-# second.
+# A fresh process: CPU seconds of its first compiled draws, build and cast of one sample, then
+# of its second.
 LOAD = """
 import sys, time
+import numpy as np
 sys.path.insert(0, {here!r})
 from cast_speed import first_batch
+from simlidar.generator.streams import Streams
 from simlidar.scene.build import build_batch
 from simlidar.sensor.raycast import cast
 built, args = first_batch(1)
 spent = []
 for _ in range(2):
     start = time.process_time()
+    Streams(0, 0, np.arange(1), compiled=True).random(1)
     build_batch(*built, compiled=True)
     cast(*args, compiled=True)
     spent.append(time.process_time() - start)
@@ -114,6 +124,14 @@ def best(step, rounds: int) -> float:
     return min(times)
 
 
+def draws(n: int, columns: int, compiled: bool):
+    """The draws of one batch's first attempt, as the generator makes them (its streams
+    seeded, the 2 doubles of the class factors, the 16 x 16 noise variates, the attempt's
+    doubles), in numpy or by the compiled kernel."""
+    streams = Streams(0, 0, np.arange(n), compiled=compiled)
+    return streams.random(2), streams.random_float32((16, 16)), streams.random(columns)
+
+
 def same_scenes(a, b) -> bool:
     """The two builds' scene batches, byte for byte."""
     fields = ("triangles", "surface", "sample", "closed", "is_object", "object_pose")
@@ -158,6 +176,19 @@ def main() -> None:
     built, batch = first_batch()
     scene, origins = batch[0], batch[1]
     n = len(origins)
+    columns = 2 + built[3].shape[1] + built[4].shape[1]  # an attempt's: fixed, layout, object
+    numpy_draws = draws(n, columns, False)
+    compiled_draws = draws(n, columns, True)  # loads the kernel
+    draws_numpy_s = best(lambda: draws(n, columns, False), args.rounds)
+    draws_compiled_s = best(lambda: draws(n, columns, True), args.rounds)
+    print(f"\nrandom streams of one batch ({n} samples: seeded, the class factors' 2 doubles, "
+          f"16 x 16 float32, an attempt's {columns} doubles), CPU us a sample, best of "
+          f"{args.rounds}:")  # fmt: skip
+    print(f"  numpy              {1e6 * draws_numpy_s / n:8.1f}")
+    print(f"  compiled kernel    {1e6 * draws_compiled_s / n:8.1f}")
+    print(f"  compiled / numpy   {draws_compiled_s / draws_numpy_s:8.3f}")
+    same = all(a.tobytes() == b.tobytes() for a, b in zip(numpy_draws, compiled_draws))
+    print(f"  draws the same to the last bit: {same}")
     numpy_scenes = build_batch(*built)
     compiled_scenes = build_batch(*built, compiled=True)  # loads the kernel
     build_numpy_s = best(lambda: build_batch(*built), args.rounds)
@@ -178,7 +209,9 @@ def main() -> None:
     print(f"  compiled kernels   {1e6 * compiled_s / n:8.1f}")
     print(f"  compiled / numpy   {compiled_s / numpy_s:8.3f}")
     print(f"  hits the same to the last bit: {same_hits(numpy_hits, compiled_hits)}")
-    saved = (numpy_s + build_numpy_s) - (compiled_s + build_compiled_s)
+    saved = (numpy_s + build_numpy_s + draws_numpy_s) - (
+        compiled_s + build_compiled_s + draws_compiled_s
+    )
     saved_per_ray = saved / numpy_hits.range_m.size
 
     loads = []
@@ -186,13 +219,13 @@ def main() -> None:
         probe = [sys.executable, "-c", LOAD.format(here=str(Path(__file__).resolve().parent))]
         loads.append(float(subprocess.run(probe, capture_output=True, check=True).stdout))
     load_s = statistics.median(loads)
-    print("\nloading the kernels (a fresh process's first compiled build and cast less its "
+    print("\nloading the kernels (a fresh process's first compiled draws, build and cast less its "
           f"second, CPU s, 3 processes): {', '.join(f'{x:.3f}' for x in loads)}; median "
           f"{load_s:.3f}")  # fmt: skip
     if saved_per_ray > 0:
-        print(f"  saved a ray in the batch above (scenes and cast): {1e6 * saved_per_ray:.3f} "
-              f"us; the kernels pay from about {load_s / saved_per_ray / 1e6:.1f} million rays "
-              "a process")  # fmt: skip
+        print("  saved a ray in the batches above (draws, scenes, cast): "
+              f"{1e6 * saved_per_ray:.3f} us; the kernels pay from about "
+              f"{load_s / saved_per_ray / 1e6:.1f} million rays a process")  # fmt: skip
 
     sizes = () if args.no_end_to_end else args.samples
     if sizes:

@@ -95,6 +95,7 @@ def test_cast_speed_compares_both_forms_and_their_bytes():
     lines = run_script("cast_speed.py", *args, timeout=600).splitlines()
     assert "  hits the same to the last bit: True" in lines
     assert "  scenes the same to the last bit: True" in lines
+    assert "  draws the same to the last bit: True" in lines
     ratio = next(line for line in lines if line.startswith("  compiled / numpy"))
     assert 0 < float(ratio.split()[-1])
     load = next(line for line in lines if line.startswith("loading the kernels"))

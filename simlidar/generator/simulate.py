@@ -215,7 +215,8 @@ def simulate(
     index = np.arange(start, stop)
     n = len(index)
     labels = index % plan.classes
-    streams = Streams(config.seed, SPLIT_IDS[split], index)  # sample_stream's, batched
+    compiled = compiled_for(run_rays(config))  # the kernels' loading pays on long runs
+    streams = Streams(config.seed, SPLIT_IDS[split], index, compiled)  # sample_stream's
     free = streams.random(2)
     noise_u = streams.random_float32((sensor.beams, width))
     layout, obj = factors(plan, labels, free, len(catalog.layouts), len(catalog.objects))
@@ -238,7 +239,6 @@ def simulate(
         cos_incidence = np.zeros(shape, np.float32)
         hit_surface = np.zeros(shape, np.uint8)
     more = {} if physics is None else {"incidence": True}  # other backends take no such key
-    compiled = compiled_for(run_rays(config))  # the kernels' loading pays on long runs
     if compiled:
         more["compiled"] = True
     pending = np.arange(n)

@@ -17,9 +17,11 @@ does the same arithmetic on arrays, one element a sample, and gives the same num
   top 24 bits of a 32-bit one, which takes the low half of a 64-bit output and keeps the high
   half for the next float32 (a double leaves it there).
 
-In numpy on arrays, not compiled: numba's kernels draw a sample's numbers in 0.5 us, but the
-first one a process loads costs 0.4 s (numba's import and LLVM), more than the 0.24 s that
-saves at 22,400 samples. ``tests/generator/test_streams.py`` holds every draw to numpy's.
+In numpy on arrays; on long runs, where the ray cast's compiled kernels are loaded anyway
+(:func:`simlidar.sensor.raycast.compiled_for`), the draws go through a compiled kernel
+(``compiled``: :func:`simlidar.generator.stream_kernels.draw`, the same integers). A short run
+keeps numpy: the first kernel a process loads costs it about 0.4 s (numba's import and LLVM).
+``tests/generator/test_streams.py`` holds every draw of both forms to numpy's.
 """
 
 import numpy as np
@@ -105,9 +107,10 @@ def _float32(word: np.ndarray) -> np.ndarray:
 class Streams:
     """The random streams of samples ``indices`` of one split (:func:`simlidar.generator.
     simulate.sample_stream`), drawn together: ``random`` and ``random_float32`` give what each
-    sample's own ``Generator.random`` would, in the same order."""
+    sample's own ``Generator.random`` would, in the same order; ``compiled``: drawn by the
+    compiled kernel (the same numbers)."""
 
-    def __init__(self, seed: int, split_id: int, indices: np.ndarray):
+    def __init__(self, seed: int, split_id: int, indices: np.ndarray, compiled: bool = False):
         run = words(int(seed))
         if len(run) > _POOL:
             raise ValueError(f"seed={seed}: expected an integer below 2**128")
@@ -147,9 +150,15 @@ class Streams:
         # a 32-bit half kept for the next float32: every stream draws its float32 together,
         # so they all hold one or none
         self.buffered = None
+        self.compiled = compiled
 
     def _outputs(self, rows, count: int) -> np.ndarray:
         """(len(rows), count) uint64: the streams' next ``count`` 64-bit outputs."""
+        if self.compiled:
+            from simlidar.generator.stream_kernels import draw
+
+            every = np.arange(len(self.hi)) if isinstance(rows, slice) else rows
+            return draw(self.hi, self.lo, self.inc_hi, self.inc_lo, every, count)
         hi, lo = self.hi[rows], self.lo[rows]
         inc_hi, inc_lo = self.inc_hi[rows], self.inc_lo[rows]
         out = np.empty((len(hi), count), np.uint64)

@@ -9,12 +9,14 @@ from simlidar.generator.streams import Streams, words
 
 @pytest.mark.parametrize("seed", [0, 1, 4242, 2**32 - 1, 2**32, 2**40 + 7, 2**63 - 1])
 @pytest.mark.parametrize("split", ["train", "test", "sweep"])
-def test_every_draw_is_the_one_numpy_gives_each_sample(seed, split):
+@pytest.mark.parametrize("compiled", [False, True])
+def test_every_draw_is_the_one_numpy_gives_each_sample(seed, split, compiled):
     """Doubles and float32 in the order the pipeline reads them, an odd float32 count (a 64-bit
     output's high half kept for the next float32, not for a double) and draws from some rows
-    only, for indices with one 32-bit word and the largest a split can have."""
+    only, for indices with one 32-bit word and the largest a split can have; in numpy and by
+    the compiled kernel."""
     index = np.array([0, 1, 2, 7, 1000, 4095, 4096, 10**9 - 1])
-    streams = Streams(seed, SPLIT_IDS[split], index)
+    streams = Streams(seed, SPLIT_IDS[split], index, compiled=compiled)
     some = np.array([1, 4, 7])
     draws = [
         streams.random(2),
@@ -46,3 +48,16 @@ def test_words_are_numpys_and_out_of_range_values_are_refused():
         Streams(2**128, 0, np.arange(2))
     with pytest.raises(ValueError, match="indices"):
         Streams(0, 0, np.array([2**32]))
+
+
+def test_the_kernels_high_word_is_the_128_bit_products():
+    from numba import njit
+
+    from simlidar.generator.stream_kernels import mul_high
+
+    high = njit(lambda a, b: mul_high(a, b))
+    rng = np.random.default_rng(9)
+    pairs = [(0, 0), (2**64 - 1, 2**64 - 1), (2**63, 2), (2**32, 2**32), (1, 2**64 - 1)]
+    pairs += [tuple(int(v) for v in rng.integers(0, 2**64, 2, dtype=np.uint64)) for _ in range(50)]
+    for a, b in pairs:
+        assert int(high(np.uint64(a), np.uint64(b))) == (a * b) >> 64, (a, b)

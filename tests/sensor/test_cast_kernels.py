@@ -1,12 +1,14 @@
 """The cast's compiled kernels against its numpy form, bit for bit: every dataset's bytes depend
 on it (long runs cast with the kernels, short ones with numpy). Whole datasets compare the
-scene building's kernel too (tests/scene/test_build_kernels.py compares it alone)."""
+scene building's kernel and the random streams' too (tests/scene/test_build_kernels.py and
+tests/generator/test_streams.py compare them alone)."""
 
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from simlidar.generator import stream_kernels as streams
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.generate import generate
 from simlidar.generator.profiles import load_profile
@@ -131,7 +133,8 @@ def test_a_long_run_writes_the_bytes_of_a_short_one(
         return written.path
 
     calls = []  # the kernels' calls: which path each run took
-    for module, name in ((cast_kernels, "first_hits"), (scene_kernels, "place_copies")):
+    kernels = (cast_kernels, "first_hits"), (scene_kernels, "place_copies"), (streams, "draw")
+    for module, name in kernels:
         kernel = getattr(module, name)
         monkeypatch.setattr(module, name, lambda *a, k=kernel, n=name: calls.append(n) or k(*a))
     assert not raycast.compiled_for(rays)
@@ -139,7 +142,7 @@ def test_a_long_run_writes_the_bytes_of_a_short_one(
     assert not calls
     monkeypatch.setattr(raycast, "COMPILED_FROM_RAYS", rays)  # this run counts as long
     long = make(tmp_path / "compiled")
-    assert set(calls) == {"first_hits", "place_copies"}  # the scenes built by the kernel too
+    assert set(calls) == {"first_hits", "place_copies", "draw"}  # scenes and draws too
     files = sorted(p.relative_to(short) for p in short.rglob("*") if p.is_file())
     assert len(files) >= 4  # train.h5, test.h5, the card, the checksums
     assert files == sorted(p.relative_to(long) for p in long.rglob("*") if p.is_file())
