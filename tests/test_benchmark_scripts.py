@@ -306,6 +306,10 @@ def test_cnn_learner_inputs_changes_the_view_one_way_at_a_time(tmp_path):
     low = 89.0 - 12.706204736174698 * math.sqrt(2) / math.sqrt(2)  # t(0.975, 1) std / sqrt(n)
     assert table[2] == f"| bound | 0, 1 | 89.00 ± 1.41 | [{low:.2f}, {178 - low:.2f}] |"
     assert table[3] == "| no-mask | 0 | 80.00 ± 0.00 | [nan, nan] |"
+    path.write_text(path.read_text() + json.dumps({"variant": "bound", "seed": 1,
+                                                   "test_accuracy": 0.5}) + "\n")  # fmt: skip
+    with pytest.raises(ResultsError, match=r"line 4: seed 1 of bound a second time"):
+        inputs.summary(path)  # as scnn_variants': a seed twice would weigh twice in the mean
     path.write_text("[1]\n")
     with pytest.raises(ResultsError, match=r"cells.jsonl, line 1: expected a cell of cnn_learne"):
         inputs.summary(path)

@@ -30,7 +30,6 @@ seeds, the 95 % interval of the mean, Student's t).
 """
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -38,6 +37,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from cell_files import append_cell, grouped_cells, spread
 from paper_table import interval
 
 from simlidar.script_args import choices, integers, run
@@ -85,30 +86,18 @@ def cell(dataset: Path, variant: str, seed: int) -> dict:
 
 def summary(path: Path) -> str:
     """The table of a file of cells this script wrote (a file from elsewhere: read as such)."""
-    from simlidar.bench.outdir import MAX_JSON_BYTES
-    from simlidar.content import read_text
-    from simlidar.errors import ResultsError
 
-    groups: dict[str, list[tuple[int, float]]] = {}
-    for number, line in enumerate(read_text(path, MAX_JSON_BYTES, ResultsError).splitlines()):
-        try:
-            row = json.loads(line)
-            groups.setdefault(str(row["variant"]), []).append(
-                (int(row["seed"]), float(row["test_accuracy"]))
-            )
-        except (ValueError, KeyError, TypeError):
-            raise ResultsError(
-                f"{path}, line {number + 1}: expected a cell of cnn_learner_inputs.py (a JSON "
-                "object: variant, seed, test_accuracy)"
-            ) from None
+    def parse(row: dict):
+        return str(row["variant"]), {k: float(row[k]) for k in ("seed", "test_accuracy")}
+
+    groups = grouped_cells(path, "cnn_learner_inputs.py", "variant, seed, test_accuracy", parse,
+                           str)  # fmt: skip
     lines = ["| variant | seeds | test % | 95 % interval |", "| --- | --- | --- | --- |"]
     for variant, cells in groups.items():
-        test = 100 * np.array([a for _, a in cells])
+        test = 100 * np.array([c["test_accuracy"] for c in cells])
         low, high = interval(test) or (np.nan, np.nan)
-        std = test.std(ddof=1) if len(test) > 1 else 0.0
-        seeds = ", ".join(str(s) for s, _ in cells)
-        lines.append(f"| {variant} | {seeds} | {test.mean():.2f} ± {std:.2f} | "
-                     f"[{low:.2f}, {high:.2f}] |")  # fmt: skip
+        seeds = ", ".join(str(int(c["seed"])) for c in cells)
+        lines.append(f"| {variant} | {seeds} | {spread(test)} | [{low:.2f}, {high:.2f}] |")
     return "\n".join(lines)
 
 
@@ -135,10 +124,7 @@ def main() -> None:
             start = time.perf_counter()
             row = cell(args.dataset, variant, seed)
             row["seconds"] = round(time.perf_counter() - start, 1)
-            line = json.dumps(row)
-            print(line, flush=True)
-            with args.out.open("a") as out:
-                out.write(line + "\n")
+            append_cell(args.out, row)
 
 
 if __name__ == "__main__":

@@ -43,7 +43,6 @@ committed cells stay the CPU's.
 """
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -51,6 +50,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from cell_files import append_cell, grouped_cells, spread
 from paper_table import interval
 from sweep_decisions import committed_cell
 
@@ -116,28 +117,16 @@ def train_accuracy(result, dataset: Path) -> float:
 
 def summary(path: Path) -> str:
     """The table of a file of cells this script wrote (a file from elsewhere: read as such)."""
-    from simlidar.bench.outdir import MAX_JSON_BYTES
-    from simlidar.content import read_text
-    from simlidar.errors import ResultsError
 
-    groups: dict[tuple[str, str, str], list[dict]] = {}
-    for number, line in enumerate(read_text(path, MAX_JSON_BYTES, ResultsError).splitlines()):
-        try:
-            row = json.loads(line)
-            key = (str(row.get("recipe", RECIPE)), str(row["variant"]), str(row["device"]))
-            cell = {k: float(row[k]) for k in ("seed", "test_accuracy")}
-            cell["train_accuracy"] = float(row.get("train_accuracy", np.nan))  # older cells: none
-        except (ValueError, KeyError, TypeError, AttributeError):
-            raise ResultsError(
-                f"{path}, line {number + 1}: expected a cell of scnn_variants.py (a JSON object: "
-                "variant, device, seed, test_accuracy, train_accuracy)"
-            ) from None
-        if any(c["seed"] == cell["seed"] for c in groups.get(key, [])):
-            raise ResultsError(
-                f"{path}, line {number + 1}: seed {cell['seed']:.0f} of {key[1]} ({key[0]}, "
-                f"{key[2]}) a second time; expected each seed once"
-            )
-        groups.setdefault(key, []).append(cell)
+    def parse(row: dict):
+        cell = {k: float(row[k]) for k in ("seed", "test_accuracy")}
+        cell["train_accuracy"] = float(row.get("train_accuracy", np.nan))  # older cells: none
+        return (str(row.get("recipe", RECIPE)), str(row["variant"]), str(row["device"])), cell
+
+    groups = grouped_cells(
+        path, "scnn_variants.py", "variant, device, seed, test_accuracy, train_accuracy", parse,
+        lambda key: f"{key[1]} ({key[0]}, {key[2]})",
+    )  # fmt: skip
     lines = [
         "| network | variant | device | seeds | test % | 95 % interval | train % (the file's "
         "draw) | train - test |",
@@ -149,8 +138,8 @@ def summary(path: Path) -> str:
         low, high = interval(test) or (np.nan, np.nan)
         seeds = ", ".join(str(int(c["seed"])) for c in cells)
         lines.append(
-            f"| {network} | {variant} | {device} | {seeds} | {_spread(test)} | "
-            f"[{low:.2f}, {high:.2f}] | {_spread(train)} | {_gap(train, test)} |"
+            f"| {network} | {variant} | {device} | {seeds} | {spread(test)} | "
+            f"[{low:.2f}, {high:.2f}] | {spread(train)} | {_gap(train, test)} |"
         )
     return "\n".join(lines)
 
@@ -158,13 +147,6 @@ def summary(path: Path) -> str:
 def _gap(train: np.ndarray, test: np.ndarray) -> str:
     """Train minus test accuracy by the means; a dash without train accuracies."""
     return "-" if np.isnan(train).any() else f"{train.mean() - test.mean():+.2f}"
-
-
-def _spread(values: np.ndarray) -> str:
-    """Mean ± sample standard deviation (0 for one value); a dash where a value is missing."""
-    if np.isnan(values).any():
-        return "-"
-    return f"{values.mean():.2f} ± {values.std(ddof=1) if len(values) > 1 else 0.0:.2f}"
 
 
 def main() -> None:
@@ -208,10 +190,7 @@ def main() -> None:
                 "seconds": seconds,
                 "first_epoch_loss": result.history[0]["loss"],
             }
-            line = json.dumps(row)
-            print(line, flush=True)
-            with args.out.open("a") as out:
-                out.write(line + "\n")
+            append_cell(args.out, row)
 
 
 if __name__ == "__main__":
