@@ -3,18 +3,25 @@
 A recipe value may be a number or a string such as ``"-half_width_m - 0.3"`` or
 ``"first_m + i * spacing_m"``: numbers, parameter names, ``i`` (the index of a repeated
 primitive), ``+ - * / **``, parentheses and the functions in :data:`FUNCTIONS`. Nothing else is
-accepted, so a recipe can never run code. An expression is at most :data:`MAX_EXPRESSION_CHARS`
-characters long and nests at most :data:`MAX_EXPRESSION_DEPTH` deep, both checked before Python's
-parser sees it (which would otherwise recurse, or allocate, in proportion to the text).
+accepted, so a recipe can never run code. Names starting with ``_`` are the language's own (its
+numbers are bound to ``_c0``, ``_c1``, ...): no expression reads one and no parameter takes one,
+nor ``i``, a function's name or a Python keyword (:func:`is_parameter_name`). An expression is at
+most :data:`MAX_EXPRESSION_CHARS` characters long and nests at most :data:`MAX_EXPRESSION_DEPTH`
+deep, both checked before Python's parser sees it (which would otherwise recurse, or allocate,
+in proportion to the text).
 """
 
 import ast
 import copy
+import keyword
+import re
 from collections.abc import Callable, Mapping
 from types import CodeType
 from typing import NamedTuple
 
 import numpy as np
+
+from simlidar.errors import shown
 
 FUNCTIONS: dict[str, Callable] = {
     "sin": lambda x: np.sin(np.deg2rad(x)),  # degrees, like every angle in a recipe
@@ -25,6 +32,16 @@ FUNCTIONS: dict[str, Callable] = {
     "max": np.maximum,
 }
 _ARITY = {"sin": 1, "cos": 1, "sqrt": 1, "abs": 1, "min": 2, "max": 2}
+# The names a recipe's parameters cannot take: a parameter named like a function or ``i`` would
+# hide it, and a keyword could never be read by an expression.
+RESERVED = frozenset({"i", *FUNCTIONS, *keyword.kwlist})
+# ASCII only, and never a leading "_": "_c0", "__builtins__" are the evaluation's own names, and
+# Python folds other letters into ASCII ones (NFKC: an expression's "ｉ" reads "i"), so a name
+# that is not plain ASCII would not be the name the expression reads.
+_PARAMETER_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+PARAMETER_NAME_RULE = (
+    "a letter, then letters, digits or '_' (not i, a function's name or a Python keyword)"
+)
 _BINARY = {
     ast.Add: np.add,
     ast.Sub: np.subtract,
@@ -50,6 +67,11 @@ def _show(text: str, limit: int = 60) -> str:
     if len(text) <= limit:
         return repr(text)
     return f"{text[:limit]!r}... ({len(text)} characters)"
+
+
+def is_parameter_name(name: str) -> bool:
+    """Whether a recipe may name a parameter ``name`` (:data:`PARAMETER_NAME_RULE`)."""
+    return _PARAMETER_NAME.fullmatch(name) is not None and name not in RESERVED
 
 
 def nesting(text: str) -> int:
@@ -125,6 +147,11 @@ def parse(text: str) -> ast.expr:
             raise ExpressionError(f"{text!r}: operator {type(node.op).__name__} is not allowed")
         if isinstance(node, ast.UnaryOp) and not isinstance(node.op, ast.USub | ast.UAdd):
             raise ExpressionError(f"{text!r}: operator {type(node.op).__name__} is not allowed")
+    # compile_tree binds the numbers to _c0, _c1, ... and the functions by name: read as a
+    # variable, such a name would give the binding, whatever the caller meant by it
+    own = sorted(n for n in names(tree) if n.startswith("_") or n in FUNCTIONS)
+    if own:
+        raise ExpressionError(f"{text!r}: {own[0]!r} is the language's own name, not a parameter")
     return tree
 
 
@@ -176,9 +203,16 @@ def compile_tree(tree: ast.expr) -> Compiled:
 def evaluate(compiled: Compiled, env: Mapping[str, np.ndarray]) -> np.ndarray:
     """Evaluate a compiled expression; ``env`` maps names to broadcastable float arrays.
 
-    Only what :func:`parse` allowed can appear (numbers, names, arithmetic, FUNCTIONS).
+    Only what :func:`parse` allowed can appear (numbers, names, arithmetic, FUNCTIONS). A
+    variable in ``env`` named like one of the expression's own names (a function, ``_c0``, ...)
+    is refused: as a local it would replace that name wherever the expression reads it.
     """
     if compiled.constant is not None:
         return compiled.constant
+    if not compiled.namespace.keys().isdisjoint(env):
+        taken = sorted(compiled.namespace.keys() & env.keys())
+        raise ExpressionError(
+            f"expected variables named apart from the expression's own names, got {shown(taken)}"
+        )
     with np.errstate(all="ignore"):  # inf and nan are caught by the caller's checks
         return eval(compiled.code, compiled.namespace, dict(env))  # checked AST, no builtins

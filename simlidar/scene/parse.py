@@ -95,6 +95,8 @@ class Recipe:
 
 def fail(where: str, key: str, expected: str, got) -> RecipeError:
     """The error for key ``key`` of ``where``: ``expected``, but ``got`` (shown shortened)."""
+    if not key.isprintable():  # a TOML key may hold any character: keep the message one line
+        key = key.encode("unicode_escape").decode("ascii")
     key = key if len(key) <= 100 else f"{key[:100]}..."
     return RecipeError(f"{where}: key '{key}': expected {expected}, got {shown(got)}")
 
@@ -249,8 +251,8 @@ def parse_recipe(where: str, stem: str, data: dict, surfaces: list[str], is_obje
     if not isinstance(table, dict):
         raise fail(where, "params", "a table of parameters", table)
     for name, spec in table.items():
-        if name in params or name == "i" or not name.isidentifier() or name in expr.FUNCTIONS:
-            raise fail(where, f"params.{name}", "a new identifier (not i or a function)", name)
+        if name in params or not expr.is_parameter_name(name):
+            raise fail(where, f"params.{name}", f"a new name: {expr.PARAMETER_NAME_RULE}", name)
         params[name] = _param(where, f"params.{name}", name, spec)
     prims = data["primitive"]
     if not (isinstance(prims, list) and prims and all(isinstance(p, dict) for p in prims)):

@@ -1,11 +1,13 @@
 """Hostile or oversized scene recipes: refused with one RecipeError line, by the library and by
 ``simlidar scenes``, before anything large is read, parsed or allocated."""
 
+import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from simlidar.errors import RecipeError
+from simlidar.errors import RecipeError, shown
 from simlidar.scene import expr
 from simlidar.scene.expr import MAX_EXPRESSION_CHARS, MAX_EXPRESSION_DEPTH
 from simlidar.scene.parse import MAX_RECIPE_BYTES, MAX_REPEAT, MAX_TRIANGLES
@@ -172,3 +174,72 @@ HUGE = "0x" + "f" * 300  # a TOML integer of 1200 bits: too large for a float
 def test_hostile_values_are_refused(catalog_copy, old, new, words, cli):
     _edit(catalog_copy, TUNNEL, old, new)
     _refused(cli, catalog_copy, "tunnel.toml", *words)
+
+
+# Issue 58, finding 5: an expression's numbers are bound to _c0, _c1, ... and a parameter of
+# that name replaced them (the tunnel's "2 * half_width_m" became "_c0 * half_width_m": a road
+# 7 times its half width, built and stored without a word). Each name below is one the language
+# keeps, one Python would fold into another (the full-width "ｉ" reads "i"), or one no
+# expression could read; the last is a key that would have split the message in two.
+@pytest.mark.parametrize(
+    "name, toml_key",
+    [
+        ("_c0", "_c0"),
+        ("_c1", "_c1"),
+        ("__builtins__", "__builtins__"),
+        ("_", "_"),
+        ("sin", "sin"),
+        ("max", "max"),
+        ("i", "i"),
+        ("None", "None"),
+        ("lambda", "lambda"),
+        ("\uff49", "\\uff49"),
+        ("2x", "2x"),
+        ("a\nb", "a\\nb"),
+    ],
+)
+def test_a_parameter_cannot_take_the_languages_own_names(catalog_copy, cli, name, toml_key):
+    _edit(catalog_copy, TUNNEL, "[params]\n", f'[params]\n"{toml_key}" = 7.0\n')
+    shown_key = name.encode("unicode_escape").decode() if not name.isprintable() else name
+    _refused(
+        cli,
+        catalog_copy,
+        f"tunnel.toml: key 'params.{shown_key}'",
+        f"expected a new name: {expr.PARAMETER_NAME_RULE}, got {shown(name)}",
+    )
+
+
+def test_generate_refuses_a_parameter_named_like_a_number_and_writes_nothing(
+    catalog_copy, tmp_path, cli
+):
+    _edit(catalog_copy, "objects/car.toml", "[params]\n", "[params]\n_c0 = 7.0\n")
+    out = tmp_path / "out"
+    result = cli("generate", "--scenes", catalog_copy, "--train-size", 32, "--out", out)
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    assert result.stderr.count("\n") == 1
+    assert "car.toml: key 'params._c0': expected a new name" in result.stderr
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("text", ["_c0 + 1", "2 * __builtins__", "_ * 2", "sin * 2", "max"])
+def test_an_expression_cannot_read_the_languages_own_names(text):
+    with pytest.raises(expr.ExpressionError, match="is the language's own name, not a parameter"):
+        expr.parse(text)
+
+
+@pytest.mark.parametrize(
+    "text, env, taken, want",
+    [
+        ("2 * w", {"_c0": 7.0}, "['_c0']", 6.0),
+        # "sin(w) + 1" binds only _c0: a _c1 hides nothing and is let through
+        ("sin(w) + 1", {"sin": np.cos, "_c1": 0.0}, "['sin']", 1 + np.sin(np.deg2rad(3.0))),
+        ("w ** 2", {"__builtins__": {"abs": print}}, "['__builtins__']", 9.0),
+    ],
+)
+def test_evaluation_refuses_variables_named_like_its_own(text, env, taken, want):
+    """A caller that skips the recipe's checks still cannot replace a number or a function."""
+    compiled = expr.compile_tree(expr.parse(text))
+    w = np.array([3.0])
+    with pytest.raises(expr.ExpressionError, match=re.escape(f"own names, got {taken}")):
+        expr.evaluate(compiled, {"w": w, **env})
+    assert expr.evaluate(compiled, {"w": w, "i": np.arange(2.0)}) == [want]
