@@ -132,6 +132,18 @@ def check_keys(where: str, data: dict, keys, optional=()) -> None:
             raise ConfigError(f"{where}: key '{key}' is missing")
 
 
+def text_line(value, max_chars: int) -> bool:
+    """A content file's free text (a model's name, a citation): a string that is not blank, of
+    at most ``max_chars`` characters, printable on one line. Such text is stored in every file
+    made from the content and quoted in its errors, which must stay one short line."""
+    return (
+        isinstance(value, str)
+        and len(value) <= max_chars
+        and bool(value.strip())
+        and value.isprintable()
+    )
+
+
 def finite_number(value) -> bool:
     """A TOML int or float that is finite (booleans are not numbers here); an integer too
     large for a float (``1`` followed by 400 zeros) is not: every user of such a number takes

@@ -62,6 +62,7 @@ from simlidar.generator.simulate import (
     split_beams,
 )
 from simlidar.generator.streams import Streams
+from simlidar.resources import check_memory
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.footprint import subray_count, subray_directions
@@ -70,8 +71,19 @@ from simlidar.sensor.raycast import MAX_BATCH, cast, compiled_for
 from simlidar.sensor.rays import cycles_per_rotation, sweep_emission_ns, sweep_rays
 from simlidar.settings import Range, check, setting
 
-FRAME_BATCH = 16  # frames ray-cast together (does not change the files)
+FRAME_BATCH = 16  # frames ray-cast together at most (does not change the files)
 MAX_FRAMES = 10**6
+# Memory a frame takes while it is simulated, bytes, from the peak RSS of `simlidar sweep` over
+# 16 frames less that over 1 (/usr/bin/time -f %M): about 150 a ray cast (16 frames of the
+# HDL-64E, 2.1 M rays: 0.33 GB; 16 VLP-16 frames of 37 sub-rays a pulse against 19: 128 a ray),
+# and 1.4 to 2.5 KB more a pulse whose returns come from its waveform (16 VLP-16 frames, 0.46 M
+# pulses: 0.63 GB in dual mode, 1.15 GB in fog).
+RAY_BYTES = 160
+WAVEFORM_PULSE_BYTES = 2560
+# Frames are simulated FRAME_BATCH at a time, fewer where they would take more memory than this
+# (no effect on the files): 16 frames of the HDL-64E take about 0.34 GB, of the VLP-16 with
+# --beam-samples 8 (169 rays a pulse) 13.7 GB, where one takes 0.86 GB.
+MAX_BATCH_BYTES = 2**30
 
 
 @dataclass(frozen=True)
@@ -132,8 +144,7 @@ def simulate_frames(
     lc = catalog.layout_columns
     u = streams.random(FIXED_COLUMNS + lc + catalog.object_columns)
     beams = stores_returns(config)
-    subrays = subray_count(config.beam_samples) if beams else 1
-    rays = (total or len(index)) * sensor.beams * cycles_per_rotation(sensor) * subrays
+    rays = (total or len(index)) * sensor.beams * cycles_per_rotation(sensor) * rays_a_pulse(config)
     compiled = compiled_for(rays)  # the sweep's rays: the kernels pay on long runs
     origins, directions = sweep_rays(sensor, u[:, 0], compiled)
     if beams:  # every sub-ray, cast with the others; sub-ray 0 is the beam's axis
@@ -195,6 +206,28 @@ def stores_returns(config: GeneratorConfig) -> bool:
     return config.receiver is not None and (
         config.beam_samples != 1 or config.return_mode != "strongest"
     )
+
+
+def rays_a_pulse(config: GeneratorConfig) -> int:
+    """Rays a sweep of ``config`` casts for each pulse: its beam footprint's sub-rays where it
+    stores every reported return (:func:`stores_returns`), else 1."""
+    return subray_count(config.beam_samples) if stores_returns(config) else 1
+
+
+def frame_bytes(config: GeneratorConfig) -> int:
+    """About the memory one frame of a sweep of ``config`` takes while it is simulated, bytes:
+    :data:`RAY_BYTES` a ray cast, :data:`WAVEFORM_PULSE_BYTES` more a pulse whose returns come
+    from its waveform. A ConfigError where the sensor's rotation fires too many pulses
+    (:func:`~simlidar.sensor.rays.cycles_per_rotation`)."""
+    pulses = config.sensor.beams * cycles_per_rotation(config.sensor)
+    waveform = WAVEFORM_PULSE_BYTES if config.full_waveform else 0
+    return pulses * (rays_a_pulse(config) * RAY_BYTES + waveform)
+
+
+def frames_a_batch(config: GeneratorConfig, batch: int = FRAME_BATCH) -> int:
+    """Frames of a sweep of ``config`` simulated together: ``batch``, fewer where they would
+    take more than :data:`MAX_BATCH_BYTES` (:func:`frame_bytes`), at least 1."""
+    return max(1, min(batch, MAX_BATCH_BYTES // frame_bytes(config)))
 
 
 def received(
@@ -299,17 +332,21 @@ def sweep(
     exports : formats to write every frame in as well (:data:`EXPORTS`)
     force : replace a sweep folder of the same name (else an error names it)
     progress : a progress bar on stderr
-    batch : frames simulated at a time; no effect on the bytes
+    batch : frames simulated at a time, at most (:func:`frames_a_batch`); no effect on the bytes
+
+    A rotation of more than :data:`~simlidar.sensor.rays.MAX_ROTATION_PULSES` pulses is a
+    ConfigError, a batch of frames this process cannot hold in memory a ResourceError, both
+    before anything is written.
     """
     from tqdm import tqdm
 
     for fmt in exports:
         if fmt not in EXPORTS:
             raise ConfigError(f"export {fmt!r}: expected one of {', '.join(EXPORTS)}")
+    sensor, n = config.sensor, sweep_config.frames
+    h, c = sensor.beams, cycles_per_rotation(sensor)  # a rotation too large fails here
     catalog = catalog.for_sensor(config.sensor.name)  # its fingerprint: the recipes used
     plan = class_plan(catalog, config.classes)  # a bad class count fails before any file
-    sensor, n = config.sensor, sweep_config.frames
-    h, c = sensor.beams, cycles_per_rotation(sensor)
     attrs = {
         "format": SWEEP_FORMAT,
         "sweep_version": sweep_version(config),
@@ -345,6 +382,12 @@ def sweep(
     schema = sweep_schema(reported_returns(attrs))
     shapes = {name: (dtype, tail(h, c)) for name, (dtype, tail) in schema.items()}
     name = sweep_name(config, sweep_config)
+    batch = frames_a_batch(config, batch)
+    check_memory(
+        batch * frame_bytes(config),
+        f"sweep of sensor {sensor.name}: {batch} frame(s) of {h} x {c} pulses, "
+        f"{rays_a_pulse(config)} ray(s) a pulse",
+    )
     with building(out, name, force) as folder:
         writer = SplitWriter(folder / SWEEP_FILE, n, shapes, attrs, frozenset(), chunk=1)
         try:

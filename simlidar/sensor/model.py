@@ -18,19 +18,35 @@ from functools import lru_cache
 from pathlib import Path
 
 from simlidar.content import (
+    PLAIN_NAME,
+    PLAIN_NAME_RULE,
     check_keys,
     content_dir,
     finite_number,
     key_error,
     read_named_toml,
     shipped_or_path,
+    text_line,
 )
 from simlidar.errors import ConfigError, shown
+from simlidar.scene.build import CELL_HALF_EXTENT_M
+from simlidar.sensor.raycast import CELL_SPACING_M
 
 SPEED_OF_LIGHT_M_PER_S = 299_792_458.0
 DEFAULT_SENSOR = "vlp16"
 MAX_BEAMS = 128
 MAX_SENSOR_BYTES = 64 * 1024  # a sensor file is a few dozen lines
+# Characters of each free-text key: the text is stored in every dataset and sweep file and
+# quoted in errors (the rpm error quotes model and manual), so it is one short line. The longest
+# shipped are 19 (the HDL-64E S2's model) and 82 (the HDL-32E's manual citation). A name is a
+# file stem, held to simlidar.content's PLAIN_NAME (at most 64 characters, never a path).
+TEXT_CHARS = {"model": 100, "manual": 200}
+# What max_range_m and the emitters' height (mount_height_m and the largest vertical offset)
+# may add up to, metres: the ray caster packs scenes into cells CELL_SPACING_M apart whose
+# geometry extends CELL_HALF_EXTENT_M, and lets a ray run 1 m past max_range_m
+# (simlidar.sensor.raycast.cast refuses more). The shipped sensors come to at most 121.7 m (the
+# HDL-64E: 120 m from 1.73 m up).
+MAX_REACH_M = CELL_SPACING_M - CELL_HALF_EXTENT_M - 1.0
 
 # Keys added after dataset version 1.0.0, with the VLP-16's values: a sensor stores them only
 # where its value differs (Sensor.to_dict), so that VLP-16 datasets keep their bytes; a stored
@@ -79,6 +95,10 @@ class Sensor:
     firing_slots: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
+        # the name is a file's stem, part of a dataset's folder name and printed in its card:
+        # never a path (a dataset's stored sensor could say "../../etc/passwd")
+        if not (isinstance(self.name, str) and PLAIN_NAME.match(self.name)):
+            raise key_error("sensor", "name", f"a name of {PLAIN_NAME_RULE}", self.name)
         n = len(self.elevations_deg)
         if not 1 <= n <= MAX_BEAMS:
             raise ConfigError(
@@ -92,15 +112,15 @@ class Sensor:
                 )
         if not all(-90.0 < e < 90.0 for e in self.elevations_deg):
             raise ConfigError(
-                f"elevations_deg={list(self.elevations_deg)}: expected angles in (-90, 90)"
+                f"elevations_deg={shown(list(self.elevations_deg))}: expected angles in (-90, 90)"
             )
         slots = self.slots
         if any(s < 0 or int(s) != s for s in slots):
-            raise ConfigError(f"firing_slots={list(slots)}: expected integers >= 0")
+            raise ConfigError(f"firing_slots={shown(list(slots))}: expected integers >= 0")
         firsts = list(dict.fromkeys(slots))  # the slots in the order their first laser comes
         if firsts != list(range(len(firsts))):
             raise ConfigError(
-                f"firing_slots={list(slots)}: beams out of order: expected the laser ids in "
+                f"firing_slots={shown(list(slots))}: beams out of order: expected the laser ids in "
                 "firing order (the first laser of slot k before that of slot k + 1, no slot "
                 "left out)"
             )
@@ -112,7 +132,7 @@ class Sensor:
         if not self.cycle_us >= fired - 1e-9:
             raise ConfigError(
                 f"cycle_us={self.cycle_us}: expected at least {fired:g} ({max(slots) + 1} "
-                f"firing slots x {self.firing_interval_us} us)"
+                f"firing slots x firing_interval_us={self.firing_interval_us})"
             )
         if not 0.0 < self.rpm_min <= self.rpm_max or not self.rpm_step >= 0.0:
             raise ConfigError(
@@ -130,6 +150,11 @@ class Sensor:
                 f"rpm={self.rpm}: expected {self.rpm_min:g} to {self.rpm_max:g}{steps} "
                 f"({self.model}: {self.manual})"
             )
+        if not self.cycle_us <= 60e6 / self.rpm:  # else a sweep's frame, a rotation, is empty
+            raise ConfigError(
+                f"cycle_us={self.cycle_us}: longer than a rotation at rpm={self.rpm} "
+                f"({60e6 / self.rpm:.4g} us); expected at least one firing cycle a rotation"
+            )
         if not 0.0 < self.min_range_m < self.max_range_m:
             raise ConfigError(
                 f"range limits {self.min_range_m}..{self.max_range_m} m: expected "
@@ -137,6 +162,15 @@ class Sensor:
             )
         if not self.mount_height_m > 0.0:
             raise ConfigError(f"mount_height_m={self.mount_height_m}: expected a positive height")
+        offset_mm = max(abs(v) for v in self.vertical_offsets_mm)
+        reach_m = self.max_range_m + self.mount_height_m + offset_mm * 1e-3
+        if not reach_m < MAX_REACH_M:
+            raise ConfigError(
+                f"max_range_m={shown(self.max_range_m)}, mount_height_m="
+                f"{shown(self.mount_height_m)}, vertical_offsets_mm up to {shown(offset_mm)}: "
+                f"{reach_m:.4g} m in all; expected less than {MAX_REACH_M:g} m (a ray must end "
+                "inside the ray caster's cell)"
+            )
         if not -30.0 <= self.pitch_deg <= 30.0:
             raise ConfigError(f"pitch_deg={self.pitch_deg}: expected a value in [-30, 30]")
         if not self.wavelength_nm > 0.0:  # informational, but stored in every dataset
@@ -214,8 +248,8 @@ class Sensor:
             raise ConfigError(f"sensor {shown(values)}: expected an object of a sensor's keys")
         given = {**_LATER_KEYS, **values}
         name = given.pop("name")
-        if not isinstance(name, str) or not name.strip():
-            raise key_error("sensor", "name", "a non-empty string", name)
+        if not (isinstance(name, str) and PLAIN_NAME.match(name)):
+            raise key_error("sensor", "name", f"a name of {PLAIN_NAME_RULE}", name)
         where = f"sensor {name!r}"
         checked = _checked(
             where, {k: list(v) if isinstance(v, tuple) else v for k, v in given.items()}
@@ -249,14 +283,18 @@ _FILE_KEYS = [f.name for f in fields(Sensor) if f.name != "name"]
 _OPTIONAL = {"pitch_deg", "rot_corrections_deg", "firing_slots"}
 
 
+def _text_rule(key: str) -> str:
+    return f"a non-empty line of text of at most {TEXT_CHARS[key]} characters"
+
+
 def _checked(where: str, data: dict) -> dict:
     """The file's values with their types checked and numbers made floats (slots ints)."""
     check_keys(where, data, _FILE_KEYS, _OPTIONAL)
     values = {}
     for key, value in data.items():
         if key in _STRINGS:
-            if not isinstance(value, str) or not value.strip():
-                raise key_error(where, key, "a non-empty string", value)
+            if not text_line(value, TEXT_CHARS[key]):
+                raise key_error(where, key, _text_rule(key), value)
             values[key] = value
         elif key == "firing_slots":
             if not isinstance(value, list) or not all(

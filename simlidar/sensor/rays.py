@@ -16,7 +16,17 @@ The same firings give each pulse its emission time within the sweep
 
 import numpy as np
 
+from simlidar.errors import ConfigError, shown
 from simlidar.sensor.model import Sensor, row_order
+
+# The most pulses one rotation of a sensor may fire (a sweep's frame: beams x firing cycles, from
+# the sensor file's elevations_deg, rpm and cycle_us): 8 x the largest a shipped sensor can be
+# set to (the HDL-64E at its slowest 300 RPM, 64 x 4166 = 266,624; at its 600, 133,312) and 4.5 x
+# a sensor of the most beams a file may list (128) firing every 0.1 deg (460,800). A frame's
+# arrays then stay within 16 MiB each (the dual returns, (H, C, 2) float32, and the emission
+# times, (H, C) float64), far under the largest chunk a reader inflates
+# (simlidar.dataset.storage.MAX_CHUNK_BYTES). A VLP-16 file of 0.001 RPM asked for 1.7e10.
+MAX_ROTATION_PULSES = 2**21
 
 
 def column_centres_deg(width: int, fov_deg: float) -> np.ndarray:
@@ -87,8 +97,18 @@ def _emission_ns(sensor: Sensor, cycles: np.ndarray) -> np.ndarray:
 
 def cycles_per_rotation(sensor: Sensor) -> int:
     """Firing cycles of one full rotation: 1808 for a VLP-16 at 600 RPM (100 ms / 55.296 us;
-    the 0.4 cycle left over belongs to the next rotation)."""
-    return int(60e6 / sensor.rpm // sensor.cycle_us)
+    the 0.4 cycle left over belongs to the next rotation). A ConfigError naming the sensor's
+    ``rpm`` and ``cycle_us`` where a rotation would fire more than :data:`MAX_ROTATION_PULSES`
+    pulses: every array of a full rotation is sized from this number."""
+    cycles = 60e6 / sensor.rpm // sensor.cycle_us  # a float: it may be beyond any integer type
+    if not sensor.beams * cycles <= MAX_ROTATION_PULSES:
+        raise ConfigError(
+            f"sensor {sensor.name}: rpm={shown(sensor.rpm)}, cycle_us={shown(sensor.cycle_us)}: "
+            f"a rotation of {sensor.beams} beams x {cycles:.4g} firing cycles = "
+            f"{sensor.beams * cycles:.4g} pulses; expected at most {MAX_ROTATION_PULSES} pulses "
+            "a rotation (a sweep's frame): a higher rpm or a longer cycle_us"
+        )
+    return int(cycles)
 
 
 def sweep_emission_ns(sensor: Sensor) -> np.ndarray:

@@ -3,7 +3,8 @@ and one-line errors for bad files.
 
 Attack list: every key of a sensor file out of range or of the wrong kind, among them (issue
 35, item 10) a negative or zero ``wavelength_nm``, which was accepted and stored in every
-dataset file.
+dataset file; (issue 58, finding 2) a rotation slow enough to make one sweep frame gigabytes,
+numbers of 300 digits, rays that leave the ray caster's cell, free text of 60,000 characters.
 """
 
 import json
@@ -15,6 +16,7 @@ import pytest
 
 from simlidar.errors import ConfigError
 from simlidar.sensor import default_sensor, load_sensor, row_order, sensor_names, tof_ns
+from simlidar.sensor.rays import MAX_ROTATION_PULSES, cycles_per_rotation
 
 # VLP-16 user manual 63-9243 Rev D, laser ids 0..15 in firing order.
 MANUAL_ELEVATIONS = [-15, 1, -13, 3, -11, 5, -9, 7, -7, 9, -5, 11, -3, 13, -1, 15]
@@ -179,7 +181,7 @@ def test_a_copied_sensor_file_loads_under_its_own_name(tmp_path):
         ({"elevations_deg": ["a"]}, "key 'elevations_deg': expected a list of finite numbers"),
         ({"firing_slots": [0.5]}, "key 'firing_slots': expected a list of integers"),
         ({"firing_slots": [0, 1, 3, 2, *range(4, 16)]}, "beams out of order"),
-        ({"model": ""}, "key 'model': expected a non-empty string"),
+        ({"model": ""}, "key 'model': expected a non-empty line of text of at most 100"),
         ({"wavelength_nm": -5}, "wavelength_nm=-5.0: expected a positive wavelength"),
     ],
 )
@@ -201,3 +203,122 @@ def test_unreadable_sensor_files_are_named(tmp_path):
         load_sensor(_file(tmp_path, "rpm = = 3"))
     with pytest.raises(ConfigError, match="file name 'My Sensor'"):
         load_sensor(_file(tmp_path, _vlp16_text(), "My Sensor.toml"))
+
+
+# Issue 58, finding 2: a number of 300 digits in a sensor file was quoted whole, in an error
+# that did not name its key ("max range 100.0 m from origins up to 1000...0.0 m off the cell
+# centre", 409 characters, from the ray caster); a model name of 60,000 characters was taken.
+HUGE = 10**299  # 300 digits, still a finite float
+
+
+@pytest.mark.parametrize(
+    "changes, word",
+    [
+        ({"mount_height_m": HUGE}, "mount_height_m=1e+299"),
+        ({"max_range_m": HUGE}, "max_range_m=1e+299"),
+        ({"vertical_offsets_mm": [HUGE] + [0.0] * 15}, "vertical_offsets_mm up to 1e+299"),
+        ({"cycle_us": HUGE}, "cycle_us=1e+299: longer than a rotation at rpm=600.0"),
+        ({"firing_interval_us": HUGE}, "firing_interval_us=1e+299"),
+        ({"rpm": HUGE}, "rpm=1e+299: expected 300 to 1200"),
+        ({"rpm_min": HUGE}, "rpm_min=1e+299"),
+        ({"min_range_m": HUGE}, "range limits 1e+299..100.0 m"),
+        ({"pitch_deg": HUGE}, "pitch_deg=1e+299"),
+        ({"elevations_deg": [HUGE] * 16}, "elevations_deg=[1e+299, 1e+299"),
+    ],
+)
+def test_a_number_of_300_digits_is_refused_in_a_short_line_naming_its_key(tmp_path, changes, word):
+    path = _file(tmp_path, _vlp16_text(**changes))
+    with pytest.raises(ConfigError) as caught:
+        load_sensor(path)
+    message = str(caught.value)
+    assert "\n" not in message and message.startswith(f"sensor {path}: ")
+    assert word in message and len(message) < 300, message
+
+
+def test_a_sensor_whose_rays_leave_the_ray_casters_cell_is_refused_when_read(tmp_path):
+    """max_range_m + mount_height_m + the largest vertical offset must stay under 169 m (the ray
+    caster's cell, simlidar.sensor.raycast.cast): a 200 m sensor was read and failed only in
+    the middle of a run, in a message naming no key."""
+    path = _file(tmp_path, _vlp16_text(max_range_m=200.0))
+    with pytest.raises(ConfigError) as caught:
+        load_sensor(path)
+    assert str(caught.value) == (
+        f"sensor {path}: max_range_m=200.0, mount_height_m=1.8, vertical_offsets_mm up to "
+        "11.2: 201.8 m in all; expected less than 169 m (a ray must end inside the ray "
+        "caster's cell)"
+    )
+    assert load_sensor(_file(tmp_path, _vlp16_text(max_range_m=167.1), "near.toml"))
+
+
+@pytest.mark.parametrize(
+    "key, value, shown",
+    [
+        ("model", "V" * 60_000, "'VVVV"),
+        ("model", "V" * 101, "'VVVV"),
+        ("manual", "M" * 201, "'MMMM"),
+        ("model", "Velodyne\nVLP-16", "'Velodyne\\nVLP-16'"),
+        ("manual", "   ", "'   '"),
+    ],
+)
+def test_free_text_is_one_short_line(tmp_path, key, value, shown):
+    path = _file(tmp_path, _vlp16_text(**{key: value}))
+    with pytest.raises(ConfigError) as caught:
+        load_sensor(path)
+    message = str(caught.value)
+    limit = {"model": 100, "manual": 200}[key]
+    expected = f"key '{key}': expected a non-empty line of text of at most {limit} characters"
+    assert "\n" not in message and expected in message and f"got {shown}" in message
+    assert len(message) < 300, message
+    # the longest that is taken, in the stored form as well
+    sensor = load_sensor(_file(tmp_path, _vlp16_text(**{key: "x" * limit}), "long.toml"))
+    assert type(sensor).from_dict(sensor.to_dict()) == sensor
+
+
+@pytest.mark.parametrize("name", ["n" * 60_000, "../../etc/passwd", "a b", "", "x\ny"])
+def test_a_stored_sensors_name_is_a_plain_name(name):
+    stored = default_sensor().to_dict() | {"name": name}
+    with pytest.raises(ConfigError) as caught:
+        type(default_sensor()).from_dict(stored)
+    message = str(caught.value)
+    assert message.startswith("sensor: key 'name': expected a name of letters, digits, '_' or '-'")
+    assert "\n" not in message and len(message) < 300
+
+
+def test_a_sensor_files_name_is_a_plain_name(tmp_path):
+    """A sensor is named by its file's stem, which becomes part of a dataset's folder name."""
+    with pytest.raises(ConfigError, match="key 'name': expected a name of letters"):
+        load_sensor(_file(tmp_path, _vlp16_text(), "my.sensor.toml"))
+
+
+def test_a_long_list_is_quoted_shortened():
+    with pytest.raises(ConfigError) as caught:
+        vlp16(elevations_deg=(95.0,) * 128, vertical_offsets_mm=(0.0,) * 128)
+    message = str(caught.value)
+    assert message.startswith("elevations_deg=[95.0, 95.0") and "(768 characters)" in message
+    assert len(message) < 200
+
+
+def test_a_rotation_of_too_many_pulses_is_refused_before_anything_is_sized():
+    """A sensor file may declare a slow rotation (rpm_min = rpm = 0.001; windows of it still
+    work), but a sweep's frame, one rotation, is sized from it: 1.7e10 pulses, then a
+    MemoryError, an HDF5 chunk error or (at 1e-300 RPM) an object-dtype error."""
+    slow = vlp16(rpm_min=0.001, rpm=0.001)
+    with pytest.raises(ConfigError) as caught:
+        cycles_per_rotation(slow)
+    assert str(caught.value) == (
+        "sensor vlp16: rpm=0.001, cycle_us=55.296: a rotation of 16 beams x 1.085e+09 firing "
+        "cycles = 1.736e+10 pulses; expected at most 2097152 pulses a rotation (a sweep's "
+        "frame): a higher rpm or a longer cycle_us"
+    )
+    # more cycles than a float holds: the same refusal, not an OverflowError
+    endless = vlp16(rpm_min=1e-300, rpm=1e-300, firing_interval_us=1e-300, cycle_us=2e-299)
+    with pytest.raises(ConfigError, match=r"rpm=1e-300, cycle_us=2e-299: .* x inf firing"):
+        cycles_per_rotation(endless)
+
+
+@pytest.mark.parametrize("name", sensor_names())
+def test_every_shipped_rotation_is_far_within_the_bound(name):
+    """At its own speed and its slowest (the HDL-64E at 300 RPM: 266,624 pulses)."""
+    sensor = load_sensor(name)
+    for rpm in (sensor.rpm, sensor.rpm_min):
+        assert 7 * sensor.beams * cycles_per_rotation(sensor.with_rpm(rpm)) < MAX_ROTATION_PULSES
