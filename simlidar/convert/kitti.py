@@ -39,7 +39,6 @@ from simlidar.convert.kitti_files import (
     to_velo,
     training_dir,
 )
-from simlidar.dataset.reader import check_storage
 from simlidar.dataset.schema import (
     CONVERTED_SCHEMAS,
     SPLITS,
@@ -47,6 +46,7 @@ from simlidar.dataset.schema import (
     SWEEP_FORMAT,
     expected_shapes,
 )
+from simlidar.dataset.storage import check_storage
 from simlidar.dataset.version import SOURCES
 from simlidar.dataset.writer import SplitWriter, attrs_fit
 from simlidar.errors import DatasetError

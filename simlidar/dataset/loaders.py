@@ -8,7 +8,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from simlidar.dataset.reader import SplitInfo, read_split
+from simlidar.dataset.reader import SplitInfo, read_split, value_problems
 from simlidar.dataset.schema import WAVEFORM_SCHEMA, generated_schema
 from simlidar.errors import ConfigError, DatasetError, shown
 from simlidar.settings import Range
@@ -54,7 +54,18 @@ def load_split(path: str | Path, split: str = "train", field: str = "delays"):
     """
     info = _field_checked(split_info(path, split), field, PIXEL_FIELDS)
     arrays = info.read((field, "labels"))
+    where = info.path.parent / f"{split}-*.h5" if info.sharded else info.path
+    _check_values(where, info.attrs, arrays)
     return arrays[field], arrays["labels"]
+
+
+def _check_values(where, attrs: dict, arrays: dict[str, np.ndarray]) -> None:
+    """Refuse values read from a split that no reader may return (delays outside [0, 1],
+    labels outside the classes: :func:`~simlidar.dataset.reader.value_problems`), in one line
+    starting with ``where`` (the file, and the sample where one was read)."""
+    problems = value_problems(where, attrs, arrays)
+    if problems:
+        raise DatasetError(f"{problems[0]}; expected a dataset that simlidar verify accepts")
 
 
 FIELDS = ("delays", "clean_delays")  # what the datasets of samples read as a sample
@@ -110,7 +121,10 @@ class _SplitRows:
         if part not in self._h5:
             self._h5[part] = h5py.File(self.files[part], "r")
         f, row = self._h5[part], index - int(self.starts[part])
-        return f[self.field][row], int(f["labels"][row])
+        delays, label = f[self.field][row], f["labels"][row]
+        where = f"{self.files[part]} (sample {row})"
+        _check_values(where, self.info.attrs, {self.field: delays, "labels": label})
+        return delays, int(label)
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)

@@ -2,8 +2,6 @@
 
 import json
 import math
-import os
-import stat
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -11,17 +9,17 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from simlidar.content import file_kind
 from simlidar.dataset.schema import (
     ATTRIBUTES,
-    CONVERTED_SCHEMAS,
     REQUIRED_ATTRS,
     SOURCE_ATTRS,
     SPLITS,
-    generated_schema,
+    expected_shapes,
+    reported_returns,
     split_source,
 )
 from simlidar.dataset.shards import find_split_files, shard_of
+from simlidar.dataset.storage import datasets_of, entry_problem
 from simlidar.dataset.version import (
     GENERATOR,
     PHYSICAL_VERSION,
@@ -33,7 +31,7 @@ from simlidar.dataset.version import (
     major,
 )
 from simlidar.errors import ConfigError, DatasetError, first_line, shown
-from simlidar.resources import check_memory, size_text
+from simlidar.resources import check_memory
 
 
 @dataclass(frozen=True)
@@ -137,6 +135,8 @@ def check_attributes(path: Path, attrs: dict) -> list[str]:
             Sensor.from_dict(attrs["sensor"])
         except ConfigError as exc:
             problems.append(f"{path}: attribute 'sensor': {exc}")
+    if not {"catalog", "layout_names", "object_names"} & bad and split_source(attrs) == GENERATOR:
+        problems += _catalog_problems(path, attrs)
     if "receiver" in attrs and split_source(attrs) == GENERATOR:
         problems += _receiver_problems(path, attrs, bad)
     waveform = [name for name in ("waveform_bin_ns", "waveform_bins") if name in attrs]
@@ -146,6 +146,28 @@ def check_attributes(path: Path, attrs: dict) -> list[str]:
             "together, in a split whose returns come from waveforms ('return_mode')"
         )
     return problems
+
+
+def _catalog_problems(path: Path, attrs: dict) -> list[str]:
+    """A generated split's ``catalog`` describes each of its layouts and objects (after the
+    first, ``none``), as its card quotes them: ``catalog[kind][name]["description"]``, a
+    string."""
+    catalog = attrs.get("catalog")
+    if catalog is None:
+        return []  # named as missing
+    for kind, names in (
+        ("layouts", attrs.get("layout_names", [])),
+        ("objects", attrs.get("object_names", [])[1:]),
+    ):
+        recipes = catalog.get(kind)
+        for name in names:
+            recipe = recipes.get(name) if isinstance(recipes, dict) else None
+            if not (isinstance(recipe, dict) and isinstance(recipe.get("description"), str)):
+                return [
+                    f"{path}: attribute 'catalog' has {kind}.{shown(name)} = {shown(recipe)}; "
+                    f"expected the recipe of each of the split's {kind}, with a description"
+                ]
+    return []
 
 
 def _receiver_problems(path: Path, attrs: dict, bad: set) -> list[str]:
@@ -172,164 +194,147 @@ def _receiver_problems(path: Path, attrs: dict, bad: set) -> list[str]:
     return problems
 
 
-def datasets_of(path: Path, f: h5py.File) -> tuple[dict[str, h5py.Dataset], list[str]]:
-    """The datasets of an open split file by name, and the problems of its other members: a
-    soft or external link (which would read another file's data) and, under a name the
-    schemas use, a group."""
-    datasets, problems = {}, []
-    names = set(generated_schema("scan", receiver=True, returns=2, waveform_bins=1))
-    names |= {n for s in CONVERTED_SCHEMAS.values() for n in s}
-    for name in f:
-        link = f.get(name, getlink=True)
-        if not isinstance(link, h5py.HardLink):
-            what = type(link).__name__  # SoftLink, ExternalLink
-            problems.append(f"{path}: '{name}' is an HDF5 {what}, expected a dataset in the file")
-        elif isinstance(f[name], h5py.Dataset):
-            datasets[name] = f[name]
-        elif name in names:
-            problems.append(f"{path}: '{name}' is a group, expected a dataset")
-    return datasets, problems
+@dataclass
+class SplitCheck:
+    """What :func:`check_split` found in an open split file."""
+
+    attrs: dict  # the attributes, decoded
+    datasets: dict[str, h5py.Dataset]  # the root's datasets whose storage is sound, by name
+    shapes: dict[str, tuple] | None  # name -> (dtype, shape) the schema asks for; None: unknown
+    size: int | None  # samples N (None where no labels say)
+    height: int | None  # rows H of a sample (None where 'delays' is not (N, H, W))
+    width: int | None  # columns W
+    problems: list[str]
 
 
-def check_datasets(path: Path, f: h5py.File) -> list[str]:
-    """The problems of the two datasets every reader uses, ``delays`` (N, H, W) and
-    ``labels`` (N,) of integers, of the file's other members (:func:`datasets_of`) and of
-    every dataset's storage (:func:`storage_problem`)."""
-    datasets, problems = datasets_of(path, f)
-    delays, labels = datasets.get("delays"), datasets.get("labels")
-    if delays is None or labels is None:
-        return problems
-    if delays.ndim != 3:
+def check_split(path: Path, f: h5py.File) -> SplitCheck:
+    """Everything a split file's structure must satisfy before any reader uses it, read from
+    its attributes and metadata alone (no data): the required attributes, each attribute's
+    rule (:func:`check_attributes`), every object of the file (:func:`datasets_of`), each
+    dataset the schema of its source, timing, receiver, returns and waveform asks for, of that
+    dtype and shape, and attributes that agree with the data (:func:`_contradictions`). The
+    one check of a split's structure: the readers, the loaders and ``verify`` all go through
+    it."""
+    attrs, problems = read_attrs(f)
+    problems += [f"{path}: attribute '{k}' missing" for k in REQUIRED_ATTRS if k not in f.attrs]
+    attribute_problems = check_attributes(path, attrs)
+    problems += attribute_problems
+    datasets, more = datasets_of(path, f)
+    problems += more
+    labels, delays = datasets.get("labels"), datasets.get("delays")
+    size = labels.shape[0] if labels is not None and labels.ndim else None
+    height, width = delays.shape[1:] if delays is not None and delays.ndim == 3 else (None, None)
+    if delays is not None and width is None:
         problems.append(f"{path}: 'delays' has shape {delays.shape}, expected (N, H, W)")
-    elif labels.shape != delays.shape[:1] or labels.dtype.kind not in "iu":
-        problems.append(
-            f"{path}: 'labels' is {labels.dtype} of shape {labels.shape}, expected integer "
-            f"class indices of shape ({delays.shape[0]},)"
+    found = SplitCheck(attrs, datasets, None, size, height, width, problems)
+    source, version = split_source(attrs), attrs.get("dataset_version")
+    if not (
+        ATTRIBUTES["source"].accepts(source) and ATTRIBUTES["dataset_version"].accepts(version)
+    ):
+        return found  # named by check_attributes
+    events = datasets["event_t_us"].shape[0] if "event_t_us" in datasets else 0
+    bins = attrs.get("waveform_bins", 0)
+    bins = bins if ATTRIBUTES["waveform_bins"].accepts(bins) else 0  # named above
+    try:
+        found.shapes = expected_shapes(
+            source,
+            size,
+            height,
+            width,
+            events,
+            attrs.get("timing", "flash"),
+            "receiver" in attrs,
+            reported_returns(attrs),
+            bins,
         )
-    problems += [f"{path}: {p}" for p in map(storage_problem, datasets.values()) if p]
+    except DatasetError as exc:  # an unknown source
+        problems.append(f"{path}: {exc}")
+        return found
+    for name, (dtype, shape) in found.shapes.items():
+        if name not in datasets:
+            if name not in f:  # else named by datasets_of
+                problems.append(f"{path}: dataset '{name}' missing")
+            continue
+        ds = datasets[name]
+        if ds.dtype != np.dtype(dtype):
+            problems.append(f"{path}: '{name}' is {ds.dtype}, expected {dtype}")
+        if size is not None and width is not None and ds.shape != shape:
+            problems.append(f"{path}: '{name}' has shape {ds.shape}, expected {shape}")
+    if not attribute_problems and width is not None:
+        problems += _contradictions(path, attrs, height, width)
+    return found
+
+
+def _contradictions(path: Path, attrs: dict, height: int, width: int) -> list[str]:
+    """Attributes (each sound by its own rule) that contradict a split's H x W samples: the
+    rows' laser ids and elevations and the columns' azimuths are one a row or column, and a
+    generated split's sensor has one beam a row, each laser id one of its beams."""
+    problems = []
+    for name, count, what in (
+        ("row_laser_ids", height, "rows"),
+        ("row_elevation_deg", height, "rows"),
+        ("column_azimuth_deg", width, "columns"),
+    ):
+        if name in attrs and len(attrs[name]) != count:
+            problems.append(
+                f"{path}: attribute '{name}' holds {len(attrs[name])} values for the samples' "
+                f"{count} {what}; expected one a {what[:-1]}"
+            )
+    if split_source(attrs) == GENERATOR and "sensor" in attrs:
+        beams = len(attrs["sensor"].get("elevations_deg", ()))
+        if beams != height:
+            problems.append(
+                f"{path}: attribute 'sensor' has {beams} beams, but the samples have {height} "
+                "rows; expected one row a beam"
+            )
+        lasers = attrs.get("row_laser_ids", [])
+        if len(set(lasers)) != len(lasers) or any(laser >= beams for laser in lasers):
+            problems.append(
+                f"{path}: attribute 'row_laser_ids' is {shown(lasers)}; expected distinct "
+                f"laser ids of the sensor's {beams} beams"
+            )
     return problems
 
 
-def check_storage(path: Path, f: h5py.File) -> list[str]:
-    """The problems of an open HDF5 file's members (:func:`datasets_of`) and of every
-    dataset's storage (:func:`storage_problem`): what a reader of a file from elsewhere (a
-    split, a sweep's frames file) checks before reading any data."""
-    datasets, problems = datasets_of(path, f)
-    return problems + [f"{path}: {p}" for p in map(storage_problem, datasets.values()) if p]
+# The datasets whose values every reader checks as it reads them: the network's inputs and
+# the labels (what a model is trained and scored on)
+CHECKED_VALUES = ("delays", "clean_delays", "labels")
 
 
-# deflate (gzip) compresses at most about 1032 : 1 (long runs of one byte); the files this
-# package writes stay far below it (labels about 40 : 1, surface labels about 10 : 1)
-MAX_COMPRESSION = 1032
-
-
-# The largest chunk a reader inflates, uncompressed: reading any row of a chunk decompresses
-# all of it, so one gzip chunk of 1,048,576 samples (1 GiB) in a 3.5 MB file made verify take
-# 1.26 GB. The largest chunk this package writes: 256 samples x 64 beams x 1024 columns x 8
-# bytes = 128 MiB (the scan-timed `emission_ns` of an HDL-64E at the widest width generate
-# takes); its defaults stay far below (a VLP-16 split, 16 x 16: 256 KiB of delays; scan-timed
-# HDL-64E, 64 x 16: 2 MiB; a KITTI crop of 50 x 118: 5.8 MiB; DVS 32 x 32: 1 MiB, its events in
-# chunks of 65,536 rows: 512 KiB; a sweep frame of the HDL-64E, 64 x 2083: 0.5 MiB).
-MAX_CHUNK_BYTES = 128 * 2**20
-# The only filters the writers use (gzip and shuffle); any other (a plugin, scale-offset, ...)
-# is refused before HDF5 looks for it
-FILTERS = {h5py.h5z.FILTER_DEFLATE: "gzip", h5py.h5z.FILTER_SHUFFLE: "shuffle"}
-_LAYOUTS = {h5py.h5d.COMPACT: "compact", h5py.h5d.VIRTUAL: "virtual"}
-
-
-def storage_problem(dataset: h5py.Dataset) -> str | None:
-    """Why a dataset is not stored as the writers of this package store theirs, or None: in
-    the file's own bytes, contiguous or in chunks (not in external files, a virtual dataset
-    mapped from other files, or compact), with no filter but gzip and shuffle, chunks of at
-    most :data:`MAX_CHUNK_BYTES` uncompressed, and every declared byte backed
-    (:func:`unbacked`). Checked from the dataset's creation properties alone, before any of
-    its data is read."""
-    name = dataset.name.lstrip("/")
-    expected = "expected a dataset whose bytes are in the file, contiguous or chunked"
-    try:
-        plist = dataset.id.get_create_plist()
-        layout = plist.get_layout()
-        externals = plist.get_external_count()
-        if dataset.is_virtual or layout == h5py.h5d.VIRTUAL:
-            return f"'{name}' is an HDF5 virtual dataset (mapped from other files); {expected}"
-        if externals:
-            file = plist.get_external(0)[0].decode(errors="replace")
-            return f"'{name}' is stored in the external file {file!r}; {expected}"
-        if layout not in (h5py.h5d.CONTIGUOUS, h5py.h5d.CHUNKED):
-            kind = _LAYOUTS.get(layout, f"layout {layout}")
-            return f"'{name}' has {kind} storage; {expected}"
-        if layout == h5py.h5d.CHUNKED:
-            for index in range(plist.get_nfilters()):
-                code, _, _, label = plist.get_filter(index)
-                if code not in FILTERS:
-                    label = label.decode(errors="replace") or "unknown"
-                    return (
-                        f"'{name}' asks for HDF5 filter {code} ({label}); expected only "
-                        f"{' and '.join(FILTERS.values())}"
-                    )
-            chunk = math.prod(dataset.chunks) * dataset.dtype.itemsize
-            if chunk > MAX_CHUNK_BYTES:
-                return (
-                    f"'{name}' is stored in chunks of {dataset.chunks} {dataset.dtype} "
-                    f"({size_text(chunk)} each); expected chunks of at most "
-                    f"{size_text(MAX_CHUNK_BYTES)}"
-                )
-    except (OSError, RuntimeError, ValueError, TypeError) as exc:
-        return f"'{name}': storage unreadable ({first_line(exc)})"
-    return unbacked(dataset)
-
-
-def unbacked(dataset: h5py.Dataset) -> str | None:
-    """Why a dataset's declared size is not backed by bytes in its file, or None.
-
-    A small file can declare millions of samples (an HDF5 "bomb": a chunked dataset whose
-    chunks were never written reads as fill values), and reading it would allocate all that
-    was declared. The writers of this package (:class:`~simlidar.dataset.writer.SplitWriter`)
-    write every chunk, gzip-compressed; so a dataset is refused unless every chunk is stored
-    (a contiguous one: all its bytes) and the declared bytes are at most
-    :data:`MAX_COMPRESSION` times the stored ones.
-    """
-    declared = dataset.size * dataset.dtype.itemsize
-    if declared == 0:
-        return None
-    stored = dataset.id.get_storage_size()
-    if dataset.chunks is not None:
-        chunks = math.prod(-(-n // c) for n, c in zip(dataset.shape, dataset.chunks))
-        written = dataset.id.get_num_chunks()
-        held = f" in {written} of {chunks} chunks"
-        complete = written >= chunks and declared <= stored * MAX_COMPRESSION
-    else:
-        held, complete = "", stored >= declared
-    if complete:
-        return None
-    return (
-        f"'{dataset.name.lstrip('/')}' declares {dataset.shape} {dataset.dtype} "
-        f"({size_text(declared)}) but stores {size_text(stored)}{held}; expected a dataset "
-        "whose bytes are in the file (every chunk written)"
-    )
+def value_problems(path, attrs: dict, arrays: dict[str, np.ndarray]) -> list[str]:
+    """The problems of values read from a split (rows of :data:`CHECKED_VALUES`; others are
+    not looked at), each starting with ``path`` (a file, or where in it): delays outside
+    [0, 1] or NaN, labels outside the split's classes."""
+    problems = []
+    for name, values in arrays.items():
+        if name == "labels":
+            classes = len(attrs["class_names"])
+            if values.size and not (0 <= values.min() and values.max() < classes):
+                problems.append(f"{path}: labels outside 0..{classes - 1}")
+        elif name in CHECKED_VALUES and not ((values >= 0) & (values <= 1)).all():  # NaN too
+            problems.append(f"{path}: '{name}' has values outside [0, 1] or NaN")
+    return problems
 
 
 def read_split_info(path: Path) -> SplitInfo:
-    """Open a split file and check it carries the simlidar schema: the required attributes
-    and datasets, every attribute a reader parses (:func:`check_attributes`), ``delays`` and
-    ``labels`` and the storage of every dataset (:func:`check_datasets`), and the version."""
+    """Open a split file and check it carries the simlidar schema (:func:`check_split`) and a
+    version this simlidar reads (:func:`check_version`)."""
     try:
         with h5py.File(path, "r") as f:
-            attrs, problems = read_attrs(f)
             missing = [k for k in REQUIRED_ATTRS if k not in f.attrs]
             missing += [k for k in ("delays", "labels") if k not in f]
             if missing:
                 named = ", ".join(f"'{k}'" for k in missing)
                 raise DatasetError(f"{path}: not a simlidar split (missing {named})")
-            problems += check_attributes(path, attrs) + check_datasets(path, f)
+            found = check_split(path, f)
+            problems = found.problems
             if problems:
                 more = f" (and {len(problems) - 1} more: simlidar verify)" * (len(problems) > 1)
                 raise DatasetError(problems[0] + more)
-            size, height, width = f["delays"].shape
-            info = SplitInfo(path, size, width, attrs, height)
+            info = SplitInfo(path, found.size, found.width, found.attrs, found.height)
     except OSError as exc:
         raise DatasetError(f"{path}: cannot read as HDF5 ({first_line(exc)})") from None
-    check_version(path, attrs["dataset_version"], info.source, written_version(attrs))
+    check_version(path, info.attrs["dataset_version"], info.source, written_version(info.attrs))
     return info
 
 
@@ -390,24 +395,6 @@ def check_version(
 
 
 _SHARD_ATTRS = ("shard", "shards")  # a shard file's own attributes (docs/dataset-format.md)
-
-
-def entry_problem(entry: Path) -> str | None:
-    """Why an entry of a dataset directory is not a file of its own, or None: a regular file
-    itself (``lstat``), never a link (it would be read, hashed and packed as the file it points
-    to, a private one say), a folder, a pipe, a socket or a device. What verify says of every
-    entry and every reader of each split file."""
-    try:
-        mode = entry.lstat().st_mode
-    except OSError as exc:
-        return f"{entry}: cannot be read ({exc.strerror}); expected a regular file"
-    if stat.S_ISREG(mode):
-        return None
-    target = f" to {os.readlink(entry)}" if stat.S_ISLNK(mode) else ""
-    return (
-        f"{entry}: is {file_kind(mode)}{target}, expected a regular file (a dataset "
-        "directory holds only its own files, listed in SHA256SUMS)"
-    )
 
 
 def read_split(path: str | Path, split: str) -> SplitInfo:

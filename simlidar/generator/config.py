@@ -5,7 +5,7 @@ import math
 from dataclasses import asdict, dataclass, fields, replace
 
 from simlidar.content import key_error
-from simlidar.dataset.reader import MAX_CHUNK_BYTES
+from simlidar.dataset.storage import MAX_CHUNK_BYTES
 from simlidar.errors import ConfigError, shown
 from simlidar.generator.profiles import PHYSICAL_RULE, Profile, checked_profile
 from simlidar.sensor.footprint import MAX_RINGS

@@ -5,7 +5,7 @@ import stat
 from pathlib import Path
 
 from simlidar.atomic import write_file
-from simlidar.dataset.reader import entry_problem
+from simlidar.dataset.storage import entry_problem
 from simlidar.errors import DatasetError
 
 SUMS = "SHA256SUMS"
@@ -58,7 +58,7 @@ def stray_entries(path: Path) -> list[str]:
     """Problems of the entries of a dataset directory that are not regular files: a link (it
     would be read, hashed and packed as the file it points to), a folder (a dataset has none:
     ``payload/run_me.sh`` would travel with it unchecked), a pipe, a socket, a device
-    (:func:`~simlidar.dataset.reader.entry_problem`, which the readers apply to split files).
+    (:func:`~simlidar.dataset.storage.entry_problem`, which the readers apply to split files).
     Operating-system litter is allowed as a regular file only."""
     return [p for p in map(entry_problem, sorted(path.iterdir())) if p is not None]
 

@@ -6,21 +6,13 @@ import h5py
 import numpy as np
 
 from simlidar.dataset.reader import (
-    check_attributes,
+    CHECKED_VALUES,
+    check_split,
     check_version,
-    datasets_of,
-    read_attrs,
-    storage_problem,
+    value_problems,
     written_version,
 )
-from simlidar.dataset.schema import (
-    ATTRIBUTES,
-    REQUIRED_ATTRS,
-    SPLITS,
-    expected_shapes,
-    reported_returns,
-    split_source,
-)
+from simlidar.dataset.schema import SPLITS, split_source
 from simlidar.dataset.shards import find_split_files, shard_of, split_of
 from simlidar.errors import DatasetError, first_line
 from simlidar.release.card import read_front_matter
@@ -39,54 +31,18 @@ def _check_split(
     except OSError as exc:
         return [f"{path}: cannot read as HDF5 ({first_line(exc)})"], None
     with f:
-        attrs, problems = read_attrs(f)
-        missing = [k for k in REQUIRED_ATTRS if k not in f.attrs]
-        problems += [f"{path}: attribute '{k}' missing" for k in missing]
-        problems += check_attributes(path, attrs)
-        datasets, more = datasets_of(path, f)
-        problems += more
-        labels, delays = datasets.get("labels"), datasets.get("delays")
-        size = labels.shape[0] if labels is not None and labels.ndim else None
-        height, width = (
-            delays.shape[1:] if delays is not None and delays.ndim == 3 else (None, None)
-        )
-        if delays is not None and width is None:
-            problems.append(f"{path}: 'delays' has shape {delays.shape}, expected (N, H, W)")
-        source, version = split_source(attrs), attrs.get("dataset_version")
-        if not (
-            ATTRIBUTES["source"].accepts(source) and ATTRIBUTES["dataset_version"].accepts(version)
-        ):
-            return problems, None  # named by check_attributes
+        found = check_split(path, f)
+        attrs, problems, size = found.attrs, found.problems, found.size
+        datasets, shapes = found.datasets, found.shapes
+        if shapes is None:  # an unknown source or version: named by check_split
+            return problems, None
         try:
-            check_version(path, version, source, written_version(attrs))
+            check_version(
+                path, attrs["dataset_version"], split_source(attrs), written_version(attrs)
+            )
         except DatasetError as exc:
             problems.append(str(exc))
-        events = datasets["event_t_us"].shape[0] if "event_t_us" in datasets else 0
-        try:
-            timing = attrs.get("timing", "flash")
-            receiver = "receiver" in attrs
-            returns = reported_returns(attrs)
-            bins = attrs.get("waveform_bins", 0)
-            bins = bins if ATTRIBUTES["waveform_bins"].accepts(bins) else 0  # named above
-            shapes = expected_shapes(
-                source, size, height, width, events, timing, receiver, returns, bins
-            )
-        except DatasetError as exc:  # an unknown source
-            return problems + [f"{path}: {exc}"], None
-        for name, (dtype, shape) in shapes.items():
-            if name not in datasets:
-                if name not in f:  # else named by datasets_of
-                    problems.append(f"{path}: dataset '{name}' missing")
-                continue
-            ds = datasets[name]
-            if ds.dtype != np.dtype(dtype):
-                problems.append(f"{path}: '{name}' is {ds.dtype}, expected {dtype}")
-            if size is not None and width is not None and ds.shape != shape:
-                problems.append(f"{path}: '{name}' has shape {ds.shape}, expected {shape}")
-        if problems or size is None or width is None:  # not readable as the schema says
-            return problems, None
-        problems += [f"{path}: {p}" for p in map(storage_problem, datasets.values()) if p]
-        if problems:  # declared sizes the file cannot back: never read them
+        if problems or size is None or found.width is None:  # not readable as the schema says
             return problems, None
         if attrs["split"] != split:
             problems.append(
@@ -100,21 +56,13 @@ def _check_split(
                 f"{path}: shard attributes shard={own[0]!r}, shards={own[1]!r}; expected "
                 f"{expected} (shard files renamed?)"
             )
-        classes = len(attrs["class_names"])
         row_bytes = max(ds.nbytes // max(size, 1) for ds in datasets.values())
         block = max(1, _BLOCK_BYTES // max(row_bytes, 1))
         try:
             for start in range(0, size, block):
                 rows = slice(start, start + block)
-                for name in ("delays", "clean_delays"):
-                    if name not in shapes:
-                        continue
-                    values = datasets[name][rows]
-                    if not ((values >= 0) & (values <= 1)).all():  # NaN fails too
-                        problems.append(f"{path}: '{name}' has values outside [0, 1] or NaN")
-                values = labels[rows]
-                if values.size and not (0 <= values.min() and values.max() < classes):
-                    problems.append(f"{path}: labels outside 0..{classes - 1}")
+                names = [n for n in CHECKED_VALUES if n in shapes]
+                problems += value_problems(path, attrs, {n: datasets[n][rows] for n in names})
             if "event_count" in shapes:
                 problems += _check_events(path, f)
         except OSError as exc:  # a chunk that does not decompress

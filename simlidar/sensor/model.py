@@ -21,12 +21,12 @@ from simlidar.content import (
     PLAIN_NAME,
     PLAIN_NAME_RULE,
     check_keys,
+    checked_text,
     content_dir,
     finite_number,
     key_error,
     read_named_toml,
     shipped_or_path,
-    text_line,
 )
 from simlidar.errors import ConfigError, shown
 from simlidar.scene.build import CELL_HALF_EXTENT_M
@@ -36,11 +36,6 @@ SPEED_OF_LIGHT_M_PER_S = 299_792_458.0
 DEFAULT_SENSOR = "vlp16"
 MAX_BEAMS = 128
 MAX_SENSOR_BYTES = 64 * 1024  # a sensor file is a few dozen lines
-# Characters of each free-text key: the text is stored in every dataset and sweep file and
-# quoted in errors (the rpm error quotes model and manual), so it is one short line. The longest
-# shipped are 19 (the HDL-64E S2's model) and 82 (the HDL-32E's manual citation). A name is a
-# file stem, held to simlidar.content's PLAIN_NAME (at most 64 characters, never a path).
-TEXT_CHARS = {"model": 100, "manual": 200}
 # What max_range_m and the emitters' height (mount_height_m and the largest vertical offset)
 # may add up to, metres: the ray caster packs scenes into cells CELL_SPACING_M apart whose
 # geometry extends CELL_HALF_EXTENT_M, and lets a ray run 1 m past max_range_m
@@ -283,19 +278,13 @@ _FILE_KEYS = [f.name for f in fields(Sensor) if f.name != "name"]
 _OPTIONAL = {"pitch_deg", "rot_corrections_deg", "firing_slots"}
 
 
-def _text_rule(key: str) -> str:
-    return f"a non-empty line of text of at most {TEXT_CHARS[key]} characters"
-
-
 def _checked(where: str, data: dict) -> dict:
     """The file's values with their types checked and numbers made floats (slots ints)."""
     check_keys(where, data, _FILE_KEYS, _OPTIONAL)
     values = {}
     for key, value in data.items():
         if key in _STRINGS:
-            if not text_line(value, TEXT_CHARS[key]):
-                raise key_error(where, key, _text_rule(key), value)
-            values[key] = value
+            values[key] = checked_text(where, key, value)
         elif key == "firing_slots":
             if not isinstance(value, list) or not all(
                 isinstance(v, int) and not isinstance(v, bool) for v in value

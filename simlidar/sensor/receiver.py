@@ -16,7 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from simlidar.content import (
+    PLAIN_NAME,
+    PLAIN_NAME_RULE,
     check_keys,
+    checked_text,
     content_dir,
     finite_number,
     key_error,
@@ -61,6 +64,10 @@ class Receiver:
     reflectivity_max: int = 0  # reported reflectivity of an ideal retro-reflector; 0: none
 
     def __post_init__(self) -> None:
+        # the name is a file's stem, printed in cards and errors: never a path (a dataset's
+        # stored receiver could say "../../etc/passwd")
+        if not (isinstance(self.name, str) and PLAIN_NAME.match(self.name)):
+            raise key_error("receiver", "name", f"a name of {PLAIN_NAME_RULE}", self.name)
         where = f"receiver {self.name!r}"
         if not 200.0 <= self.wavelength_nm <= 2000.0:
             raise key_error(where, "wavelength_nm", "200 to 2000 nanometres", self.wavelength_nm)
@@ -125,9 +132,7 @@ def _receiver_values(where: str, data: dict) -> dict:
     values = {}
     for key, value in data.items():
         if key in _STRINGS:
-            if not isinstance(value, str) or not value.strip():
-                raise key_error(where, key, "a non-empty string", value)
-            values[key] = value
+            values[key] = checked_text(where, key, value)
         elif key == "return_modes":
             if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
                 raise key_error(where, key, f"a list of {list(RETURN_MODES)}", value)

@@ -25,7 +25,8 @@ import numpy as np
 import pytest
 
 from simlidar.data import load_split
-from simlidar.dataset.reader import MAX_CHUNK_BYTES, read_split_info
+from simlidar.dataset.reader import read_split_info
+from simlidar.dataset.storage import MAX_CHUNK_BYTES
 from simlidar.errors import DatasetError
 from simlidar.release.archive import pack
 from simlidar.release.verify import verify

@@ -128,3 +128,47 @@ def test_a_waveform_attribute_alone_is_one_line_in_verify_and_card(
         result = cli(command, copy)
         assert result.exit_code == 1 and "Traceback" not in result.output, result.output
         assert "expected 'waveform_bin_ns' and 'waveform_bins' together" in result.output
+
+
+def test_load_split_refuses_a_waveform_its_attributes_contradict(made, tmp_path, copy_dataset):
+    """Issue 58, finding 4: a waveform of 668 samples under ``waveform_bins = 100`` was
+    returned as it was; now every loader refuses it, as verify does."""
+    from simlidar.dataset.loaders import PulseDataset
+    from simlidar.errors import DatasetError
+    from simlidar.release.checksums import write_sums
+
+    copy = copy_dataset(made["last, stored"], tmp_path / "d")
+    with h5py.File(copy / "test.h5", "a") as f:
+        f.attrs["waveform_bins"] = 100
+    write_sums(copy)
+    expected = "'waveform' has shape (32, 16, 16, 668), expected (32, 16, 16, 100)"
+    for load in (
+        lambda: load_split(copy, "test", field="waveform"),
+        lambda: PulseDataset(copy, "test"),
+    ):
+        with pytest.raises(DatasetError) as caught:
+            load()
+        assert expected in str(caught.value) and "\n" not in str(caught.value)
+
+
+def test_a_path_for_a_receiver_name_is_refused(made, tmp_path, cli, copy_dataset):
+    """Issue 58, finding 4: a stored receiver named like a path (the card prints it as
+    ``sensors/receivers/<name>.toml``) is refused by verify, the card and the loaders."""
+    import json
+
+    from simlidar.errors import DatasetError
+    from simlidar.release.checksums import write_sums
+
+    copy = copy_dataset(made["last"], tmp_path / "d")
+    with h5py.File(copy / "train.h5", "a") as f:
+        f.attrs["receiver"] = json.dumps(
+            json.loads(f.attrs["receiver"]) | {"name": "../../etc/passwd"}
+        )
+    write_sums(copy)
+    expected = "key 'name': expected a name of letters, digits, '_' or '-'"
+    for command in ("verify", "card"):
+        result = cli(command, copy)
+        assert result.exit_code == 1 and expected in result.output, result.output
+        assert "'../../etc/passwd'" in result.output and "Traceback" not in result.output
+    with pytest.raises(DatasetError, match="etc/passwd"):
+        load_split(copy, "train")
