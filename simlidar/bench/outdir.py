@@ -63,7 +63,9 @@ def claim(out: Path, suite: Suite) -> None:
     A directory belongs to a suite's name and its data (``[generate]`` or ``datasets``): the
     suite file may change otherwise (models, seeds, budgets, description), as every cell
     carries the rules it was trained by and a cell made under other rules is refused by
-    :func:`finished`. ``suite.json`` then records the file's new sha256.
+    :func:`finished`. ``suite.json`` then records the file's new sha256. The temporaries
+    that a run killed while writing a cell or checkpoint left in it are removed (a live run's
+    stay: :func:`~simlidar.atomic.clean_stale`).
     """
     marker = out / "suite.json"
     if marker.is_file():
@@ -82,6 +84,8 @@ def claim(out: Path, suite: Suite) -> None:
                 )
             write_json(marker, _ownership(suite))  # the same suite and data, the file edited
         (out / "cells").mkdir(exist_ok=True)  # removed by hand: its cells are run again
+        for folder in ("cells", "checkpoints"):  # what a run killed while writing left there
+            clean_stale(out / folder)
         return
     # what a claim that failed midway left: cells/, suite.json's temporaries (a killed
     # write's; .suite.json.partial, a fixed name, from simlidar before write_file)

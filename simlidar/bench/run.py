@@ -14,6 +14,7 @@ import math
 import socket
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -34,12 +35,41 @@ from simlidar.bench.outdir import claim, collect, machine, write_json
 from simlidar.bench.selection import validation_count
 from simlidar.bench.suite import BUDGET_KEYS, Suite
 from simlidar.bench.train import train
+from simlidar.content import shipped_or_path
 from simlidar.dataset.reader import dataset_splits
 from simlidar.dataset.version import GENERATOR
 from simlidar.errors import ConfigError, DatasetError
-from simlidar.models.registry import check_distinct, load_recipe, model_name
+from simlidar.models.registry import check_distinct, is_outside, load_recipe, model_name
 from simlidar.release.verify import check_trainable
 from simlidar.resources import check_memory
+
+
+def anchored_model(model: str) -> str:
+    """``model`` with a relative recipe path made absolute; a recipe's name, a builder and an
+    absolute path as given. A model's code may change the working directory (``os.chdir``),
+    which must then change no path of the run. Cells record a recipe by its file's stem and
+    content, never its path (:func:`~simlidar.bench.cells.cell_inputs`): the same cells. A
+    builder's file named alone keeps its name, which a cell's fingerprint holds: the registry
+    keeps the module it imported first (:func:`~simlidar.models.registry.builder`)."""
+    if is_outside(model) and not model.endswith(".toml"):
+        return model
+    try:
+        path = shipped_or_path(model, "baselines", "model recipe")
+    except ConfigError:  # an unknown name: refused where recipes are loaded
+        return model
+    return model if path.is_absolute() else str(path.absolute())
+
+
+def anchored(suite: Suite) -> Suite:
+    """``suite`` with its dataset directories and recipe paths absolute (its budget's keys with
+    them: :func:`anchored_model`), read before any model's code runs; the suite's file, name
+    and digests as they were."""
+    return replace(
+        suite,
+        models=tuple(anchored_model(m) for m in suite.models),
+        datasets=tuple(path.absolute() for path in suite.datasets),
+        budget={k if k == "*" else anchored_model(k): v for k, v in suite.budget.items()},
+    )
 
 
 def resolve_datasets(suite: Suite, out: Path, dataset: Path | None, progress: bool) -> list[Path]:
@@ -255,13 +285,16 @@ def run_suite(
         (:func:`budget_notes`)
     returns : the results (what results.json holds)
     """
+    # every path absolute before a model's code runs: it may change the working directory
+    suite, out = anchored(suite), Path(out).absolute()
+    dataset = None if dataset is None else Path(dataset).absolute()
+    models = [anchored_model(str(m)) for m in models or suite.models]
     check_threads(thread_count)
     resolve_device(device)  # a device this machine lacks is refused before anything is written
     from tqdm import tqdm
 
     from simlidar.bench.report import write_report
 
-    models = list(models or suite.models)
     for model in models:
         load_recipe(model)  # unknown recipes fail before anything is written
     check_distinct(models)

@@ -206,6 +206,12 @@ def train(
     click.echo(json.dumps(record) if as_json else f"wrote {path}")
 
 
+def _absolute(_ctx, _param, path: Path | None) -> Path | None:
+    """A path option made absolute as it is parsed: a model's code, run later in this process,
+    may change the working directory (``os.chdir``), which must not move ``--out``."""
+    return None if path is None else path.absolute()
+
+
 def _stdout_kept_for(as_json: bool):
     """With ``--json``, what a model's code prints goes to stderr while it runs: stdout holds
     the one JSON object (a builder printing megabytes broke it)."""
@@ -234,12 +240,14 @@ def _stdout_kept_for(as_json: bool):
     "--dataset",
     type=click.Path(path_type=Path),
     default=None,
+    callback=_absolute,
     help="Run the suite's models on this dataset directory instead of the suite's datasets.",
 )
 @click.option(
     "--out",
     type=click.Path(file_okay=False, path_type=Path),
     default=None,
+    callback=_absolute,
     help="Output directory (default: bench/<suite name>).",
 )
 @_override("epochs")
@@ -279,17 +287,19 @@ def bench(
     decide, energy, latency, size. Writes results.json, report.md and pictures; a rerun into
     the same directory skips the cells already finished."""
     need_torch("bench")
-    from simlidar.bench.run import run_suite
+    from simlidar.bench.run import anchored, anchored_model, run_suite
 
     try:
-        chosen = load_suite(suite)
+        chosen = anchored(load_suite(suite))
     except ConfigError as exc:
         raise click.BadParameter(str(exc), param_hint="'--suite'") from None
+    # every path absolute before a model's code runs (importing a builder runs it)
+    out = out if out is not None else (Path("bench") / chosen.name).absolute()
     names = None
     if models is not None:
         from simlidar.models.registry import load_recipe
 
-        names = [m.strip() for m in models.split(",") if m.strip()]
+        names = [anchored_model(m.strip()) for m in models.split(",") if m.strip()]
         try:
             for name in names or [models]:
                 load_recipe(name)
@@ -298,7 +308,6 @@ def bench(
     chosen = chosen.with_budget(
         epochs=epochs, max_seconds=max_seconds, validation=validation, patience=patience
     )
-    out = out if out is not None else Path("bench") / chosen.name
     if remeasure:
         given = {
             "--models": models,

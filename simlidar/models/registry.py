@@ -44,6 +44,9 @@ MAX_MODEL_RECIPE_BYTES = 64 * 1024  # a model recipe is a few dozen lines
 
 # builders handed over in this process (simlidar.bench.api): key -> (function, fingerprint)
 _REGISTERED: dict[str, tuple[Callable, str | None]] = {}
+# builder files imported, by the path as named (relative to the working directory without a
+# base) and the base: a model's code that then changes the working directory changes nothing
+_FILES: dict[tuple[str, Path | None], object] = {}
 # the [training] of a builder named on the command line without a recipe file
 OUTSIDE_TRAINING = {"optimizer": "adam", "lr": 1e-3, "batch_size": 60, "epochs": 30}
 _OUTSIDE = re.compile(r"^(?P<where>[^:]+):(?P<function>[A-Za-z_][A-Za-z0-9_]*)$")
@@ -56,8 +59,10 @@ def is_outside(model: str) -> bool:
 
 def builder(name: str, base: Path | None = None) -> Callable:
     """The builder of the model ``name``: one of BUILDERS, ``package.module:function`` or
-    ``path/to/file.py:function`` (relative to ``base``, the recipe's folder); ConfigError naming
-    it when it does not import or is not a function."""
+    ``path/to/file.py:function`` (relative to ``base``, the recipe's folder, or without one to
+    the working directory); ConfigError naming it when it does not import or is not a
+    function. A file is imported once: the same name and base find its module later, wherever
+    a model's code has moved the working directory since."""
     if name in BUILDERS:
         module, function = BUILDERS[name]
         return getattr(importlib.import_module(f"simlidar.models.{module}"), function)
@@ -108,6 +113,9 @@ def _import(module: str):
 
 
 def _import_file(where: str, base: Path | None):
+    imported = _FILES.get((where, base))
+    if imported is not None and imported.__name__ in sys.modules:
+        return imported
     path = Path(where)
     if not path.is_absolute() and base is not None:
         path = base / path
@@ -116,15 +124,17 @@ def _import_file(where: str, base: Path | None):
     # one module per file, named after its path: two recipes naming it share it
     name = "simlidar_outside_" + hashlib.sha256(str(path.resolve()).encode()).hexdigest()[:16]
     if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    try:
-        spec.loader.exec_module(module)
-    except BaseException:
-        del sys.modules[name]
-        raise
+        module = sys.modules[name]
+    else:  # its __file__ absolute: builder_source reads it wherever the process then is
+        spec = importlib.util.spec_from_file_location(name, path.absolute())
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            del sys.modules[name]
+            raise
+    _FILES[(where, base)] = module
     return module
 
 
