@@ -15,6 +15,11 @@ fallback is ``os.rename`` after an existence check (a narrow race, documented).
 
 Files are written the same way (:func:`write_files`, :func:`write_file`): in a locked temporary
 folder beside them, each renamed into place only when every one is complete.
+
+A kill -9 leaves a temporary for the next run to remove; SIGTERM and SIGINT need not:
+inside :func:`stopped_by_signals` they raise :class:`Interrupted`, so that the ``finally``
+clauses remove the temporaries as on an error, and :func:`uninterrupted` keeps such a signal
+from cutting a temporary's making or removal in half.
 """
 
 import ctypes
@@ -23,13 +28,15 @@ import fcntl
 import os
 import re
 import shutil
+import signal
 import tempfile
+import threading
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from simlidar.errors import DatasetError
+from simlidar.errors import DatasetError, SimlidarError
 
 _AT_FDCWD = -100
 _RENAME_NOREPLACE, _RENAME_EXCHANGE = 1, 2
@@ -47,6 +54,80 @@ def _libc():
 
 _LIBC = _libc()
 
+_STOP_SIGNALS = (signal.SIGTERM, signal.SIGINT)
+# the main thread's state (only it runs Python's signal handlers): how deep it is inside
+# uninterrupted() blocks, and the signal that arrived there (one: the rest are ignored), raised
+# at the end
+_holding = 0
+_held: list["_Stop"] = []
+
+
+class Interrupted(SimlidarError):
+    """SIGTERM or SIGINT arrived inside :func:`stopped_by_signals`."""
+
+
+class _Stop(BaseException):
+    """What the handlers of :func:`stopped_by_signals` raise, its argument the signal's name:
+    a BaseException as KeyboardInterrupt is, so that no ``except Exception`` on its way
+    swallows it (tqdm's does, around starting its monitor thread)."""
+
+
+def _is_main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
+@contextmanager
+def stopped_by_signals(what: str) -> Iterator[None]:
+    """Inside the block, SIGTERM and SIGINT raise :class:`Interrupted` ("<what>: stopped by
+    SIGTERM; ..."): the ``finally`` clauses that remove temporaries run as on an error, where
+    SIGTERM would end the process with them in place and SIGINT show a KeyboardInterrupt
+    traceback. Signals after the first are ignored, so that a second Ctrl-C cannot cut the
+    removal short; one that arrives inside :func:`uninterrupted` waits for its end. The
+    previous handlers come back when the block ends. Only the main thread may set handlers:
+    elsewhere the block runs unchanged."""
+    if not _is_main_thread():
+        yield
+        return
+    stopping = []
+
+    def stop(signum: int, _frame) -> None:
+        if stopping:
+            return
+        stopping.append(signum)
+        if _holding:
+            _held.append(_Stop(signal.Signals(signum).name))
+        else:
+            raise _Stop(signal.Signals(signum).name)
+
+    previous = [(number, signal.signal(number, stop)) for number in _STOP_SIGNALS]
+    try:
+        yield
+    except _Stop as stopped:
+        raise Interrupted(
+            f"{what}: stopped by {stopped.args[0]}; the files it was writing are removed"
+        ) from None
+    finally:
+        for number, handler in previous:
+            signal.signal(number, handler)
+
+
+@contextmanager
+def uninterrupted() -> Iterator[None]:
+    """Hold the error of a signal that :func:`stopped_by_signals` catches until the block ends
+    (a temporary made and its name kept, or removed whole), then raise it. Changes nothing
+    outside such a block, nor in another thread than the main one."""
+    global _holding
+    if not _is_main_thread():
+        yield
+        return
+    _holding += 1
+    try:
+        yield
+    finally:
+        _holding -= 1
+        if not _holding and _held:
+            raise _held.pop()
+
 
 class Temporary:
     """A locked temporary folder ``out/.<name>.<kind>-<random>``; ``release()`` unlocks it
@@ -61,9 +142,10 @@ class Temporary:
         self.path.mkdir()
 
     def release(self) -> None:
-        shutil.rmtree(self.path, ignore_errors=True)
-        self.lock_path.unlink(missing_ok=True)
-        os.close(self._fd)
+        with uninterrupted():
+            shutil.rmtree(self.path, ignore_errors=True)
+            self.lock_path.unlink(missing_ok=True)
+            os.close(self._fd)
 
 
 def _rename(src: Path, dst: Path, flags: int) -> None:

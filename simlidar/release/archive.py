@@ -11,6 +11,11 @@ URL's ``<name>.tar.gz`` where the URL ends in one. ``--force`` replaces only a f
 simlidar dataset of that name (its SHA256SUMS, split files and ``croissant.json`` naming it),
 and in one step (:func:`simlidar.atomic.install`): a kill leaves the old dataset or the new one,
 never neither.
+
+Nothing is read before it is bounded: the download by :func:`archive_limit` and the free disk
+space, whether or not the server sends a length; the archive's headers and members as it is
+extracted (:mod:`simlidar.release.untar`). SIGTERM and SIGINT remove the work folder as an
+error does.
 """
 
 import gzip
@@ -25,20 +30,31 @@ import urllib.parse
 import urllib.request
 from pathlib import Path
 
-from simlidar.atomic import Temporary, claim_folder, install, write_files
+from simlidar.atomic import (
+    Temporary,
+    claim_folder,
+    install,
+    stopped_by_signals,
+    uninterrupted,
+    write_files,
+)
 from simlidar.dataset.schema import SPLITS
 from simlidar.dataset.shards import find_split_files
 from simlidar.errors import ConfigError, DatasetError
 from simlidar.release.checksums import SUMS, is_os_litter, is_sha256, sha256_file
 from simlidar.release.croissant import CROISSANT
+from simlidar.release.untar import (
+    MAX_MEMBERS,
+    PATH_MAX,
+    ROOM_EVERY,
+    FetchError,
+    check_room,
+    safe_extract,
+)
 from simlidar.release.verify import verify
+from simlidar.resources import size_text
 
 DEFAULT_MAX_BYTES = 20 * 2**30  # refuse archives that unpack to more than this
-# the most members an archive may hold: a dataset is a handful of files (two splits, card,
-# Croissant, preview, SHA256SUMS) plus its shards, a few hundred at the default 250,000 samples
-# a shard; past this the archive is refused before more of its member list is read (300,000
-# empty members took 206 MB and 26 s)
-MAX_MEMBERS = 10_000
 MAX_TIMEOUT_S = 86_400.0  # one day: the longest wait for the server that makes sense
 TIMEOUT_S = 30.0  # the default wait for the server
 # a download slower than this over any --timeout window fails (curl's --speed-limit): each wait
@@ -110,12 +126,13 @@ def _info(name: str, kind: bytes, size: int) -> tarfile.TarInfo:
     return info
 
 
-class FetchError(DatasetError):
-    """A step of ``fetch`` failed; the message names the step."""
-
-    def __init__(self, step: str, message: str):
-        super().__init__(f"fetch failed at {step}: {message}")
-        self.step = step
+def archive_limit(max_bytes: int) -> int:
+    """The most bytes a ``.tar.gz`` whose members unpack to at most ``max_bytes`` can take: the
+    download's bound. Deflate adds at most n/4096 + n/16384 + 18 bytes to n bytes it cannot
+    compress (zlib's ``deflateBound``), under ``max_bytes // 1024``; tar adds a 512-byte
+    header, up to 511 bytes of padding and, for a long name, a header of 512 bytes and its up
+    to PATH_MAX bytes to each of at most MAX_MEMBERS members, then 10 KiB of end blocks."""
+    return max_bytes + max_bytes // 1024 + MAX_MEMBERS * (2 * 512 + PATH_MAX + 512) + 10 * 1024
 
 
 def check_url(url: str) -> str:
@@ -131,14 +148,23 @@ def check_url(url: str) -> str:
     return url
 
 
-def _download(url: str, target: Path, timeout: float, progress: bool) -> None:
+def _download(url: str, target: Path, timeout: float, progress: bool, limit: int) -> None:
+    """Write what ``url`` sends into ``target``: at most ``limit`` bytes (a longer length the
+    server announces is refused before reading), while the disk keeps MIN_FREE_BYTES free."""
     from tqdm import tqdm
 
     try:
         with urllib.request.urlopen(url, timeout=timeout) as response:
             expected = response.headers.get("Content-Length")
             expected = int(expected) if expected is not None else None
-            received = 0
+            if expected is not None and expected > limit:
+                raise FetchError(
+                    "download",
+                    f"{url}: the server announces {expected} bytes, more than the limit {limit}",
+                )
+            size = "of unknown size" if expected is None else f"of {size_text(expected)}"
+            check_room(target.parent, expected or 0, "download", f"{url}: a download {size}")
+            received, room_checked = 0, 0
             with (
                 open(target, "wb") as f,
                 tqdm(
@@ -152,8 +178,20 @@ def _download(url: str, target: Path, timeout: float, progress: bool) -> None:
             ):
                 window_start, window_bytes = time.monotonic(), 0
                 while block := response.read1(_CHUNK):  # returns what one wait brought
-                    f.write(block)
                     received += len(block)
+                    if received > limit:  # without a length: http.client stops at one
+                        raise FetchError(
+                            "download", f"{url}: more than the limit of {limit} bytes received"
+                        )
+                    if received - room_checked >= ROOM_EVERY:
+                        rest = expected - received if expected is not None else 0
+                        more = (
+                            "no length given" if expected is None else f"{size_text(rest)} to come"
+                        )
+                        what = f"{url}: {size_text(received)} received, {more}"
+                        check_room(target.parent, rest, "download", what)
+                        room_checked = received
+                    f.write(block)
                     window_bytes += len(block)
                     bar.update(len(block))
                     elapsed = time.monotonic() - window_start
@@ -195,51 +233,6 @@ def _sidecar_sha256(url: str, timeout: float) -> str:
     if len(digest) != 64:
         raise FetchError("checksum", f"{url}.sha256 does not hold a sha256 ({text[:40]!r})")
     return digest.lower()
-
-
-def safe_extract(archive: Path, target: Path, max_bytes: int) -> Path:
-    """Extract a dataset archive into ``target``; return the one top-level folder.
-
-    Refused: more than :data:`MAX_MEMBERS` members (before the rest of the list is read),
-    absolute paths, ``..``, links and anything but files and folders, more than one top-level
-    folder, and more than ``max_bytes`` unpacked.
-    """
-    try:
-        tar = tarfile.open(archive, "r:gz")
-    except (tarfile.TarError, OSError) as exc:
-        raise FetchError("extract", f"not a .tar.gz archive ({exc})") from None
-    with tar:
-        members = []
-        try:
-            for member in tar:  # read lazily: stop at the bound
-                members.append(member)
-                if len(members) > MAX_MEMBERS:
-                    raise FetchError(
-                        "extract",
-                        f"more than {MAX_MEMBERS} members; expected a dataset's few files",
-                    )
-        except (tarfile.TarError, OSError, EOFError) as exc:
-            raise FetchError("extract", f"damaged archive ({exc})") from None
-        tops, total = set(), 0
-        for m in members:
-            parts = Path(m.name).parts  # "./a/b" -> ("a", "b"); "./" -> ()
-            if not parts:
-                continue
-            if m.name.startswith("/") or os.path.isabs(m.name) or ".." in parts:
-                raise FetchError("extract", f"member {m.name!r} would land outside the target")
-            if not (m.isfile() or m.isdir()):
-                raise FetchError("extract", f"member {m.name!r} is a link or special file")
-            tops.add(parts[0])
-            total += m.size
-        if len(tops) != 1:
-            raise FetchError("extract", f"expected one top-level folder, got {sorted(tops)}")
-        if total > max_bytes:
-            raise FetchError("extract", f"{total} bytes unpacked, more than the limit {max_bytes}")
-        try:
-            tar.extractall(target, members=members, filter="data")
-        except (OSError, tarfile.TarError) as exc:
-            raise FetchError("extract", f"{exc.__class__.__name__}: {exc}") from None
-    return target / tops.pop()
 
 
 def _own_name(folder: Path, url: str) -> str:
@@ -316,8 +309,9 @@ def fetch(
     """Download, check, extract and verify a dataset archive; return the installed folder.
 
     The work happens in a locked temporary folder ``out/.<archive name>.fetch-<random>``
-    (:mod:`simlidar.atomic`), removed at the end whatever happens; those of killed runs
-    are removed by the next run in ``out`` (a warning each). ``out`` itself is removed again if
+    (:mod:`simlidar.atomic`), removed at the end whatever happens, SIGTERM and SIGINT included
+    (then an :class:`simlidar.atomic.Interrupted` error); those of runs killed otherwise are
+    removed by the next run in ``out`` (a warning each). ``out`` itself is removed again if
     this call created it and nothing was installed.
 
     url : the archive's address (http or https; ``simlidar pack`` makes such archives)
@@ -326,20 +320,27 @@ def fetch(
     out : the folder that receives the dataset directory (made if missing)
     timeout : seconds a connection may stay silent
     force : replace an installed dataset directory of the same name (else an error names it)
-    max_bytes : the most bytes the archive's members may hold once unpacked
+    max_bytes : the most bytes the archive's members may hold once unpacked; the download
+        may take :func:`archive_limit` of it
     progress : a progress bar on stderr
     """
     if sha256 is not None and not is_sha256(sha256):
         raise FetchError("checksum", f"--sha256 {sha256!r}: expected 64 hexadecimal digits")
     timeout = check_timeout(timeout)
     check_url(url)
-    out = Path(out)
-    created = claim_folder(out)
-    work = None
+    with stopped_by_signals(f"fetch {url}"):
+        return _fetch(url, sha256, Path(out), timeout, force, max_bytes, progress)
+
+
+def _fetch(url, sha256, out, timeout, force, max_bytes, progress) -> Path:
+    """:func:`fetch`'s work, its arguments checked."""
+    created, work = False, None
     try:
-        work = Temporary(out, _work_name(url), "fetch")
+        with uninterrupted():  # made and kept in ``work``, so that the end removes it
+            created = claim_folder(out)
+            work = Temporary(out, _work_name(url), "fetch")
         archive = work.path / "archive.tar.gz"
-        _download(url, archive, timeout, progress)
+        _download(url, archive, timeout, progress, archive_limit(max_bytes))
         expected = (sha256 or _sidecar_sha256(url, timeout)).lower()
         actual = sha256_file(archive)
         if actual != expected:
@@ -361,7 +362,8 @@ def fetch(
                 )
             if not force:
                 raise FetchError("install", f"{final} already exists: pass --force to replace")
-        claim = Temporary(out, name)
+        with uninterrupted():
+            claim = Temporary(out, name)
         try:
             claim.path.rmdir()
             folder.rename(claim.path)
@@ -373,7 +375,8 @@ def fetch(
             claim.release()
         return final
     finally:
-        if work is not None:
-            work.release()
-        if created and out.is_dir() and not any(out.iterdir()):
-            out.rmdir()
+        with uninterrupted():
+            if work is not None:
+                work.release()
+            if created and out.is_dir() and not any(out.iterdir()):
+                out.rmdir()
