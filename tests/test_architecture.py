@@ -28,6 +28,7 @@ STAGES = [
         "simlidar.cluster",
     },
     {"simlidar.scene"},
+    {"simlidar.motion"},
     {"simlidar.sensor"},
     {"simlidar.dataset", "simlidar.data"},
     {"simlidar.release"},
