@@ -277,6 +277,17 @@ class ExportFormats(click.ParamType):
 @setting_option(GeneratorConfig, "rain_rate_mm_h", "--rain", "rain_rate_mm_h", metavar="MM_PER_H")
 @setting_option(GeneratorConfig, "beam_samples", metavar="Q")
 @setting_option(GeneratorConfig, "return_mode")
+@setting_option(GeneratorConfig, "ego_speed_mps", "--ego-speed", "ego_speed_mps", metavar="MPS")
+@setting_option(
+    GeneratorConfig, "ego_yaw_rate_deg_s", "--ego-yaw-rate", "ego_yaw_rate_deg_s", metavar="DEG_S"
+)
+@click.option(
+    "--moving-objects",
+    is_flag=True,
+    help="Move each scene's object as the scene catalog's motion.toml says (speed, heading of "
+    "travel, yaw rate, drawn once a sequence after the static scene's draws).",
+)
+@setting_option(SweepConfig, "sequence_frames", metavar="L")
 @click.option(
     "--export",
     "exports",
@@ -300,6 +311,10 @@ def sweep(
     rain_rate_mm_h,
     beam_samples,
     return_mode,
+    ego_speed_mps,
+    ego_yaw_rate_deg_s,
+    moving_objects,
+    sequence_frames,
     exports,
     out,
     force,
@@ -313,6 +328,8 @@ def sweep(
     chosen_sensor = chosen_sensor_of(sensor)
     catalog = catalog_for(scenes, classes)
     fields = dict(classes=classes, seed=seed, sensor=chosen_sensor)
+    fields |= dict(ego_speed_mps=ego_speed_mps, ego_yaw_rate_deg_s=ego_yaw_rate_deg_s)
+    fields |= dict(moving_objects=moving_objects)
     if profile is None:
         fields |= dict(fog_visibility_m=fog_visibility_m, rain_rate_mm_h=rain_rate_mm_h)
         fields |= dict(beam_samples=beam_samples, return_mode=return_mode)
@@ -338,7 +355,8 @@ def sweep(
             **fields,
         )
     start = time.perf_counter()
-    path = run_sweep(config, SweepConfig(frames=frames), catalog, out, exports, force=force)
+    chosen_sweep = SweepConfig(frames=frames, sequence_frames=sequence_frames)
+    path = run_sweep(config, chosen_sweep, catalog, out, exports, force=force)
     seconds = time.perf_counter() - start
     if as_json:
         record = {"path": str(path), "frames": frames, "exports": list(exports)}

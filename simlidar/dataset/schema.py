@@ -110,12 +110,27 @@ RETURN_POINT_DTYPE = np.dtype(
 )
 
 
-def sweep_schema(returns: int = 0) -> dict[str, tuple[str, object]]:
-    """:data:`SWEEP_SCHEMA`, and :data:`SWEEP_RETURNS_SCHEMA` where a pulse reports ``returns``
-    > 0 returns (their trailing shapes then given H and C alone)."""
+# Stored besides SWEEP_SCHEMA by sweeps in motion (attribute `sequence_frames`: the ego or the
+# objects move) only: each frame's sequence, its first firing's time from the sequence's start,
+# the sensor's pose in the scene frame at the frame's reference time (its middle cycle, facing
+# forward; a 3 x 4 [R | p] as KITTI's poses.txt writes one) and its object's motion as drawn
+# (speed_mps, heading_deg, yaw_rate_deg_s; zeros without object)
+SWEEP_MOTION_SCHEMA: dict[str, tuple[str, object]] = {
+    "sequence": ("int64", lambda h, c: ()),
+    "start_ns": ("float64", lambda h, c: ()),
+    "ego_pose": ("float64", lambda h, c: (3, 4)),
+    "object_motion": ("float32", lambda h, c: (3,)),
+}
+
+
+def sweep_schema(returns: int = 0, motion: bool = False) -> dict[str, tuple[str, object]]:
+    """:data:`SWEEP_SCHEMA`, :data:`SWEEP_RETURNS_SCHEMA` where a pulse reports ``returns``
+    > 0 returns (their trailing shapes then given H and C alone), and
+    :data:`SWEEP_MOTION_SCHEMA` for a sweep in motion."""
+    schema = dict(SWEEP_SCHEMA) | (SWEEP_MOTION_SCHEMA if motion else {})
     if not returns:
-        return dict(SWEEP_SCHEMA)
-    return SWEEP_SCHEMA | {
+        return schema
+    return schema | {
         name: (dtype, lambda h, c, tail=tail: tail(h, c, returns))
         for name, (dtype, tail) in SWEEP_RETURNS_SCHEMA.items()
     }

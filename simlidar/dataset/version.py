@@ -139,6 +139,12 @@ SWEEP_RECEIVER_VERSION = "1.2.0"
 # ``return_mode``, ``beam_samples``) and exported, each with its return number: fields added;
 # and rain sweeps (``--rain``), whose configuration gains ``rain_rate_mm_h``
 SWEEP_RETURNS_VERSION = "1.3.0"
+# Sweeps in motion (``--ego-speed``, ``--ego-yaw-rate``, ``--moving-objects``, issue 59): every
+# pulse cast at its own emission time, frames in continuous sequences (attribute
+# ``sequence_frames``), each frame's ``sequence``, ``start_ns``, ``ego_pose`` and
+# ``object_motion``, the object's box at the frame's reference time; fields and configuration
+# keys added. Sweeps without motion keep their versions and bytes.
+SWEEP_MOTION_VERSION = "1.4.0"
 
 
 def major(version: str) -> int:

@@ -17,6 +17,11 @@ from simlidar.sensor.weather import MAX_RAIN_MM_H
 from simlidar.settings import Choice, Range, check, setting
 
 MAX_WAVEFORM_BIN_NS = 4.0
+# The ego's motion: up to 70 m/s (252 km/h, past any road's limit; the objects' own bound,
+# simlidar.scene.motion.KEYS) and half a turn a second (a car at its tightest turns about
+# 115 deg/s: 5 m radius at 10 m/s)
+MAX_SPEED_MPS = 70.0
+MAX_YAW_RATE_DEG_S = 180.0
 
 MAX_SPLIT_SIZE = 10**9  # samples per split
 TIMINGS = ("flash", "scan")
@@ -131,6 +136,28 @@ class GeneratorConfig:
         "only (sensor).",
         Choice(RETURN_MODES),
     )
+    # stored only when not 0 / False, so that datasets and sweeps without motion keep their
+    # bytes (as variation above)
+    ego_speed_mps: float = setting(
+        0.0,
+        "The ego vehicle's speed along the road in m/s: the sensor moves while it turns, and "
+        "every pulse is cast from where the sensor is at its emission time (sweeps only; "
+        "docs/sweeps.md, 'Motion').",
+        Range(0, MAX_SPEED_MPS, "m/s", note="(0: standing)"),
+    )
+    ego_yaw_rate_deg_s: float = setting(
+        0.0,
+        "The ego vehicle's yaw rate in deg/s, counter-clockwise (a left turn) positive: its "
+        "heading and its travel turn together (sweeps only).",
+        Range(-MAX_YAW_RATE_DEG_S, MAX_YAW_RATE_DEG_S, "deg/s", note="(0: straight)"),
+    )
+    moving_objects: bool = setting(
+        False,
+        "Move each scene's object as the scene catalog's motion.toml says (speed, heading of "
+        "travel, yaw rate, drawn once a sequence after the static scene's draws; sweeps "
+        "only).",
+        Choice((False, True)),
+    )
 
     def __post_init__(self) -> None:
         for name in ("train_size", "test_size"):  # before the rules: a better message
@@ -215,6 +242,11 @@ class GeneratorConfig:
     @property
     def profile_name(self) -> str:
         return "physical" if self.profile is None else self.profile.name
+
+    @property
+    def moves(self) -> bool:
+        """Whether anything moves: the ego vehicle or the scenes' objects."""
+        return bool(self.ego_speed_mps or self.ego_yaw_rate_deg_s or self.moving_objects)
 
     @property
     def receiver(self) -> str | None:
@@ -328,6 +360,9 @@ class GeneratorConfig:
             del values["waveform_bin_ns"]  # absent means no waveform stored (same reason)
         if values["return_mode"] == "strongest":
             del values["return_mode"]  # absent means the strongest return (same reason)
+        for key in ("ego_speed_mps", "ego_yaw_rate_deg_s", "moving_objects"):
+            if not values[key]:
+                del values[key]  # absent means no motion (same reason)
         return values
 
     def to_json(self) -> str:

@@ -11,7 +11,7 @@ import numpy as np
 
 from simlidar.dataset.kitti import LABEL_COLUMNS, SCAN_DTYPE
 from simlidar.errors import ConfigError
-from simlidar.generator.frames import check_frame, frame_points
+from simlidar.generator.frames import check_frame, deskewed_xyz, frame_points
 
 EXPORTS = ("kitti", "ply", "pcd")
 
@@ -57,8 +57,10 @@ def kitti_file(path: str | Path, frame: int, folder: str, points=None) -> bytes:
         return KITTI_CALIB.encode()
     points = frame_points(path, frame) if points is None else points
     if folder == "velodyne":
-        # SCAN_COLUMNS: x, y, z and, as reflectance, the intensity proxy
-        xyzi = np.stack([points[k] for k in ("x", "y", "z", "intensity")], axis=1)
+        # SCAN_COLUMNS: x, y, z and, as reflectance, the intensity proxy; in motion deskewed
+        # to the frame's reference time, as KITTI ships its scans
+        xyz = deskewed_xyz(path, frame, points)
+        xyzi = np.concatenate([xyz, points["intensity"][:, None]], axis=1)
         return xyzi.astype(SCAN_DTYPE).tobytes()
     if folder == "labels":
         return points["surface"].astype("<u4").tobytes()

@@ -18,6 +18,7 @@ from simlidar.dataset.schema import (
     sweep_schema,
 )
 from simlidar.errors import ConfigError
+from simlidar.motion.poses import PlanarMotion, Poses
 from simlidar.sensor.model import Sensor, row_order
 from simlidar.sensor.rays import sweep_rays
 
@@ -41,7 +42,7 @@ def read_frame(path: str | Path, frame: int) -> tuple[Sensor, dict, np.ndarray]:
 
     with h5py.File(path, "r") as f:
         sensor = check_frame(f, path, frame)
-        schema = sweep_schema(reported_returns(dict(f.attrs)))
+        schema = sweep_schema(reported_returns(dict(f.attrs)), "sequence_frames" in f.attrs)
         values = {name: f[name][frame] for name in schema}
         return sensor, values, f["emission_ns"][:]
 
@@ -97,3 +98,27 @@ def frame_points(path: str | Path, frame: int) -> np.ndarray:
         points["return_number"] = slot + 1
         points["number_of_returns"] = counts[pulse]
     return points
+
+
+def deskewed_xyz(path: str | Path, frame: int, points: np.ndarray | None = None) -> np.ndarray:
+    """The points of frame ``frame`` (:func:`frame_points`, made if not given) in the sensor's
+    frame at the frame's reference time (its middle cycle, the head facing ahead; its
+    ``ego_pose``): each point moved by the ego's motion between its own emission time and
+    that time, as KISS-ICP deskews (``p* = Exp(s w) p + s v`` for constant velocity), here
+    exactly: each pulse's pose is the ego's closed-form motion at its time
+    (:class:`~simlidar.motion.poses.PlanarMotion`). A sweep that does not move returns the
+    points as they are. (P, 3) float64."""
+    import h5py
+
+    points = frame_points(path, frame) if points is None else points
+    xyz = np.stack([points[k].astype(np.float64) for k in ("x", "y", "z")], axis=-1)
+    with h5py.File(path, "r") as f:
+        sensor = check_frame(f, path, frame)
+        if "ego_pose" not in f:
+            return xyz
+        config = json.loads(f.attrs["config"])
+        start_ns, pose = float(f["start_ns"][frame]), f["ego_pose"][frame]
+    ego = PlanarMotion(config.get("ego_speed_mps", 0.0), config.get("ego_yaw_rate_deg_s", 0.0))
+    mount = np.array([0.0, 0.0, sensor.mount_height_m])  # the rays' frame stands on the road
+    at_pulse = ego.poses((start_ns + points["t_ns"]) * 1e-9).to_scene(xyz + mount)
+    return Poses(pose[:, :3], pose[:, 3]).to_body(at_pulse) - mount

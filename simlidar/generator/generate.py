@@ -331,6 +331,13 @@ def generate(
     """
     from tqdm import tqdm
 
+    if config.moves:
+        raise ConfigError(
+            f"ego_speed_mps={config.ego_speed_mps!r}, ego_yaw_rate_deg_s="
+            f"{config.ego_yaw_rate_deg_s!r}, moving_objects={config.moving_objects!r}: windows "
+            "in motion are not built yet; expected no motion for generate (simlidar sweep "
+            "takes it)"
+        )
     catalog = catalog.for_sensor(config.sensor.name)  # what is stored: the recipes used
     batch_size = checked_request(config, catalog, batch_size, workers, shard_samples)
     configs = [config.with_noise(level) for level in noise_levels]

@@ -38,7 +38,12 @@ import numpy as np
 from simlidar import __version__
 from simlidar.atomic import building
 from simlidar.dataset.schema import SWEEP_FILE, SWEEP_FORMAT, reported_returns, sweep_schema
-from simlidar.dataset.version import SWEEP_RECEIVER_VERSION, SWEEP_RETURNS_VERSION, SWEEP_VERSION
+from simlidar.dataset.version import (
+    SWEEP_MOTION_VERSION,
+    SWEEP_RECEIVER_VERSION,
+    SWEEP_RETURNS_VERSION,
+    SWEEP_VERSION,
+)
 from simlidar.dataset.writer import SplitWriter
 from simlidar.errors import ConfigError
 from simlidar.generator.bev import draw_bev
@@ -53,6 +58,7 @@ from simlidar.generator.returns import (
     receiver_physics,
     receiver_stream,
 )
+from simlidar.generator.sequences import check_motion, frame_cycles, frame_motion
 from simlidar.generator.simulate import (
     FIXED_COLUMNS,
     SPLIT_IDS,
@@ -64,9 +70,11 @@ from simlidar.generator.simulate import (
 from simlidar.generator.streams import Streams
 from simlidar.resources import check_memory
 from simlidar.scene.build import build_batch
+from simlidar.scene.motion import COLUMNS
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.footprint import subray_count, subray_directions
 from simlidar.sensor.model import row_order
+from simlidar.sensor.moving import cast_moving
 from simlidar.sensor.raycast import MAX_BATCH, cast, compiled_for
 from simlidar.sensor.rays import cycles_per_rotation, sweep_emission_ns, sweep_rays
 from simlidar.settings import Range, check, setting
@@ -93,12 +101,33 @@ class SweepConfig:
 
     frames: int = setting(
         10,
-        "Frames: full rotations of the sensor; frame f shows class f mod classes.",
+        "Frames: full rotations of the sensor; frame f shows class f mod classes (in "
+        "sequences: sequence s shows class s mod classes).",
         Range(1, MAX_FRAMES, "an integer"),
+    )
+    # stored only when not 0, so that sweeps before it keep their bytes
+    sequence_frames: int = setting(
+        0,
+        "Frames of one continuous sequence: one scene, the sensor turning on from rotation to "
+        "rotation while the ego and the objects move on; 0: every frame its own scene, or, "
+        "when anything moves, all frames one sequence.",
+        Range(0, MAX_FRAMES, "an integer"),
     )
 
     def __post_init__(self) -> None:
         check(self)
+
+    def to_dict(self) -> dict:
+        """What the ``sweep`` attribute stores: ``sequence_frames`` only where set."""
+        values = asdict(self)
+        if not values["sequence_frames"]:
+            del values["sequence_frames"]
+        return values
+
+    def sequence(self, config: GeneratorConfig) -> int:
+        """Frames of one sequence: ``sequence_frames``, or where it is 0 every frame (when
+        ``config`` moves anything) or one."""
+        return self.sequence_frames or (self.frames if config.moves else 1)
 
 
 @dataclass(frozen=True)
@@ -122,31 +151,48 @@ class Frames:
     returns_range_m: np.ndarray | None = None  # (n, H, C, R) float32, NaN: none
     returns_intensity: np.ndarray | None = None  # (n, H, C, R) float32, 0: none
     returns_surface: np.ndarray | None = None  # (n, H, C, R) uint8, 0: none
+    # in motion (SWEEP_MOTION_SCHEMA) only:
+    sequence: np.ndarray | None = None  # (n,) int64, the frame's sequence
+    start_ns: np.ndarray | None = None  # (n,) float64, its first firing from its sequence's
+    ego_pose: np.ndarray | None = None  # (n, 3, 4) float64, the sensor at its reference time
+    object_motion: np.ndarray | None = None  # (n, 3) float32 speed, heading, yaw rate
 
 
 def simulate_frames(
-    config: GeneratorConfig, catalog: Catalog, start: int, stop: int, total: int | None = None
+    config: GeneratorConfig,
+    catalog: Catalog,
+    start: int,
+    stop: int,
+    total: int | None = None,
+    sequence: int = 1,
 ) -> Frames:
     """Frames ``start .. stop - 1`` of a sweep of ``config``'s sensor and scenes (its classes,
-    seed and variation; at most MAX_BATCH frames) from ``catalog``'s recipes. ``total``: the
-    sweep's frames, by default these (the whole run's rays choose the ray caster's form, not
-    the bytes: :func:`simlidar.sensor.raycast.compiled_for`)."""
-    if not 0 < stop - start <= MAX_BATCH:
-        raise ConfigError(f"batch of {stop - start} frames: expected 1..{MAX_BATCH}")
+    seed and variation; at most MAX_BATCH / 2 frames) from ``catalog``'s recipes. ``total``:
+    the sweep's frames, by default these (the whole run's rays choose the ray caster's form,
+    not the bytes: :func:`simlidar.sensor.raycast.compiled_for`). ``sequence``: frames of one
+    sequence (:meth:`SweepConfig.sequence`): sequence s, frames s L .. s L + L - 1, is one
+    scene drawn from the stream of index s, seen rotation after rotation (:func:`frame_cycles`)
+    and, where ``config`` moves anything, each pulse cast at its own time (:func:`_cast`)."""
+    if not 0 < stop - start <= MAX_BATCH // 2:
+        raise ConfigError(f"batch of {stop - start} frames: expected 1..{MAX_BATCH // 2}")
     sensor = config.sensor
     catalog = catalog.for_sensor(sensor.name).with_variation(config.variation)
     plan = class_plan(catalog, config.classes)
     index = np.arange(start, stop)
-    labels = index % plan.classes
-    streams = Streams(config.seed, SPLIT_IDS["sweep"], index)  # sample_stream's, batched
+    scene_of, step = index // sequence, index % sequence
+    labels = scene_of % plan.classes
+    streams = Streams(config.seed, SPLIT_IDS["sweep"], scene_of)  # sample_stream's, batched
     free = streams.random(2)
     layout, obj = factors(plan, labels, free, len(catalog.layouts), len(catalog.objects))
     lc = catalog.layout_columns
     u = streams.random(FIXED_COLUMNS + lc + catalog.object_columns)
+    # after every draw of the static scene, so that a scene without motion keeps its bytes
+    drawn = catalog.object_motion(obj, streams.random(COLUMNS)) if config.moving_objects else None
+    first_cycle, phase = frame_cycles(sensor, step, u[:, 0])
     beams = stores_returns(config)
     rays = (total or len(index)) * sensor.beams * cycles_per_rotation(sensor) * rays_a_pulse(config)
     compiled = compiled_for(rays)  # the sweep's rays: the kernels pay on long runs
-    origins, directions = sweep_rays(sensor, u[:, 0], compiled)
+    origins, directions = sweep_rays(sensor, phase, compiled)
     if beams:  # every sub-ray, cast with the others; sub-ray 0 is the beam's axis
         receiver = receiver_physics(config.profile).receiver
         directions, weights = subray_directions(
@@ -164,8 +210,19 @@ def simulate_frames(
         u[:, FIXED_COLUMNS + lc :],
         compiled=compiled,
     )
-    hits = cast(scene, origins, directions, index % MAX_BATCH, sensor.max_range_m, incidence=True,
-                compiled=compiled)  # fmt: skip
+    in_sequence = config.moves or sequence != 1  # the frames' SWEEP_MOTION_SCHEMA fields
+    motion = frame_motion(config, scene, first_cycle, drawn) if in_sequence else None
+    if not config.moves:
+        hits = cast(scene, origins, directions, index % MAX_BATCH, sensor.max_range_m,
+                    incidence=True, compiled=compiled)  # fmt: skip
+    else:  # every sub-ray of a pulse leaves with it
+        times = motion.times_s
+        if beams:
+            subrays = directions.shape[2] // times.shape[2]
+            times = np.repeat(times[..., None], subrays, axis=-1).reshape(directions.shape[:3])
+        hits = cast_moving(scene, origins, directions, index % MAX_BATCH, sensor.max_range_m,
+                           motion.ego.poses(times), motion.objects(times), incidence=True,
+                           compiled=compiled)  # fmt: skip
     cycles = cycles_per_rotation(sensor)
     beam_hits, hits = (hits, axis_hits(hits, cycles)) if beams else (None, hits)
     r = quantise_range(hits.range_m, sensor)
@@ -184,6 +241,9 @@ def simulate_frames(
                 "returns_intensity": got.returns_intensity.astype(np.float32),
                 "returns_surface": got.returns_surface,
             }
+    boxes = object_boxes(scene)
+    if motion is not None:
+        more |= motion.fields(scene_of, boxes, drawn)
     return Frames(
         range_m=r.astype(np.float32),
         surface=surface.astype(np.uint8),
@@ -192,9 +252,9 @@ def simulate_frames(
         layout=layout.astype(np.uint8),
         object=obj.astype(np.uint8),
         object_pose=scene.object_pose.astype(np.float32),
-        object_box=object_boxes(scene).astype(np.float32),
+        object_box=boxes.astype(np.float32),
         object_points=(hits.on_object & returned).sum(axis=(1, 2)).astype(np.int32),
-        phase=u[:, 0],
+        phase=phase,
         **more,
     )
 
@@ -289,10 +349,12 @@ def object_boxes(scene) -> np.ndarray:
     return boxes
 
 
-def sweep_version(config: GeneratorConfig) -> str:
-    """SWEEP_RETURNS_VERSION where every reported return is stored or with rain (a
-    configuration key 1.2.0 does not know), SWEEP_RECEIVER_VERSION through a receiver, else
-    SWEEP_VERSION."""
+def sweep_version(config: GeneratorConfig, sweep: "SweepConfig | None" = None) -> str:
+    """SWEEP_MOTION_VERSION where anything moves, SWEEP_RETURNS_VERSION where every reported
+    return is stored or with rain (a configuration key 1.2.0 does not know),
+    SWEEP_RECEIVER_VERSION through a receiver, else SWEEP_VERSION."""
+    if config.moves or (sweep is not None and sweep.sequence(config) != 1):
+        return SWEEP_MOTION_VERSION
     if stores_returns(config) or config.rain_rate_mm_h:
         return SWEEP_RETURNS_VERSION
     return SWEEP_RECEIVER_VERSION if config.receiver is not None else SWEEP_VERSION
@@ -304,10 +366,22 @@ def sweep_name(config: GeneratorConfig, sweep: SweepConfig) -> str:
     variation = f"-var{float(config.variation)!r}" if config.variation != 1.0 else ""
     receiver = f"-{config.profile_name}" if config.receiver is not None else ""
     receiver += config.receiver_tag  # a sweep refuses waveforms: no -wave
+    motion = motion_tag(config, sweep)
     return (
         f"simlidar-sweep-{config.classes}c-{config.sensor.name}-{sweep.frames}f-seed"
-        f"{config.seed}{receiver}{variation}-v{sweep_version(config)}"
+        f"{config.seed}{receiver}{motion}{variation}-v{sweep_version(config, sweep)}"
     )
+
+
+def motion_tag(config: GeneratorConfig, sweep: SweepConfig) -> str:
+    """What a sweep's name says of its motion and sequences:
+    ``[-ego<v>][-yaw<w>][-moving][-seq<L>]``, numbers as Python's repr; ``-seq<L>`` where
+    sequences are not the default's (:meth:`SweepConfig.sequence`)."""
+    tag = f"-ego{float(config.ego_speed_mps)!r}" if config.ego_speed_mps else ""
+    tag += f"-yaw{float(config.ego_yaw_rate_deg_s)!r}" if config.ego_yaw_rate_deg_s else ""
+    tag += "-moving" if config.moving_objects else ""
+    default = SweepConfig(frames=sweep.frames).sequence(config)
+    return tag + (f"-seq{sweep.sequence(config)}" if sweep.sequence(config) != default else "")
 
 
 def sweep(
@@ -349,10 +423,10 @@ def sweep(
     plan = class_plan(catalog, config.classes)  # a bad class count fails before any file
     attrs = {
         "format": SWEEP_FORMAT,
-        "sweep_version": sweep_version(config),
+        "sweep_version": sweep_version(config, sweep_config),
         "simlidar_version": __version__,
         "config": config.to_json(),
-        "sweep": json.dumps(asdict(sweep_config), sort_keys=True),
+        "sweep": json.dumps(sweep_config.to_dict(), sort_keys=True),
         "sensor": json.dumps(sensor.to_dict(), sort_keys=True),
         "catalog_sha256": catalog.fingerprint(),
         "class_names": json.dumps(list(plan.names)),
@@ -379,7 +453,17 @@ def sweep(
             "materials": json.dumps(materials, sort_keys=True),
             "materials_sha256": fingerprint(materials),
         }
-    schema = sweep_schema(reported_returns(attrs))
+    sequence = sweep_config.sequence(config)
+    check_motion(config, catalog, sequence)
+    if config.moves or sequence != 1:
+        attrs["sequence_frames"] = sequence
+    if config.moving_objects:  # the catalog's motion.toml, as used: not part of the catalog
+        motion = {name: m.source for name, m in sorted(catalog.motion.items())}
+        attrs |= {
+            "motion": json.dumps(motion, sort_keys=True),
+            "motion_sha256": fingerprint(motion),
+        }
+    schema = sweep_schema(reported_returns(attrs), "sequence_frames" in attrs)
     shapes = {name: (dtype, tail(h, c)) for name, (dtype, tail) in schema.items()}
     name = sweep_name(config, sweep_config)
     batch = frames_a_batch(config, batch)
@@ -394,7 +478,7 @@ def sweep(
             writer.file.create_dataset("emission_ns", data=sweep_emission_ns(sensor))
             bar = tqdm(total=n, desc="sweep", unit="frame", disable=not progress)
             for first in range(0, n, batch):
-                frames = simulate_frames(config, catalog, first, min(first + batch, n), n)
+                frames = simulate_frames(config, catalog, first, min(first + batch, n), n, sequence)
                 writer.append({name: getattr(frames, name) for name in schema})
                 bar.update(len(frames.labels))
             bar.close()

@@ -53,8 +53,12 @@ def yaw_rotation(yaw_deg) -> np.ndarray:
     """Rotations about the vertical axis, counter-clockwise seen from above: (*S,) degrees ->
     (*S, 3, 3)."""
     yaw = np.deg2rad(np.asarray(yaw_deg, dtype=np.float64))
-    c, s = np.cos(yaw), np.sin(yaw)
-    rotation = np.zeros(yaw.shape + (3, 3))
+    return _about_z(np.cos(yaw), np.sin(yaw))
+
+
+def _about_z(c: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """The rotations about z of cosines ``c`` and sines ``s`` (*S,): (*S, 3, 3)."""
+    rotation = np.zeros(c.shape + (3, 3))
     rotation[..., 0, 0], rotation[..., 0, 1] = c, -s
     rotation[..., 1, 0], rotation[..., 1, 1] = s, c
     rotation[..., 2, 2] = 1.0
@@ -81,18 +85,27 @@ class PlanarMotion:
 
     @property
     def moves(self) -> bool:
-        return self.speed_mps != 0.0 or self.yaw_rate_deg_s != 0.0
+        return bool(np.any(self.speed_mps) or np.any(self.yaw_rate_deg_s))
 
     def poses(self, t_s) -> Poses:
         """The body's poses at times ``t_s`` (*S,) seconds from t = 0: (*S) poses mapping its
-        frame at t = 0 (the scene as built) to the scene at each time."""
+        frame at t = 0 (the scene as built) to the scene at each time. Each field may also be
+        an array that broadcasts against ``t_s`` (a batch of bodies: (B, 1, 1) against a
+        frame's (B, H, C) times; ``origin_m`` a pair of such arrays)."""
         t = np.asarray(t_s, dtype=np.float64)
         turn = np.deg2rad(self.yaw_rate_deg_s) * t  # (*S,) radians turned by then
         chord = self.speed_mps * t * np.sinc(turn / (2.0 * np.pi))  # np.sinc(x) = sin(pi x)/(pi x)
         along = np.deg2rad(self.heading_deg) + turn / 2.0
-        rotation = yaw_rotation(np.rad2deg(turn))
-        origin = np.array([self.origin_m[0], self.origin_m[1], 0.0])
-        centre = origin + np.stack([chord * np.cos(along), chord * np.sin(along), 0.0 * t], -1)
+        c, s = np.cos(turn), np.sin(turn)
+        ox, oy = (np.asarray(v, dtype=np.float64) for v in self.origin_m)
+        rotation = _about_z(c, s)
         # a point x of the body at t = 0 goes to R (x - origin) + origin + d(t)
-        translation = centre - np.einsum("...ij,j->...i", rotation, origin)
+        translation = np.stack(
+            np.broadcast_arrays(
+                ox - (c * ox - s * oy) + chord * np.cos(along),
+                oy - (s * ox + c * oy) + chord * np.sin(along),
+                np.zeros_like(turn),
+            ),
+            axis=-1,
+        )
         return Poses(rotation, translation)

@@ -120,7 +120,7 @@ def _triangles(kind: str, segments: int) -> int:
     return len(template(kind, segments).triangles)
 
 
-def _param(where: str, key: str, name: str, spec) -> Param:
+def parse_param(where: str, key: str, name: str, spec) -> Param:
     if finite_number(spec):
         return Param(name, "fixed", (float(spec),))
     if isinstance(spec, list) and len(spec) == 2 and all(map(finite_number, spec)):
@@ -246,14 +246,14 @@ def parse_recipe(where: str, stem: str, data: dict, surfaces: list[str], is_obje
             raise fail(where, "placement", "a table", placement)
         check_keys(where + " [placement]", placement, set(PLACEMENT_KEYS), set(PLACEMENT_KEYS))
         for key in PLACEMENT_KEYS:
-            params[key] = _param(where, f"placement.{key}", key, placement[key])
+            params[key] = parse_param(where, f"placement.{key}", key, placement[key])
     table = data.get("params", {})
     if not isinstance(table, dict):
         raise fail(where, "params", "a table of parameters", table)
     for name, spec in table.items():
         if name in params or not expr.is_parameter_name(name):
             raise fail(where, f"params.{name}", f"a new name: {expr.PARAMETER_NAME_RULE}", name)
-        params[name] = _param(where, f"params.{name}", name, spec)
+        params[name] = parse_param(where, f"params.{name}", name, spec)
     prims = data["primitive"]
     if not (isinstance(prims, list) and prims and all(isinstance(p, dict) for p in prims)):
         raise fail(where, "primitive", "one or more [[primitive]] tables", prims)

@@ -13,8 +13,11 @@ import json
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
+
 from simlidar.content import PLAIN_NAME, PLAIN_NAME_RULE, content_dir
 from simlidar.errors import RecipeError
+from simlidar.scene.motion import KEYS, MOTION_FILE, STILL, load_motion
 from simlidar.scene.parse import (
     Recipe,
     check_keys,
@@ -37,6 +40,9 @@ class Catalog:
     # catalog that sensor sees (:meth:`for_sensor`); not part of the stored catalog
     variants: dict = field(default_factory=dict, compare=False, repr=False)
     sensor: str | None = None  # the sensor whose variant this catalog is, once chosen
+    # object name -> how it moves (the catalog's motion.toml, :mod:`simlidar.scene.motion`);
+    # not part of the stored catalog: a sweep with moving objects stores it on its own
+    motion: dict = field(default_factory=dict, compare=False, repr=False)
 
     def for_sensor(self, name: str) -> "Catalog":
         """The catalog as the sensor ``name`` sees it: the recipes with the parameters of
@@ -65,6 +71,18 @@ class Catalog:
     @property
     def object_columns(self) -> int:
         return max(len(r.params) for r in self.objects)
+
+    def object_motion(self, object_ids, uniforms) -> dict:
+        """How each scene's object moves (:mod:`simlidar.scene.motion`; an object the catalog's
+        motion.toml leaves out, and "none", stand still): (B,) object indices and (B,
+        motion.COLUMNS) uniform variates -> each key of motion.KEYS -> (B,) float64."""
+        drawn = {key: np.zeros(len(object_ids)) for key in KEYS}
+        for oid in np.unique(object_ids):
+            rows = np.nonzero(object_ids == oid)[0]
+            motion = self.motion.get(self.objects[oid].name, STILL)
+            for key, values in motion.sample(uniforms[rows]).items():
+                drawn[key][rows] = values
+        return drawn
 
     def with_variation(self, factor: float) -> "Catalog":
         """The catalog with every uniform and integer parameter range of every layout and
@@ -145,7 +163,9 @@ def load_catalog(root: str | Path | None = None) -> Catalog:
         path.stem: _sensor_variant(path, surfaces, layouts, objects)
         for path in sorted((root / "sensors").glob("*.toml"))
     }
-    return Catalog(str(root), tuple(surfaces), layouts, objects, variants)
+    motion_file = root / MOTION_FILE
+    motion = load_motion(motion_file, [r.name for r in objects[1:]]) if motion_file.exists() else {}
+    return Catalog(str(root), tuple(surfaces), layouts, objects, variants, motion=motion)
 
 
 def _sensor_variant(

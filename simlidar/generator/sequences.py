@@ -1,0 +1,117 @@
+"""Sequences and motion in a sweep (``simlidar sweep`` with ``--ego-speed``, ``--ego-yaw-rate``,
+``--moving-objects`` or ``--sequence-frames``; docs/sweeps.md, "Motion"): where each frame of a
+sequence starts as the head turns on (:func:`frame_cycles`), each pulse's time and the ego's and
+objects' motions at it (:func:`frame_motion`), the fields a frame in motion stores, and what a
+sweep in motion must satisfy (:func:`check_motion`)."""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from simlidar.errors import ConfigError
+from simlidar.generator.config import GeneratorConfig
+from simlidar.motion.poses import PlanarMotion, Poses
+from simlidar.scene.build import CELL_HALF_EXTENT_M
+from simlidar.scene.motion import KEYS as MOTION_KEYS
+from simlidar.scene.motion import MOTION_FILE
+from simlidar.scene.recipe import Catalog
+from simlidar.sensor.raycast import CELL_SPACING_M
+from simlidar.sensor.rays import cycles_per_rotation, sweep_emission_ns
+
+
+def frame_cycles(sensor, step: np.ndarray, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where frame ``step`` of a sequence starts: its first firing cycle, counted from the
+    sequence's first, and its phase. The head turns on at 60e6 / rpm / cycle_us cycles a
+    rotation (1808.45 for a VLP-16 at 600 RPM): rotation j holds the cycles whose azimuth
+    ``-180 + (k + phase_0) * azimuth_step_deg`` lies in [-180 + 360 j, 180 + 360 j), and a
+    frame is its first :func:`~simlidar.sensor.rays.cycles_per_rotation` cycles (the cycle
+    left over, where there is one, belongs to no frame). Frame 0 starts at cycle 0 with the
+    sequence's own phase, bit for bit (every sweep before sequences).
+
+    step : (n,) int, each frame's place in its sequence
+    phase : (n,) float64 in [0, 1), its sequence's phase (the scene's draw)
+    returns : first cycle (n,) float64 (whole numbers), the frame's phase (n,) in [0, 1)
+    """
+    turned = step * (60e6 / sensor.rpm / sensor.cycle_us) - phase
+    first = np.ceil(turned) + 0.0  # + 0.0: frame 0's ceil(-phase) is -0.0
+    return first, first - turned
+
+
+@dataclass(frozen=True)
+class FrameMotion:
+    """How a batch of frames moves: each pulse's time and the ego's and objects' motions."""
+
+    times_s: np.ndarray  # (n, H, C) float64, each pulse's emission from its sequence's start
+    start_ns: np.ndarray  # (n,) float64, each frame's first firing from its sequence's start
+    reference_s: np.ndarray  # (n,) float64, each frame's middle cycle (the head facing ahead)
+    ego: PlanarMotion  # the sensor's motion from the sequence's start
+    things: PlanarMotion | None  # each frame's object's, fields (n, 1, 1); None: standing
+
+    def objects(self, times_s: np.ndarray) -> Poses | None:
+        """The objects' poses (relative to their placements) at ``times_s`` (n, ...)."""
+        return None if self.things is None else self.things.poses(times_s)
+
+    def fields(self, scene_of: np.ndarray, boxes: np.ndarray, drawn: dict | None) -> dict:
+        """The frames' SWEEP_MOTION_SCHEMA fields; ``boxes`` (n, 7), each object's box at its
+        placement, moved to the frame's reference time in place."""
+        ego = self.ego.poses(self.reference_s)
+        if self.things is not None:  # the fields' (n, 1, 1) against times (n, 1, 1)
+            moved = self.things.poses(self.reference_s[:, None, None])
+            boxes[:, 3:6] = moved.to_scene(boxes[:, None, None, 3:6])[:, 0, 0]
+            boxes[:, 6] += self.things.yaw_rate_deg_s[:, 0, 0] * self.reference_s
+        motion = np.zeros((len(scene_of), 3))
+        if drawn is not None:
+            motion = np.stack([drawn[key] for key in MOTION_KEYS], axis=-1)
+        return {
+            "sequence": scene_of.astype(np.int64),
+            "start_ns": self.start_ns,
+            "ego_pose": np.concatenate([ego.rotation, ego.translation_m[..., None]], axis=-1),
+            "object_motion": motion.astype(np.float32),
+        }
+
+
+def frame_motion(
+    config: GeneratorConfig, scene, first_cycle: np.ndarray, drawn: dict | None
+) -> FrameMotion:
+    """The motion of a batch of frames of ``config`` (which moves something): each pulse's
+    time from its frame's ``first_cycle`` (n,) and the sweep's emission times, the ego's
+    motion and, with ``drawn`` (each frame's object's speed, heading and yaw rate,
+    :meth:`~simlidar.scene.recipe.Catalog.object_motion`), the objects' about their
+    placements (``scene.object_pose``)."""
+    sensor = config.sensor
+    start_ns = first_cycle * sensor.cycle_us * 1000.0
+    times_s = (start_ns[:, None, None] + sweep_emission_ns(sensor)[None]) * 1e-9
+    middle = first_cycle + cycles_per_rotation(sensor) // 2
+    ego = PlanarMotion(config.ego_speed_mps, config.ego_yaw_rate_deg_s)
+    things = None
+    if drawn is not None:
+        column = {key: value[:, None, None] for key, value in drawn.items()}
+        at = np.nan_to_num(scene.object_pose[:, :2])[:, :, None, None]  # none: no object
+        things = PlanarMotion(column["speed_mps"], column["yaw_rate_deg_s"],
+                              column["heading_deg"], (at[:, 0], at[:, 1]))  # fmt: skip
+    return FrameMotion(times_s, start_ns, middle * sensor.cycle_us * 1e-6, ego, things)
+
+
+def check_motion(config: GeneratorConfig, catalog: Catalog, sequence: int) -> None:
+    """Refuse in one line (ConfigError) moving objects of a catalog without a motion.toml, and
+    a sequence along which the ego leaves the ray caster's cell (its rays would reach another
+    scene's: :data:`~simlidar.sensor.raycast.CELL_SPACING_M`)."""
+    if config.moving_objects and not catalog.motion:
+        raise ConfigError(
+            f"moving_objects (--moving-objects): the scene catalog {catalog.root} has no "
+            f"{MOTION_FILE}; expected one saying how its objects move (docs/scenes.md)"
+        )
+    sensor = config.sensor
+    travel_m = config.ego_speed_mps * sequence * 60.0 / sensor.rpm
+    room_m = CELL_SPACING_M - CELL_HALF_EXTENT_M - sensor.max_range_m - 1.0 - MOUNT_ROOM_M
+    if travel_m > room_m:
+        raise ConfigError(
+            f"ego_speed_mps={config.ego_speed_mps!r} over a sequence of {sequence} frames: "
+            f"{travel_m:.4g} m of travel; expected at most {room_m:.4g} m (the scene's cell; "
+            "fewer frames a sequence, --sequence-frames, or a lower speed)"
+        )
+
+
+# what the sensor's mount and emitters add to the ego's reach (the tallest shipped: the
+# HDL-64E, 1.73 m up)
+MOUNT_ROOM_M = 3.0
