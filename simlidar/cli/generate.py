@@ -257,6 +257,19 @@ class ExportFormats(click.ParamType):
         return formats
 
 
+def _trajectory(path: Path | None):
+    """The trajectory file ``--trajectory`` names, read and checked (a usage error, exit 2,
+    names its line otherwise)."""
+    if path is None:
+        return None
+    from simlidar.motion.trajectory import load_trajectory
+
+    try:
+        return load_trajectory(path, f"--trajectory {path}")
+    except ConfigError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--trajectory'") from None
+
+
 @click.command()
 @setting_option(SweepConfig, "frames")
 @setting_option(GeneratorConfig, "classes")
@@ -280,6 +293,14 @@ class ExportFormats(click.ParamType):
 @setting_option(GeneratorConfig, "ego_speed_mps", "--ego-speed", "ego_speed_mps", metavar="MPS")
 @setting_option(
     GeneratorConfig, "ego_yaw_rate_deg_s", "--ego-yaw-rate", "ego_yaw_rate_deg_s", metavar="DEG_S"
+)
+@click.option(
+    "--trajectory",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="The ego's poses from a file of rows 't x y z roll pitch yaw' (seconds from each "
+    "sequence's start, metres, degrees; R = Rz(yaw) Ry(pitch) Rx(roll)), interpolated per "
+    "pulse; instead of --ego-speed and --ego-yaw-rate (docs/sweeps.md, 'Motion').",
 )
 @click.option(
     "--moving-objects",
@@ -313,6 +334,7 @@ def sweep(
     return_mode,
     ego_speed_mps,
     ego_yaw_rate_deg_s,
+    trajectory,
     moving_objects,
     sequence_frames,
     exports,
@@ -329,7 +351,7 @@ def sweep(
     catalog = catalog_for(scenes, classes)
     fields = dict(classes=classes, seed=seed, sensor=chosen_sensor)
     fields |= dict(ego_speed_mps=ego_speed_mps, ego_yaw_rate_deg_s=ego_yaw_rate_deg_s)
-    fields |= dict(moving_objects=moving_objects)
+    fields |= dict(moving_objects=moving_objects, ego_trajectory=_trajectory(trajectory))
     if profile is None:
         fields |= dict(fog_visibility_m=fog_visibility_m, rain_rate_mm_h=rain_rate_mm_h)
         fields |= dict(beam_samples=beam_samples, return_mode=return_mode)

@@ -1,13 +1,18 @@
 """The generator's configuration: one frozen dataclass, stored as JSON in every split file."""
 
+import hashlib
 import json
 import math
 from dataclasses import asdict, dataclass, fields, replace
+
+import numpy as np
 
 from simlidar.content import key_error
 from simlidar.dataset.storage import MAX_CHUNK_BYTES
 from simlidar.errors import ConfigError, shown
 from simlidar.generator.profiles import PHYSICAL_RULE, Profile, checked_profile
+from simlidar.motion.poses import PlanarMotion
+from simlidar.motion.trajectory import Trajectory
 from simlidar.sensor.footprint import MAX_RINGS
 from simlidar.sensor.model import Sensor, default_sensor
 from simlidar.sensor.rays import scan_window_ns
@@ -151,6 +156,14 @@ class GeneratorConfig:
         "heading and its travel turn together (sweeps only).",
         Range(-MAX_YAW_RATE_DEG_S, MAX_YAW_RATE_DEG_S, "deg/s", note="(0: straight)"),
     )
+    # stored as its size and digest (the poses themselves: the sweep's `ego_trajectory`)
+    ego_trajectory: Trajectory | None = setting(
+        None,
+        "The ego's poses from a trajectory file (simlidar.motion.trajectory: rows t x y z roll "
+        "pitch yaw from each sequence's start), interpolated per pulse: linear in position, "
+        "slerp in rotation; instead of ego_speed_mps and ego_yaw_rate_deg_s (sweeps only).",
+        compare=False,
+    )
     moving_objects: bool = setting(
         False,
         "Move each scene's object as the scene catalog's motion.toml says (speed, heading of "
@@ -160,6 +173,17 @@ class GeneratorConfig:
     )
 
     def __post_init__(self) -> None:
+        if not isinstance(self.ego_trajectory, Trajectory | None):
+            raise ConfigError(
+                f"ego_trajectory={shown(self.ego_trajectory)}: expected a trajectory "
+                "(simlidar.motion.trajectory.load_trajectory) or None"
+            )
+        if self.ego_trajectory is not None and (self.ego_speed_mps or self.ego_yaw_rate_deg_s):
+            raise ConfigError(
+                f"ego_speed_mps={self.ego_speed_mps!r}, ego_yaw_rate_deg_s="
+                f"{self.ego_yaw_rate_deg_s!r} with a trajectory: expected one way of moving "
+                "the ego (--trajectory, or --ego-speed and --ego-yaw-rate)"
+            )
         for name in ("train_size", "test_size"):  # before the rules: a better message
             value = getattr(self, name)
             classes = self.classes if SIZE.accepts(self.classes) else SIZE.low
@@ -246,7 +270,16 @@ class GeneratorConfig:
     @property
     def moves(self) -> bool:
         """Whether anything moves: the ego vehicle or the scenes' objects."""
-        return bool(self.ego_speed_mps or self.ego_yaw_rate_deg_s or self.moving_objects)
+        ego = self.ego_speed_mps or self.ego_yaw_rate_deg_s or self.ego_trajectory is not None
+        return bool(ego or self.moving_objects)
+
+    @property
+    def ego_motion(self) -> "PlanarMotion | Trajectory":
+        """The ego's motion from a sequence's start: its trajectory, or its speed and yaw rate
+        (standing, where neither is given); ``.poses(t_s)`` of either gives its poses."""
+        if self.ego_trajectory is not None:
+            return self.ego_trajectory
+        return PlanarMotion(self.ego_speed_mps, self.ego_yaw_rate_deg_s)
 
     @property
     def receiver(self) -> str | None:
@@ -363,6 +396,10 @@ class GeneratorConfig:
         for key in ("ego_speed_mps", "ego_yaw_rate_deg_s", "moving_objects"):
             if not values[key]:
                 del values[key]  # absent means no motion (same reason)
+        if self.ego_trajectory is None:
+            del values["ego_trajectory"]  # same reason
+        else:  # the poses are the sweep's dataset `ego_trajectory`
+            values["ego_trajectory"] = trajectory_summary(self.ego_trajectory)
         return values
 
     def to_json(self) -> str:
@@ -392,3 +429,19 @@ class GeneratorConfig:
             given = {k: v for k, v in profile.items() if k != "name"}
             values["profile"] = checked_profile(f"configuration: profile {name!r}", name, given)
         return cls(**values)
+
+
+def trajectory_summary(trajectory: Trajectory) -> dict:
+    """What a configuration stores of a trajectory: its rows and the sha256 of its poses
+    (:func:`trajectory_rows` as little-endian float64)."""
+    rows = trajectory_rows(trajectory)
+    digest = hashlib.sha256(rows.astype("<f8").tobytes()).hexdigest()
+    return {"rows": len(rows), "sha256": digest}
+
+
+def trajectory_rows(trajectory: Trajectory) -> np.ndarray:
+    """A trajectory as a sweep stores it (dataset ``ego_trajectory``): (K, 8) float64 rows of
+    t_s, x_m, y_m, z_m and the rotation's unit quaternion w, x, y, z."""
+    return np.concatenate(
+        [trajectory.t_s[:, None], trajectory.positions_m, trajectory.quaternions], axis=1
+    )

@@ -19,6 +19,7 @@ from simlidar.dataset.schema import (
 )
 from simlidar.errors import ConfigError
 from simlidar.motion.poses import PlanarMotion, Poses
+from simlidar.motion.trajectory import Trajectory
 from simlidar.sensor.model import Sensor, row_order
 from simlidar.sensor.rays import sweep_rays
 
@@ -118,7 +119,11 @@ def deskewed_xyz(path: str | Path, frame: int, points: np.ndarray | None = None)
             return xyz
         config = json.loads(f.attrs["config"])
         start_ns, pose = float(f["start_ns"][frame]), f["ego_pose"][frame]
-    ego = PlanarMotion(config.get("ego_speed_mps", 0.0), config.get("ego_yaw_rate_deg_s", 0.0))
+        rows = f["ego_trajectory"][:] if "ego_trajectory" in f else None
+    if rows is not None:  # the file's own poses: t, x, y, z, then the quaternion
+        ego = Trajectory(rows[:, 0], rows[:, 1:4], rows[:, 4:], f"{path}: ego_trajectory")
+    else:
+        ego = PlanarMotion(config.get("ego_speed_mps", 0.0), config.get("ego_yaw_rate_deg_s", 0.0))
     mount = np.array([0.0, 0.0, sensor.mount_height_m])  # the rays' frame stands on the road
     at_pulse = ego.poses((start_ns + points["t_ns"]) * 1e-9).to_scene(xyz + mount)
     return Poses(pose[:, :3], pose[:, 3]).to_body(at_pulse) - mount

@@ -11,6 +11,7 @@ import numpy as np
 from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.motion.poses import PlanarMotion, Poses
+from simlidar.motion.trajectory import Trajectory
 from simlidar.scene.build import CELL_HALF_EXTENT_M
 from simlidar.scene.motion import KEYS as MOTION_KEYS
 from simlidar.scene.motion import MOTION_FILE
@@ -44,7 +45,7 @@ class FrameMotion:
     times_s: np.ndarray  # (n, H, C) float64, each pulse's emission from its sequence's start
     start_ns: np.ndarray  # (n,) float64, each frame's first firing from its sequence's start
     reference_s: np.ndarray  # (n,) float64, each frame's middle cycle (the head facing ahead)
-    ego: PlanarMotion  # the sensor's motion from the sequence's start
+    ego: PlanarMotion | Trajectory  # the sensor's motion from the sequence's start
     things: PlanarMotion | None  # each frame's object's, fields (n, 1, 1); None: standing
 
     def objects(self, times_s: np.ndarray) -> Poses | None:
@@ -82,7 +83,7 @@ def frame_motion(
     start_ns = first_cycle * sensor.cycle_us * 1000.0
     times_s = (start_ns[:, None, None] + sweep_emission_ns(sensor)[None]) * 1e-9
     middle = first_cycle + cycles_per_rotation(sensor) // 2
-    ego = PlanarMotion(config.ego_speed_mps, config.ego_yaw_rate_deg_s)
+    ego = config.ego_motion
     things = None
     if drawn is not None:
         column = {key: value[:, None, None] for key, value in drawn.items()}
@@ -102,13 +103,24 @@ def check_motion(config: GeneratorConfig, catalog: Catalog, sequence: int) -> No
             f"{MOTION_FILE}; expected one saying how its objects move (docs/scenes.md)"
         )
     sensor = config.sensor
-    travel_m = config.ego_speed_mps * sequence * 60.0 / sensor.rpm
+    span_s = sequence * 60.0 / sensor.rpm  # every pulse of the sequence leaves before then
     room_m = CELL_SPACING_M - CELL_HALF_EXTENT_M - sensor.max_range_m - 1.0 - MOUNT_ROOM_M
+    trajectory = config.ego_trajectory
+    if trajectory is None:
+        travel_m = config.ego_speed_mps * span_s
+        how = f"ego_speed_mps={config.ego_speed_mps!r}"
+    else:
+        trajectory.check_covers(0.0, span_s, f"--trajectory {trajectory.source}")
+        inside = (trajectory.t_s > 0.0) & (trajectory.t_s < span_s)
+        ends = trajectory.poses(np.array([0.0, span_s])).translation_m
+        points = np.concatenate([trajectory.positions_m[inside], ends])
+        travel_m = float(np.abs(points).max())
+        how = f"--trajectory {trajectory.source}"
     if travel_m > room_m:
         raise ConfigError(
-            f"ego_speed_mps={config.ego_speed_mps!r} over a sequence of {sequence} frames: "
-            f"{travel_m:.4g} m of travel; expected at most {room_m:.4g} m (the scene's cell; "
-            "fewer frames a sequence, --sequence-frames, or a lower speed)"
+            f"{how} over a sequence of {sequence} frames: {travel_m:.4g} m from the scene's "
+            f"origin; expected at most {room_m:.4g} m (the scene's cell; fewer frames a "
+            "sequence, --sequence-frames, or a lower speed)"
         )
 
 

@@ -4,6 +4,7 @@ points, deskewing), and the same bytes for any batch."""
 
 import hashlib
 import json
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -145,7 +146,7 @@ def test_standing_still_in_sequences_sees_the_same_scene_each_rotation(tmp_path)
         (["--ego-speed", "-1"], "not in the range 0<=x<=70"),
         (["--ego-speed", "nan"], "--ego-speed"),
         (["--ego-yaw-rate", "400"], "--ego-yaw-rate"),
-        (["--ego-speed", "30", "--frames", "200"], "600 m of travel; expected at most"),
+        (["--ego-speed", "30", "--frames", "200"], "600 m from the scene's origin; expected"),
         (["--sequence-frames", "-2"], "--sequence-frames"),
     ],
 )
@@ -169,3 +170,51 @@ def test_generate_refuses_motion_until_windows_move(tmp_path):
         generate(GeneratorConfig(ego_speed_mps=3.0, train_size=32, test_size=32), [0.2],
                  load_catalog(), tmp_path, progress=False)  # fmt: skip
     assert not any(tmp_path.iterdir())
+
+
+def test_a_trajectory_file_of_a_straight_drive_is_that_drive(tmp_path, cli):
+    """Two rows, 0 s at the origin and 1 s 10 m ahead, interpolate to 10 t: the points, the
+    poses and the deskewed scans are those of --ego-speed 10 to the bit."""
+    rows = tmp_path / "drive.txt"
+    rows.write_text("# t x y z roll pitch yaw\n0 0 0 0 0 0 0\n1.0, 10, 0, 0, 0, 0, 0\n")
+    made = {}
+    for name, options in (("file", ["--trajectory", rows]), ("speed", ["--ego-speed", "10"])):
+        result = cli("sweep", "--frames", "2", *options, "--export", "kitti", "--out",
+                     tmp_path / name, "--json")  # fmt: skip
+        assert result.exit_code == 0, result.output
+        made[name] = json.loads(result.stdout)["path"]
+    assert "-traj" in made["file"] and made["file"].endswith("-v1.4.0")
+    with h5py.File(f"{made['file']}/frames.h5") as a, h5py.File(f"{made['speed']}/frames.h5") as b:
+        assert a["ego_trajectory"].shape == (2, 8)
+        assert json.loads(a.attrs["config"])["ego_trajectory"]["rows"] == 2
+        for name in ("range_m", "surface", "intensity", "ego_pose", "start_ns", "phase"):
+            np.testing.assert_array_equal(a[name][:], b[name][:], err_msg=name)
+    for frame in ("000000", "000001"):
+        scans = [(tmp_path / n / Path(made[n]).name / "velodyne" / f"{frame}.bin").read_bytes()
+                 for n in ("file", "speed")]  # fmt: skip
+        assert scans[0] == scans[1]
+
+
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("0 0 0 0 0 0 0\n0.1 1 0 0 0 0 0\n", "expected them to cover the simulated span"),
+        ("0 0 0 0 0 0 0\n1 0 0 0 0 0 nan\n", "line 2"),
+        ("0 0 0 0 0 0 0\n", "expected at least 2"),
+        ("0 0 0 0 0 0 0\n0.2 500 0 0 0 0 0\n", "500 m from the scene's origin; expected"),
+    ],
+)
+def test_a_bad_trajectory_is_one_line_and_writes_nothing(text, expected, tmp_path, cli):
+    rows = tmp_path / "bad.txt"
+    rows.write_text(text)
+    result = cli("sweep", "--frames", "2", "--trajectory", rows, "--out", tmp_path / "o")
+    assert result.exit_code == 2, result.output
+    assert expected in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_trajectory_and_a_speed_together_are_refused(tmp_path, cli):
+    rows = tmp_path / "drive.txt"
+    rows.write_text("0 0 0 0 0 0 0\n1 10 0 0 0 0 0\n")
+    result = cli("sweep", "--trajectory", rows, "--ego-speed", "3", "--out", tmp_path / "o")
+    assert result.exit_code == 2 and "expected one way of moving the ego" in result.stderr
