@@ -133,3 +133,30 @@ def test_a_batch_of_frames_is_the_frames_one_at_a_time():
         np.testing.assert_array_equal(both.range_m[k], alone.range_m[0])
         np.testing.assert_array_equal(both.surface[k], alone.surface[0])
         np.testing.assert_array_equal(both.cos_incidence[k], alone.cos_incidence[0])
+
+
+def test_the_compiled_kernels_give_the_same_hits():
+    """Long runs cast through the compiled kernels (raycast.compiled_for): the same bits."""
+    sensor = default_sensor()
+    origins, directions, t = _frame(sensor)
+    scene = _scene(((15.0, 2.0, 0.0), (4.0, 1.8, 1.5), CAR, True),
+                   ((40.5, 0.0, -5.0), (1.0, 200.0, 30.0), WALL, False))  # fmt: skip
+    ego = PlanarMotion(speed_mps=12.0, yaw_rate_deg_s=-20.0).poses(t)
+    thing = PlanarMotion(6.0, 15.0, 90.0, (15.0, 2.0)).poses(t)
+    forms = [
+        cast_moving(
+            scene,
+            origins,
+            directions,
+            np.array([9]),
+            100.0,
+            ego,
+            thing,
+            incidence=True,
+            compiled=compiled,
+        )  # fmt: skip
+        for compiled in (False, True)
+    ]
+    for name in ("range_m", "surface", "on_object", "cos_incidence"):
+        np.testing.assert_array_equal(getattr(forms[0], name), getattr(forms[1], name), name)
+    assert (forms[0].surface == CAR).sum() > 50
