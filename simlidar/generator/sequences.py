@@ -19,6 +19,10 @@ from simlidar.scene.recipe import Catalog
 from simlidar.sensor.raycast import CELL_SPACING_M
 from simlidar.sensor.rays import cycles_per_rotation, sweep_emission_ns
 
+# what the sensor's mount and emitters add to the ego's reach (the tallest shipped: the
+# HDL-64E, 1.73 m up)
+MOUNT_ROOM_M = 3.0
+
 
 def frame_cycles(sensor, step: np.ndarray, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Where frame ``step`` of a sequence starts: its first firing cycle, counted from the
@@ -122,8 +126,3 @@ def check_motion(config: GeneratorConfig, catalog: Catalog, sequence: int) -> No
             f"origin; expected at most {room_m:.4g} m (the scene's cell; fewer frames a "
             "sequence, --sequence-frames, or a lower speed)"
         )
-
-
-# what the sensor's mount and emitters add to the ego's reach (the tallest shipped: the
-# HDL-64E, 1.73 m up)
-MOUNT_ROOM_M = 3.0
