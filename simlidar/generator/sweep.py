@@ -46,7 +46,7 @@ from simlidar.dataset.version import (
 )
 from simlidar.dataset.writer import SplitWriter
 from simlidar.errors import ConfigError
-from simlidar.generator.bev import draw_bev
+from simlidar.generator.bev import draw_bev, draw_motion
 from simlidar.generator.config import GeneratorConfig, trajectory_rows, trajectory_summary
 from simlidar.generator.exports import EXPORTS, export_frame
 from simlidar.generator.frames import frame_points as frame_points  # docs/sweeps.md's path
@@ -493,6 +493,7 @@ def sweep(
             writer.abort()
             raise
         draw_bev(folder / SWEEP_FILE, folder / "bev.png")
+        draw_motion(folder / SWEEP_FILE, folder)  # in motion: motion.png and sequence.gif
         for fmt in exports:
             for f in range(n):
                 export_frame(folder / SWEEP_FILE, f, folder, fmt)
