@@ -2,7 +2,7 @@
 
     python benchmark/motion_pictures.py              # docs/img/sweep-motion.png, sweep-sequence.gif
 
-Simulates ``simlidar sweep --frames 40 --sequence-frames 20 --ego-speed 20 --moving-objects``
+Simulates ``simlidar sweep --frames 32 --sequence-frames 16 --ego-speed 20 --moving-objects``
 (VLP-16 at 600 RPM, the default catalog, seed 0: sequence 0 a tunnel without an object,
 sequence 1 a tunnel with an oncoming car) in a temporary folder, draws its ``motion.png`` and
 ``sequence.gif`` (:func:`simlidar.generator.bev.draw_motion`: the frame with the most car
@@ -36,7 +36,7 @@ def main(argv=None) -> int:
         parser.error(f"--out {str(args.out)!r}: expected an existing folder")
     config = GeneratorConfig(ego_speed_mps=20.0, moving_objects=True)
     with tempfile.TemporaryDirectory() as work:
-        chosen = SweepConfig(frames=40, sequence_frames=20)
+        chosen = SweepConfig(frames=32, sequence_frames=16)
         made = sweep(config, chosen, load_catalog(), work, progress=False)
         drawn = draw_motion(made / "frames.h5", made)
 

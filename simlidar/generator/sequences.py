@@ -97,10 +97,39 @@ def frame_motion(
     return FrameMotion(times_s, start_ns, middle * sensor.cycle_us * 1e-6, ego, things)
 
 
+def objects_reach_m(catalog: Catalog, span_s: float, ego_m: float) -> float:
+    """A bound on how far a moving object of ``catalog`` can carry the sensor, in the object's
+    own frame, over ``span_s`` seconds: its travel (the fastest speed of the catalog's
+    motion.toml) and its turn about its placement point (the fastest yaw rate, over the
+    farthest placement and the ego's own ``ego_m``), for the sensor's reach in the ray
+    caster's cell. Conservative: it holds for every draw."""
+    speed = max((m.speed_mps.upper for m in catalog.motion.values()), default=0.0)
+    turn = max((abs(v) for m in catalog.motion.values() for v in m.yaw_rate_deg_s.values),
+               default=0.0)  # fmt: skip
+    placed = max(
+        (
+            float(np.hypot(*(abs(v) for v in pair)))
+            for recipe in catalog.objects
+            for pair in _placement_extremes(recipe)
+        ),
+        default=0.0,
+    )
+    return speed * span_s + min(np.deg2rad(turn) * span_s, 2.0) * (placed + ego_m)
+
+
+def _placement_extremes(recipe) -> list[tuple[float, float]]:
+    """The farthest (distance_m, lateral_m) corners an object recipe can place it at."""
+    params = {p.name: p for p in recipe.params}
+    if "distance_m" not in params:
+        return []
+    return [(d, lat) for d in params["distance_m"].values for lat in params["lateral_m"].values]
+
+
 def check_motion(config: GeneratorConfig, catalog: Catalog, sequence: int) -> None:
     """Refuse in one line (ConfigError) moving objects of a catalog without a motion.toml, and
-    a sequence along which the ego leaves the ray caster's cell (its rays would reach another
-    scene's: :data:`~simlidar.sensor.raycast.CELL_SPACING_M`)."""
+    a sequence along which the sensor, in the scene's or a moving object's frame
+    (:func:`objects_reach_m`), leaves the ray caster's cell (its rays would reach another
+    scene's: :data:`~simlidar.sensor.raycast.CELL_SPACING_M`), before anything is written."""
     if config.moving_objects and not catalog.motion:
         raise ConfigError(
             f"moving_objects (--moving-objects): the scene catalog {catalog.root} has no "
@@ -120,6 +149,9 @@ def check_motion(config: GeneratorConfig, catalog: Catalog, sequence: int) -> No
         points = np.concatenate([trajectory.positions_m[inside], ends])
         travel_m = float(np.abs(points).max())
         how = f"--trajectory {trajectory.source}"
+    if config.moving_objects:  # the sensor as a moving object sees it, in its own frame
+        travel_m += objects_reach_m(catalog, span_s, travel_m)
+        how += " and the objects' motion"
     if travel_m > room_m:
         raise ConfigError(
             f"{how} over a sequence of {sequence} frames: {travel_m:.4g} m from the scene's "

@@ -71,8 +71,7 @@ def cull(triangles, closed, ends):
 
     triangles : (T, 3, 3) float64
     closed : (T,) bool, the triangle is a face of a closed solid with outward winding
-    ends : (E, 3) float64, points whose convex hull holds every laser origin: the two ends of a
-        window's segment, or the corners of a moving sensor's origins' bounding box
+    ends : (2, 3) float64, the two ends of the window's segment of laser origins
     returns : keep (T,) bool, normal (T, 3) float64 (unnormalised, e1 x e2), plane (T,) float64
         (``normal . vertex0``)
     """
@@ -91,7 +90,7 @@ def cull(triangles, closed, ends):
         normal[t, 0], normal[t, 1], normal[t, 2] = nx, ny, nz
         plane[t] = p
         back = closed[t]
-        for j in range(ends.shape[0]):
+        for j in range(2):
             if back:
                 dot = fma(nz, ends[j, 2], fma(ny, ends[j, 1], fma(nx, ends[j, 0], 0.0)))
                 back = dot - p <= 0.0  # NaN: not a back face, as numpy's comparison says

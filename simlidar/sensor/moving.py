@@ -16,6 +16,12 @@ are the same in every frame. The two bodies of every sample are cast in one Embr
 the world's. The light's own flight is left out: a car at 10 m/s moves 6.7 um in the 667 ns a
 pulse takes to 100 m and back, 3.3e-3 of the VLP-16's 2 mm range resolution and 2.2e-4 of
 its +-3 cm accuracy (its user manual, 63-9243 Rev D).
+
+Every triangle is cast against (no culling of back faces): culling rests on every origin lying
+outside every closed solid, which a moving world breaks (an oncoming car that drives through
+the sensor), and a batch's culling then changed its frames with the batch's size. Without it
+the hits are exact wherever the origins are, and cheaper here: culling origins spread along a
+trajectory cost more than the Embree build it saved (``benchmark/motion_speed.py``).
 """
 
 from dataclasses import replace
@@ -70,8 +76,8 @@ def cast_moving(
     batch = len(slots)
     world_origins, world_directions = ego.to_scene(origins), ego.rotate(directions)
     if objects is None or not scene.is_object.any():
-        return cast(scene, world_origins, world_directions, slots, max_range_m,
-                    incidence=incidence, compiled=compiled, spread=True)  # fmt: skip
+        return cast(scene, world_origins, world_directions, slots, max_range_m, cull=False,
+                    incidence=incidence, compiled=compiled)  # fmt: skip
     both = SceneBatch(*(np.concatenate(pair) for pair in zip(
         _fields(_part(scene, ~scene.is_object, scene.sample)),
         _fields(_part(scene, scene.is_object, scene.sample + batch)),
@@ -82,9 +88,9 @@ def cast_moving(
         np.concatenate([world_directions, objects.unrotate(world_directions)]),
         np.concatenate([slots, (np.asarray(slots) + OBJECT_CELLS) % MAX_BATCH]),
         max_range_m,
+        cull=False,
         incidence=incidence,
         compiled=compiled,
-        spread=True,
     )
     return nearest(hits, batch)
 

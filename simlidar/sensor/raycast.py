@@ -68,9 +68,7 @@ def compiled_for(rays: int) -> bool:
     return rays >= COMPILED_FROM_RAYS
 
 
-def visible_triangles(
-    scene: SceneBatch, origins: np.ndarray, compiled: bool = False, spread: bool = False
-):
+def visible_triangles(scene: SceneBatch, origins: np.ndarray, compiled: bool = False):
     """Mask (T,) of the triangles a ray could hit first; normals (T, 3) and planes (T,) of all.
 
     Triangle k lies in the plane ``normal[k] . x = plane[k]``.
@@ -84,18 +82,10 @@ def visible_triangles(
     Degenerate (zero-area) triangles are dropped too.
 
     compiled : by the compiled kernel (the same numbers)
-    spread : the origins are not on one segment (a moving sensor's): a face is dropped when it
-        is turned away from the eight corners of their bounding box, which hold them all (a
-        face's side of its plane is linear in the point, so it holds over their hull)
     """
     tris = scene.triangles
     flat = origins.reshape(-1, 3)
-    if spread:
-        low, high = flat.min(axis=0), flat.max(axis=0)
-        ends = np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1])
-                         for z in (low[2], high[2])])  # fmt: skip
-    else:
-        ends = flat[[np.argmin(flat[:, 2]), np.argmax(flat[:, 2])]]  # (2, 3)
+    ends = flat[[np.argmin(flat[:, 2]), np.argmax(flat[:, 2])]]  # (2, 3)
     if compiled:
         from simlidar.sensor import cast_kernels
 
@@ -110,7 +100,7 @@ def visible_triangles(
         axis=-1,
     )
     plane = np.einsum("tk,tk->t", normal, tris[:, 0])
-    facing = normal @ ends.T - plane[:, None]  # (T, E)
+    facing = normal @ ends.T - plane[:, None]  # (T, 2)
     back = scene.closed & (facing <= 0).all(axis=1)
     return ~back & normal.any(axis=1), normal, plane
 
@@ -125,7 +115,6 @@ def cast(
     shared: bool = True,
     incidence: bool = False,
     compiled: bool = False,
-    spread: bool = False,
 ) -> Hits:
     """First hit of every pulse.
 
@@ -139,7 +128,6 @@ def cast(
         test that the hits are those of embreex's own copy)
     incidence : also give each hit's |cos incidence| (an intensity proxy: full sweeps)
     compiled : by the compiled kernels (the same hits, to the last bit; :func:`compiled_for`)
-    spread : the origins are spread out (a moving sensor's; :func:`visible_triangles`)
     """
     batch = origins.shape[0]
     if len(np.unique(slots)) != batch or not 0 <= np.min(slots) <= np.max(slots) < MAX_BATCH:
@@ -151,7 +139,7 @@ def cast(
             f"the cell centre: expected rays to stay within "
             f"{CELL_SPACING_M - CELL_HALF_EXTENT_M:.0f} m of it"
         )
-    mask, normal, plane = visible_triangles(scene, origins, compiled, spread)
+    mask, normal, plane = visible_triangles(scene, origins, compiled)
     keep = np.nonzero(mask if cull else normal.any(axis=1))[0]
     offsets = cell_offsets(np.asarray(slots))  # (B, 3)
 

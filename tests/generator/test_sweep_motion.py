@@ -218,3 +218,14 @@ def test_a_trajectory_and_a_speed_together_are_refused(tmp_path, cli):
     rows.write_text("0 0 0 0 0 0 0\n1 10 0 0 0 0 0\n")
     result = cli("sweep", "--trajectory", rows, "--ego-speed", "3", "--out", tmp_path / "o")
     assert result.exit_code == 2 and "expected one way of moving the ego" in result.stderr
+
+
+def test_a_sequence_the_objects_could_carry_out_of_the_cell_is_refused_first(tmp_path, cli):
+    """A car of motion.toml at up to 15 m/s over 100 frames (10 s) could carry the sensor 150 m
+    in its own frame: refused before anything is cast, where it failed at frame 160."""
+    result = cli("sweep", "--frames", "200", "--sequence-frames", "100", "--moving-objects",
+                 "--out", tmp_path / "o")  # fmt: skip
+    assert (
+        result.exit_code == 2 and "and the objects' motion over a sequence of 100" in result.stderr
+    )
+    assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
