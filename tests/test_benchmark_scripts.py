@@ -186,6 +186,39 @@ def test_sweep_speed_prints_frames_per_second_and_the_ratio(tmp_path):
     )
 
 
+def test_motion_speed_times_each_way_and_the_object_filter_drops_no_hit(tmp_path):
+    """benchmark/motion_speed.py at a tiny size: the three ways' figures and ratios, the
+    poses at every pulse only where something moves, the nearer of two casts only where the
+    object moves, the cheap sphere test passing at least every ray the exact one does and
+    dropping none of the object's hits, and the sequence's rates."""
+    figures = tmp_path / "motion.json"
+    args = "--sequences", "33", "--repeats", "1", "--sequence-frames", "4", "--frames", "4"
+    args += "--json", str(figures)
+    lines = run_script("motion_speed.py", *args, timeout=300).splitlines()
+    assert re.fullmatch(
+        r"one core: affinity \[\d+\], \d+ thread\(s\) after the casts; .+", lines[0]
+    )
+    assert any(line.startswith("   33 car ") for line in lines)
+    targets = [line for line in lines if line.startswith("  target: ")]
+    assert len(targets) == 2 and all("not measurable" in line for line in targets)
+    assert "object hits the cheap test drops: 0 (0: exact)" in "\n".join(lines)
+    record = json.loads(figures.read_text())
+    every = record["us_a_pulse_all"]
+    assert every["standing"] > 0 and every["ego"] > 0 and every["ego and object"] > 0
+    for way in ("ego", "ego and object"):
+        assert record["ratio_to_standing"][way] == pytest.approx(every[way] / every["standing"])
+    stages = record["stages_us_a_pulse"]
+    poses, nearest = "poses at every pulse (PlanarMotion)", "nearest of the two casts"
+    # standing, a sequence's frames take the ego's pose at their reference times only
+    assert stages["standing"].get(poses, 0.0) < 0.05 * stages["ego"][poses]
+    assert nearest not in stages["ego"] and stages["ego and object"][nearest] > 0
+    estimate = record["object_filter"]
+    assert estimate["dropped_object_hits"] == 0 and estimate["rays"] == 16 * 28928
+    assert 0 < estimate["exact_share"] <= estimate["cheap_share"] < 1
+    assert record["sequence"]["frames"] == 4
+    assert all(rate > 0 for rate in record["sequence"]["frames_per_s"].values())
+
+
 def _script(name: str):
     """The module ``benchmark/<name>.py``, imported (its main is not run)."""
     import importlib.util
@@ -712,6 +745,12 @@ BAD_ARGUMENTS = [
     ("sweep_decisions.py", ["--datasets", "lidar:0.1"], "'lidar:0.1': expected profile:noise"),
     ("sweep_decisions.py", ["--columns", "17"], "argument --columns: '17': expected comma-sep"),
     ("sweep_decisions.py", ["--seeds", "x"], "argument --seeds: 'x': expected comma-separated"),
+    ("motion_speed.py", ["--repeats", "0"], "argument --repeats: '0': expected an integer in"),
+    ("motion_speed.py", ["--sequences", "1,x"], "argument --sequences: '1,x': expected comma"),
+    ("motion_speed.py", ["--ego-speed", "nan"], "argument --ego-speed: 'nan': expected a num"),
+    ("motion_speed.py", ["--sequence-speed", "10"], "ego_speed_mps=10.0 and the objects' motion"),
+    ("motion_speed.py", ["--json", "no/x.json"], "--json: 'no/x.json': expected a file in"),
+    ("motion_speed.py", ["--frames", "0"], "argument --frames: '0': expected an integer in"),
     ("sweep_speed.py", ["--frames", "0"], "argument --frames: '0': expected an integer in"),
     ("sweep_speed.py", ["--sensor", "nosuch"], "sensor 'nosuch': expected one of"),
     ("ttfs_speed.py", ["--steps", "0"], "argument --steps: '0': expected an integer in"),
