@@ -1,4 +1,5 @@
-"""Fixtures of the generator's tests: small `sensor` profile datasets made and read back."""
+"""Fixtures of the generator's tests: small `sensor` profile datasets made and read back, and a
+catalog whose first layout is a wall across the road (the motion checks derived by hand)."""
 
 import hashlib
 
@@ -73,3 +74,31 @@ def refused():
         assert len(result.stderr.strip().splitlines()) == 1 and not out.exists()
 
     return check
+
+
+# class 0's layout replaced by a road and a wall whose face stands across it at x = 20 m: the
+# scene of the motion checks derived by hand (a car at 10 m/s before a wall)
+WALL_LAYOUT = """description = "A road, and a wall across it 20 m ahead."
+
+[[primitive]]
+kind = "box"
+surface = "road"
+at = [65.0, 0.0, -0.3]
+size = [150.0, 14.0, 0.3]
+
+[[primitive]]
+kind = "box"
+surface = "wall"
+at = [20.5, 0.0, 0.0]
+size = [1.0, 100.0, 10.0]
+"""
+
+
+@pytest.fixture
+def wall_catalog(catalog_copy):
+    """The shipped catalog with its first layout (class 0's) a wall across the road at 20 m."""
+    from simlidar.scene.recipe import load_catalog
+
+    (catalog_copy / "layouts" / "tunnel.toml").write_text(WALL_LAYOUT)
+    (catalog_copy / "sensors" / "hdl64e.toml").unlink()  # its ranges of the tunnel's parameters
+    return load_catalog(catalog_copy)

@@ -16,23 +16,6 @@ from simlidar.generator.bev import draw_motion, first_pose_xyz, shown_frames
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.frames import frame_points
 from simlidar.generator.sweep import SweepConfig, sweep
-from simlidar.scene.recipe import load_catalog
-
-# class 0's layout replaced by a wall whose face stands across the road at x = 20 m
-WALL_LAYOUT = """description = "A road, and a wall across it 20 m ahead."
-
-[[primitive]]
-kind = "box"
-surface = "road"
-at = [65.0, 0.0, -0.3]
-size = [150.0, 14.0, 0.3]
-
-[[primitive]]
-kind = "box"
-surface = "wall"
-at = [20.5, 0.0, 0.0]
-size = [1.0, 100.0, 10.0]
-"""
 
 
 @pytest.fixture(scope="module")
@@ -85,17 +68,15 @@ def test_the_frame_shown_has_the_most_object_points_and_its_sequence_is_animated
     np.testing.assert_array_equal(shown, [0, 1, 2])
 
 
-def test_the_static_world_stands_still_in_the_first_frames_pose(catalog_copy, tmp_path):
+def test_the_static_world_stands_still_in_the_first_frames_pose(wall_catalog, tmp_path):
     """A car at 10 m/s before a wall whose face is at x = 20 m; a VLP-16 at 600 RPM. Frame 0's
     reference time is its middle cycle, 904 x 55.296 us = 49.988 ms, the car 0.49988 m on:
     there the wall stands 19.50012 m ahead, and every frame's wall, deskewed and placed in
     that pose, stands there too (within the range's 2 mm quantisation), while the ego moves
     on a rotation (1808 or 1809 cycles, 99.98 or 100.04 ms, about 1 m) a frame."""
-    (catalog_copy / "layouts" / "tunnel.toml").write_text(WALL_LAYOUT)
-    (catalog_copy / "sensors" / "hdl64e.toml").unlink()  # its ranges of the tunnel's parameters
     config = GeneratorConfig(ego_speed_mps=10.0)
     chosen = SweepConfig(frames=3, sequence_frames=3)
-    path = sweep(config, chosen, load_catalog(catalog_copy), tmp_path, progress=False)
+    path = sweep(config, chosen, wall_catalog, tmp_path, progress=False)
     path = path / "frames.h5"
     with h5py.File(path) as f:
         wall = json.loads(f.attrs["surface_names"]).index("wall")

@@ -17,29 +17,6 @@ from simlidar.motion.poses import PlanarMotion
 from simlidar.scene.recipe import load_catalog
 from simlidar.sensor import default_sensor
 
-WALL_LAYOUT = """description = "A road, and a wall across it 20 m ahead."
-
-[[primitive]]
-kind = "box"
-surface = "road"
-at = [65.0, 0.0, -0.3]
-size = [150.0, 14.0, 0.3]
-
-[[primitive]]
-kind = "box"
-surface = "wall"
-at = [20.5, 0.0, 0.0]
-size = [1.0, 100.0, 10.0]
-"""
-
-
-@pytest.fixture
-def wall_catalog(catalog_copy):
-    """The shipped catalog with its first layout (class 0's) a wall across the road at 20 m."""
-    (catalog_copy / "layouts" / "tunnel.toml").write_text(WALL_LAYOUT)
-    (catalog_copy / "sensors" / "hdl64e.toml").unlink()  # its ranges of the tunnel's parameters
-    return load_catalog(catalog_copy)
-
 
 def _file(path):
     return path / "frames.h5"
