@@ -153,7 +153,7 @@ class Frames:
     returns_surface: np.ndarray | None = None  # (n, H, C, R) uint8, 0: none
     # in motion (SWEEP_MOTION_SCHEMA) only:
     sequence: np.ndarray | None = None  # (n,) int64, the frame's sequence
-    start_ns: np.ndarray | None = None  # (n,) float64, its first firing from its sequence's
+    start_ns: np.ndarray | None = None  # (n,) float64, its first firing, ns into its sequence
     ego_pose: np.ndarray | None = None  # (n, 3, 4) float64, the sensor at its reference time
     object_motion: np.ndarray | None = None  # (n, 3) float32 speed, heading, yaw rate
 
@@ -172,7 +172,8 @@ def simulate_frames(
     not the bytes: :func:`simlidar.sensor.raycast.compiled_for`). ``sequence``: frames of one
     sequence (:meth:`SweepConfig.sequence`): sequence s, frames s L .. s L + L - 1, is one
     scene drawn from the stream of index s, seen rotation after rotation (:func:`frame_cycles`)
-    and, where ``config`` moves anything, each pulse cast at its own time (:func:`_cast`)."""
+    and, where ``config`` moves anything, each pulse cast at its own time
+    (:func:`~simlidar.sensor.moving.cast_moving`)."""
     if not 0 < stop - start <= MAX_BATCH // 2:
         raise ConfigError(f"batch of {stop - start} frames: expected 1..{MAX_BATCH // 2}")
     sensor = config.sensor
@@ -349,7 +350,7 @@ def object_boxes(scene) -> np.ndarray:
     return boxes
 
 
-def sweep_version(config: GeneratorConfig, sweep: "SweepConfig | None" = None) -> str:
+def sweep_version(config: GeneratorConfig, sweep: SweepConfig | None = None) -> str:
     """SWEEP_MOTION_VERSION where anything moves, SWEEP_RETURNS_VERSION where every reported
     return is stored or with rain (a configuration key 1.2.0 does not know),
     SWEEP_RECEIVER_VERSION through a receiver, else SWEEP_VERSION."""
