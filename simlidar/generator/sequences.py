@@ -135,6 +135,8 @@ def check_motion(config: GeneratorConfig, catalog: Catalog, sequence: int) -> No
             f"moving_objects (--moving-objects): the scene catalog {catalog.root} has no "
             f"{MOTION_FILE}; expected one saying how its objects move (docs/scenes.md)"
         )
+    if not config.moves:  # the sensor stands where cast() checks its reach
+        return
     sensor = config.sensor
     span_s = sequence * 60.0 / sensor.rpm  # every pulse of the sequence leaves before then
     room_m = CELL_SPACING_M - CELL_HALF_EXTENT_M - sensor.max_range_m - 1.0 - MOUNT_ROOM_M
