@@ -1,11 +1,8 @@
 """The generator's configuration: one frozen dataclass, stored as JSON in every split file."""
 
-import hashlib
 import json
 import math
 from dataclasses import asdict, dataclass, fields, replace
-
-import numpy as np
 
 from simlidar.content import key_error
 from simlidar.dataset.storage import MAX_CHUNK_BYTES
@@ -399,7 +396,7 @@ class GeneratorConfig:
         if self.ego_trajectory is None:
             del values["ego_trajectory"]  # same reason
         else:  # the poses are the sweep's dataset `ego_trajectory`
-            values["ego_trajectory"] = trajectory_summary(self.ego_trajectory)
+            values["ego_trajectory"] = self.ego_trajectory.summary()
         return values
 
     def to_json(self) -> str:
@@ -429,19 +426,3 @@ class GeneratorConfig:
             given = {k: v for k, v in profile.items() if k != "name"}
             values["profile"] = checked_profile(f"configuration: profile {name!r}", name, given)
         return cls(**values)
-
-
-def trajectory_summary(trajectory: Trajectory) -> dict:
-    """What a configuration stores of a trajectory: its rows and the sha256 of its poses
-    (:func:`trajectory_rows` as little-endian float64)."""
-    rows = trajectory_rows(trajectory)
-    digest = hashlib.sha256(rows.astype("<f8").tobytes()).hexdigest()
-    return {"rows": len(rows), "sha256": digest}
-
-
-def trajectory_rows(trajectory: Trajectory) -> np.ndarray:
-    """A trajectory as a sweep stores it (dataset ``ego_trajectory``): (K, 8) float64 rows of
-    t_s, x_m, y_m, z_m and the rotation's unit quaternion w, x, y, z."""
-    return np.concatenate(
-        [trajectory.t_s[:, None], trajectory.positions_m, trajectory.quaternions], axis=1
-    )

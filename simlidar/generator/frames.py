@@ -121,7 +121,7 @@ def deskewed_xyz(path: str | Path, frame: int, points: np.ndarray | None = None)
         start_ns, pose = float(f["start_ns"][frame]), f["ego_pose"][frame]
         rows = f["ego_trajectory"][:] if "ego_trajectory" in f else None
     if rows is not None:  # the file's own poses: t, x, y, z, then the quaternion
-        ego = Trajectory(rows[:, 0], rows[:, 1:4], rows[:, 4:], f"{path}: ego_trajectory")
+        ego = Trajectory.from_rows(rows, f"{path}: ego_trajectory")
     else:
         ego = PlanarMotion(config.get("ego_speed_mps", 0.0), config.get("ego_yaw_rate_deg_s", 0.0))
     mount = np.array([0.0, 0.0, sensor.mount_height_m])  # the rays' frame stands on the road

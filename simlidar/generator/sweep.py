@@ -47,7 +47,7 @@ from simlidar.dataset.version import (
 from simlidar.dataset.writer import SplitWriter
 from simlidar.errors import ConfigError
 from simlidar.generator.bev import draw_bev, draw_motion
-from simlidar.generator.config import GeneratorConfig, trajectory_rows, trajectory_summary
+from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.exports import EXPORTS, export_frame
 from simlidar.generator.frames import frame_points as frame_points  # docs/sweeps.md's path
 from simlidar.generator.pulses import quantise_range
@@ -381,7 +381,7 @@ def motion_tag(config: GeneratorConfig, sweep: SweepConfig) -> str:
     sequences are not the default's (:meth:`SweepConfig.sequence`)."""
     tag = f"-ego{float(config.ego_speed_mps)!r}" if config.ego_speed_mps else ""
     if config.ego_trajectory is not None:
-        tag += f"-traj{trajectory_summary(config.ego_trajectory)['sha256'][:8]}"
+        tag += f"-traj{config.ego_trajectory.summary()['sha256'][:8]}"
     tag += f"-yaw{float(config.ego_yaw_rate_deg_s)!r}" if config.ego_yaw_rate_deg_s else ""
     tag += "-moving" if config.moving_objects else ""
     default = SweepConfig(frames=sweep.frames).sequence(config)
@@ -481,8 +481,7 @@ def sweep(
         try:
             writer.file.create_dataset("emission_ns", data=sweep_emission_ns(sensor))
             if config.ego_trajectory is not None:  # the poses the configuration's digest names
-                rows = trajectory_rows(config.ego_trajectory)
-                writer.file.create_dataset("ego_trajectory", data=rows)
+                writer.file.create_dataset("ego_trajectory", data=config.ego_trajectory.rows())
             bar = tqdm(total=n, desc="sweep", unit="frame", disable=not progress)
             for first in range(0, n, batch):
                 frames = simulate_frames(config, catalog, first, min(first + batch, n), n, sequence)

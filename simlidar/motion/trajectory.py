@@ -14,6 +14,7 @@ position moves linearly and the rotation by slerp, at a constant rate: the inter
 ROS's ``tf2`` between two transforms of its buffer.
 """
 
+import hashlib
 import math
 import re
 from array import array
@@ -101,6 +102,26 @@ class Trajectory:
             raise ConfigError(f"{self.source}: quaternions: expected unit quaternions")
         # each pair of consecutive rows' arc, (K - 1, 4) and (K - 1,): once, not per pulse
         object.__setattr__(self, "_arcs", shorter_arc(self.quaternions[:-1], self.quaternions[1:]))
+
+    @classmethod
+    def from_rows(cls, rows: np.ndarray, source: str = "trajectory") -> "Trajectory":
+        """The trajectory of :meth:`rows` (a sweep's dataset ``ego_trajectory``)."""
+        rows = np.asarray(rows, dtype=np.float64)
+        if rows.ndim != 2 or rows.shape[1] != 8:
+            raise ConfigError(f"{source}: rows of shape {rows.shape}, expected (K, 8)")
+        return cls(rows[:, 0], rows[:, 1:4], rows[:, 4:], source)
+
+    def rows(self) -> np.ndarray:
+        """The trajectory as a sweep stores it (dataset ``ego_trajectory``): (K, 8) float64
+        rows of t_s, x_m, y_m, z_m and the rotation's unit quaternion w, x, y, z."""
+        return np.concatenate([self.t_s[:, None], self.positions_m, self.quaternions], axis=1)
+
+    def summary(self) -> dict:
+        """What a configuration stores of the trajectory: its rows and the sha256 of its poses
+        (:meth:`rows` as little-endian float64)."""
+        rows = self.rows()
+        digest = hashlib.sha256(rows.astype("<f8").tobytes()).hexdigest()
+        return {"rows": len(rows), "sha256": digest}
 
     def check_covers(self, start_s: float, stop_s: float, where: str | None = None) -> None:
         """Refuse (ConfigError naming ``where``, default the file) a span of times ``[start_s,
