@@ -23,17 +23,16 @@ others' work.
    sequences 1 and 3, drives through the sensor within the batch).
 2. **Where the time goes.** The same batches once more a way, with timers around the stages:
    the poses at every pulse, the rays moved into each body's frame (the poses' einsums), the
-   two bodies put into one Embree scene and the nearer of their hits kept, the culling, the
-   Embree build and queries (twice the rays when the object moves) and the rest.
-3. **Casting the object only where it can be hit.** ``cast_moving`` casts every pulse at the
-   object as well as at the world. A ray can hit the object only if it passes within its
-   bounding sphere (the sphere about its box, moved with it: a rigid motion keeps it around
-   the object at every time). The share of rays that pass it at their own time (the exact
-   test) and the share that pass one sphere a frame holding the object over the frame's span
-   (the cheap test: one sphere against the rays the world is cast with); then the object's
-   whole path (its poses at the pulses' times, the rays moved into its frame, its cast) timed
-   for every ray, and for the cheap test and the rays that pass it: what such a filter would
-   save. Its exactness is checked: no ray it drops hits the object.
+   object filter, the nearer of the two bodies' hits kept, the culling, the Embree build and
+   queries and the rest.
+3. **Casting the object only where it can be hit.** ``cast_moving`` casts the object only with
+   the rays that pass within one sphere a frame holding it over the frame's span
+   (:func:`simlidar.sensor.moving.frame_spheres`); the others cannot hit it, and the hits are
+   those of casting every ray, to the bit (``tests/sensor/test_moving.py``). The share of the
+   rays of the frames with an object that pass the test, and the ego-and-object way timed
+   with the filter and without it (the same code with the test passing every ray: every ray
+   moved into the object's frame, gathered and cast at it), in turn, the median of
+   ``--repeats`` rounds.
 4. **A sequence.** ``--sequence-frames`` frames (100: the issue's target, at least 50
    frames/s) of sequence ``--sequence``, in batches of 16 as ``simlidar sweep`` casts them, the
    three ways in turn; frames per second. The ego drives at ``--sequence-speed``: the ego and
@@ -65,7 +64,6 @@ import statistics  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from contextlib import ExitStack  # noqa: E402
-from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 from unittest import mock  # noqa: E402
 
@@ -99,7 +97,11 @@ STAGES = (
         for name in ("to_scene", "to_body", "rotate", "unrotate")
     ),  # fmt: skip
     (moving, "nearest", "nearest of the two casts"),
-    (sweep_module, "cast_moving", "both bodies as one scene (cast_moving's own)"),
+    (moving, "frame_spheres", "the object filter (spheres, rays near them, padding)"),
+    (moving, "object_spheres", "the object filter (spheres, rays near them, padding)"),
+    (moving, "reaches", "the object filter (spheres, rays near them, padding)"),
+    (moving, "_object_hits", "the object filter (spheres, rays near them, padding)"),
+    (sweep_module, "cast_moving", "cast_moving's own (the world's part of the scene)"),
     (raycast, "visible_triangles", "back-face culling (static casts only)"),
     (sweep_module, "cast", "the cast's own (checks, offsets, float32, exact range)"),
     (moving, "cast", "the cast's own (checks, offsets, float32, exact range)"),
@@ -147,151 +149,50 @@ def stage_times(config, catalog, sequences) -> dict[str, float]:
     return dict(SPENT)
 
 
-def kept_casts(config, catalog, sequences) -> list[tuple]:
-    """For one batch of each sequence (``config`` moves its objects): its motion
-    (:func:`~simlidar.generator.sequences.frame_motion`) and the arguments of its
-    ``cast_moving``."""
-    kept, motions = [], []
-    made = sweep_module.frame_motion
+def every_ray():
+    """A context in which ``cast_moving`` casts the object with every ray (the same hits, the
+    filter's test passing every ray), and the shares of the rays of frames with an object that the
+    filter passes, as it would pass them."""
+    shares: list[float] = []
+    made, spheres = moving.reaches, moving.frame_spheres
+    radii: list[np.ndarray] = []
 
-    def keep_motion(*args, **kwargs):
-        motions.append(made(*args, **kwargs))
-        return motions[-1]
+    def keep_spheres(*args, **kwargs):
+        centre, radius = spheres(*args, **kwargs)
+        radii.append(radius)
+        return centre, radius
 
-    def keep_cast(*args, **kwargs):
-        kept.append((motions[-1], args, kwargs))
-        return moving.cast_moving(*args, **kwargs)
+    def all_rays(origins, directions, centres, radius, length_m):
+        near = made(origins, directions, centres, radius, length_m)
+        has = radii.pop() >= 0
+        if has.any():
+            shares.extend(near[has].reshape(int(has.sum()), -1).mean(axis=1))
+        return np.ones(near.shape, bool)
 
-    with patched([(sweep_module, "cast_moving", keep_cast),
-                  (sweep_module, "frame_motion", keep_motion)]):  # fmt: skip
-        for s in sequences:
-            frames_of(config, catalog, s, FRAME_BATCH, 0, FRAME_BATCH, FRAME_BATCH)
-    return kept
-
-
-def object_spheres(scene) -> tuple[np.ndarray, np.ndarray]:
-    """Each sample's object's bounding sphere as built: centres (B, 3) m, radii (B,) m (the
-    box's centre, its farthest vertex); a radius of -1 where a sample has no object."""
-    centres, radii = np.zeros((scene.size, 3)), np.full(scene.size, -1.0)
-    for i in np.unique(scene.sample[scene.is_object]):
-        v = scene.triangles[scene.is_object & (scene.sample == i)].reshape(-1, 3)
-        centres[i] = (v.min(axis=0) + v.max(axis=0)) / 2
-        radii[i] = np.sqrt(((v - centres[i]) ** 2).sum(axis=-1)).max()
-    return centres, radii
+    return patched([(moving, "frame_spheres", keep_spheres), (moving, "reaches", all_rays)]), shares
 
 
-def frame_spheres(things: PlanarMotion, times_s, centres, radii) -> tuple[np.ndarray, ...]:
-    """One sphere a frame that holds its object at every pulse: centres (B, 3), radii (B,).
-
-    A rigid motion keeps the object within ``radii`` of where it takes its sphere's centre, so
-    the frame's sphere holds the centre's path over the frame's span grown by ``radii``. The
-    path is taken at SPHERE_TIMES times; between two of them the centre moves at most its
-    speed (the body's, plus its yaw rate times its distance from the point it turns about)
-    times their gap, so no point of the path is farther than half that from one of them.
-
-    things : the objects' motions, fields (B, 1, 1)
-    times_s : (B, H, C) each pulse's time
-    centres, radii : each object's sphere as built (:func:`object_spheres`)
-    """
-    low, high = times_s.min(axis=(1, 2)), times_s.max(axis=(1, 2))
-    at = low[:, None] + (high - low)[:, None] * np.linspace(0.0, 1.0, SPHERE_TIMES)  # (B, K)
-    path = things.poses(at[:, None, :]).to_scene(centres[:, None, None, :])[:, 0]  # (B, K, 3)
-    origin = np.stack(np.broadcast_arrays(*things.origin_m), axis=-1)[:, 0, 0]  # (B, 2)
-    arm = np.sqrt(((centres[:, :2] - origin) ** 2).sum(-1))
-    speed = np.abs(things.speed_mps[:, 0, 0]) + np.deg2rad(
-        np.abs(things.yaw_rate_deg_s[:, 0, 0])) * arm  # fmt: skip
-    gap = (high - low) / (SPHERE_TIMES - 1)
-    lo, hi = path.min(axis=1), path.max(axis=1)
-    spread = np.sqrt(((hi - lo) ** 2).sum(-1)) / 2 + speed * gap / 2
-    return (lo + hi) / 2, np.where(radii >= 0, radii + spread, -1.0)
-
-
-# the times a frame's sphere is taken at (frame_spheres): with 9, what the sphere grows for
-# the path between them is a sixteenth of the frame's travel (0.09 m for a car at 15 m/s over
-# a 100 ms frame), under 4 % of a car's radius (2.5 m)
-SPHERE_TIMES = 9
-
-
-def reaches(origins, directions, centres, radii, length_m: float) -> np.ndarray:
-    """Whether each ray's first ``length_m`` metres pass within ``radii`` of ``centres``
-    (each broadcast against the rays' leading shape): (..., 3) -> (...) bool."""
-    to_centre = centres - origins
-    along = np.clip(np.einsum("...k,...k->...", to_centre, directions), 0.0, length_m)
-    miss = to_centre - along[..., None] * directions
-    return np.einsum("...k,...k->...", miss, miss) <= radii**2
-
-
-def filter_estimate(kept) -> dict:
-    """Part 3 over the kept batches (:func:`kept_casts`): the shares of rays that pass each
-    test, and the CPU seconds of the object's whole path (its poses at the pulses' times, the
-    rays moved into its frame, its cast) for every ray and, after the cheap test, for the rays
-    that pass it. ``cast`` takes the same number of rays from every frame, so the passing rays
-    are cast a frame at a time (a filter in ``cast_moving`` would need a cast of ragged rays:
-    one call, and less than this)."""
-    rays = exact = cheap = dropped = 0
-    full_s = filtered_s = 0.0
-    shares = []
-    for motion, (scene, origins, directions, slots, max_range_m, ego, _), kwargs in kept:
-        length_m = max_range_m + 1.0  # as far as the cast's rays reach
-        world_o, world_d = ego.to_scene(origins), ego.rotate(directions)  # (B, H, C, 3)
-        things, times = motion.things, motion.times_s
-        batch = len(slots)
-        part = scene.is_object
-        body = replace(scene, triangles=scene.triangles[part], surface=scene.surface[part],
-                       sample=scene.sample[part], closed=scene.closed[part],
-                       is_object=scene.is_object[part])  # fmt: skip
-        cells = (np.asarray(slots) + moving.OBJECT_CELLS) % raycast.MAX_BATCH
-        centres, radii = object_spheres(scene)
-        # exact: each ray against the sphere where it is at the ray's own time
-        moved = things.poses(times).to_scene(np.broadcast_to(centres[:, None, None], world_o.shape))
-        passes = reaches(world_o, world_d, moved, radii[:, None, None], length_m)
-        # each frame's object alone, in its frame's cell
-        alone = [(replace(body, triangles=body.triangles[body.sample == b],
-                          surface=body.surface[body.sample == b],
-                          sample=np.zeros(int((body.sample == b).sum()), body.sample.dtype),
-                          closed=body.closed[body.sample == b],
-                          is_object=body.is_object[body.sample == b]), cells[b:b + 1])
-                 for b in range(batch)]  # fmt: skip
-
-        start = time.process_time()
-        objects = things.poses(times)
-        hits = raycast.cast(body, objects.to_body(world_o), objects.unrotate(world_d), cells,
-                            max_range_m, cull=False, **kwargs)  # fmt: skip
-        full_s += time.process_time() - start
-
-        start = time.process_time()
-        centre, radius = frame_spheres(things, times, centres, radii)
-        near = reaches(world_o, world_d, centre[:, None, None], radius[:, None, None], length_m)
-        frame, pulse = np.nonzero(near.reshape(batch, -1))
-        each = PlanarMotion(*(f[frame, 0, 0] for f in (things.speed_mps, things.yaw_rate_deg_s,
-                                                        things.heading_deg)),
-                            tuple(np.broadcast_to(f, things.speed_mps.shape)[frame, 0, 0]
-                                  for f in things.origin_m))  # fmt: skip
-        objects = each.poses(times.reshape(batch, -1)[frame, pulse])  # (P,)
-        o = objects.to_body(world_o.reshape(batch, -1, 3)[frame, pulse])
-        d = objects.unrotate(world_d.reshape(batch, -1, 3)[frame, pulse])
-        ends = np.searchsorted(frame, np.arange(batch + 1))
-        for b, (scene_b, cell) in enumerate(alone):
-            if ends[b + 1] > ends[b]:
-                raycast.cast(scene_b, o[None, None, ends[b] : ends[b + 1]],
-                             d[None, None, ends[b] : ends[b + 1]], cell, max_range_m,
-                             cull=False, **kwargs)  # fmt: skip
-        filtered_s += time.process_time() - start
-
-        rays += passes.size
-        exact += int(passes.sum())
-        cheap += int(near.sum())
-        shares.extend(near.reshape(batch, -1).mean(axis=1)[radii >= 0])
-        dropped += int((~np.isnan(hits.range_m) & ~near).sum())
-    return {
-        "rays": rays,
-        "exact_share": exact / rays,
-        "cheap_share": cheap / rays,
-        "cheap_share_median_frame": float(np.median(shares)) if shares else 0.0,
-        "object_path_s": full_s,
-        "filtered_path_s": filtered_s,
-        "dropped_object_hits": dropped,
-    }
+def filter_times(config, catalog, sequences, repeats: int) -> tuple[float, float, list]:
+    """Part 3: CPU us a pulse of one batch of each sequence with moving objects, with the
+    object filter and without (:func:`every_ray`), in turn, the medians of ``repeats``
+    rounds after one to warm up; and the filter's shares (:func:`every_ray`)."""
+    spent = {True: [], False: []}
+    shares: list[float] = []
+    for round_ in range(repeats + 1):
+        for on in (True, False):
+            seconds = 0.0
+            context, got = (ExitStack(), []) if on else every_ray()
+            with context:
+                for s in sequences:
+                    frames, took = frames_of(config, catalog, s, FRAME_BATCH, 0, FRAME_BATCH,
+                                             FRAME_BATCH)  # fmt: skip
+                    seconds += took
+            if round_:
+                spent[on].append(seconds)
+                shares = shares or got
+    pulses = frames.range_m.size * len(sequences)
+    on, off = (1e6 * statistics.median(spent[k]) / pulses for k in (True, False))
+    return on, off, shares
 
 
 def per_pulse(ways, catalog, sequences, repeats: int) -> tuple[dict, dict]:
@@ -416,21 +317,16 @@ def main(argv=None) -> int:
         cells = (sum(t.values()) if name == "all" else t.get(name, 0.0) for t in stage_us.values())
         print(f"  {name:<54} " + " ".join(f"{c:14.3f}" for c in cells))
 
-    estimate = filter_estimate(kept_casts(ways["ego and object"], catalog, sequences))
-    path_us = {k: 1e6 * estimate[f"{k}_path_s"] / pulses for k in ("object", "filtered")}
-    with_filter = every["ego and object"] - (path_us["object"] - path_us["filtered"])
-    print(f"\n3. the object cast only where it can be hit ({estimate['rays']:,} rays, ego and "
-          "object):")  # fmt: skip
-    print(f"  rays within the object's sphere at their own time (exact): "
-          f"{100 * estimate['exact_share']:.2f} %; within one sphere a frame (the cheap test): "
-          f"{100 * estimate['cheap_share']:.2f} % (a frame with an object: median "
-          f"{100 * estimate['cheap_share_median_frame']:.2f} %)")  # fmt: skip
-    print(f"  the object's poses, rays and cast, CPU us a pulse: every ray "
-          f"{path_us['object']:.3f}; the cheap test and the rays that pass it "
-          f"{path_us['filtered']:.3f}")  # fmt: skip
-    print(f"  object hits the cheap test drops: {estimate['dropped_object_hits']} (0: exact)")
-    print(f"  ego and object with the filter, estimated: {with_filter:.3f} us a pulse, "
-          f"{with_filter / every['standing']:.2f} x standing")  # fmt: skip
+    with_filter, without, shares = filter_times(ways["ego and object"], catalog, sequences,
+                                                args.repeats)  # fmt: skip
+    share = float(np.mean(shares)) if shares else 0.0
+    print(f"\n3. the object cast only where it can be hit (ego and object; CPU us a pulse, "
+          f"median of {args.repeats} rounds in turn):")  # fmt: skip
+    print(f"  rays a frame with an object casts at it: {100 * share:.2f} % (median frame "
+          f"{100 * float(np.median(shares)) if shares else 0.0:.2f} %)")  # fmt: skip
+    print(f"  with the filter {with_filter:.3f} ({with_filter / every['standing']:.2f} x "
+          f"standing); every ray at the object {without:.3f} ({without / every['standing']:.2f}"
+          f" x); the filter saves {without - with_filter:.3f}")  # fmt: skip
 
     s, n = args.sequence, args.sequence_frames
     rate, wall_rate = sequence_rates(along, catalog, runs, n)
@@ -457,7 +353,11 @@ def main(argv=None) -> int:
             "us_a_pulse_all": every,
             "ratio_to_standing": ratio,
             "stages_us_a_pulse": stage_us,
-            "object_filter": estimate | {"with_filter_us_a_pulse": with_filter},
+            "object_filter": {
+                "share": share,
+                "with_filter_us_a_pulse": with_filter,
+                "every_ray_us_a_pulse": without,
+            },
             "sequence": {
                 "frames": n * len(runs),
                 "sequence_frames": n,

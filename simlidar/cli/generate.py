@@ -50,6 +50,25 @@ sensor_option = click.option(
 )
 
 
+def motion_options(command):
+    """``--ego-speed``, ``--ego-yaw-rate`` and ``--moving-objects`` (generate's and sweep's)."""
+    for option in reversed((
+        setting_option(
+            GeneratorConfig, "ego_speed_mps", "--ego-speed", "ego_speed_mps", metavar="MPS"
+        ),
+        setting_option(GeneratorConfig, "ego_yaw_rate_deg_s", "--ego-yaw-rate",
+                       "ego_yaw_rate_deg_s", metavar="DEG_S"),
+        click.option(
+            "--moving-objects",
+            is_flag=True,
+            help="Move each scene's object as the scene catalog's motion.toml says (speed, "
+            "heading of travel, yaw rate, drawn once a scene after the static scene's draws).",
+        ),
+    )):  # fmt: skip
+        command = option(command)
+    return command
+
+
 def chosen_sensor_of(sensor):
     """The sensor an option names (default: the VLP-16); a bad one is a usage error."""
     try:
@@ -118,6 +137,7 @@ def catalog_for(scenes, classes: int):
 @setting_option(
     GeneratorConfig, "waveform_bin_ns", "--waveform-bin", "waveform_bin_ns", metavar="NS"
 )
+@motion_options
 @scenes_option
 @click.option(
     "--batch-size",
@@ -163,6 +183,9 @@ def generate(
     beam_samples,
     return_mode,
     waveform_bin_ns,
+    ego_speed_mps,
+    ego_yaw_rate_deg_s,
+    moving_objects,
     scenes,
     batch_size,
     workers,
@@ -209,6 +232,9 @@ def generate(
         beam_samples=beam_samples,
         return_mode=return_mode,
         waveform_bin_ns=waveform_bin_ns,
+        ego_speed_mps=ego_speed_mps,
+        ego_yaw_rate_deg_s=ego_yaw_rate_deg_s,
+        moving_objects=moving_objects,
     )
     start = time.perf_counter()
     written = generate_datasets(
@@ -290,10 +316,7 @@ def _trajectory(path: Path | None):
 @setting_option(GeneratorConfig, "rain_rate_mm_h", "--rain", "rain_rate_mm_h", metavar="MM_PER_H")
 @setting_option(GeneratorConfig, "beam_samples", metavar="Q")
 @setting_option(GeneratorConfig, "return_mode")
-@setting_option(GeneratorConfig, "ego_speed_mps", "--ego-speed", "ego_speed_mps", metavar="MPS")
-@setting_option(
-    GeneratorConfig, "ego_yaw_rate_deg_s", "--ego-yaw-rate", "ego_yaw_rate_deg_s", metavar="DEG_S"
-)
+@motion_options
 @click.option(
     "--trajectory",
     type=click.Path(dir_okay=False, path_type=Path),
@@ -301,12 +324,6 @@ def _trajectory(path: Path | None):
     help="The ego's poses from a file of rows 't x y z roll pitch yaw' (seconds from each "
     "sequence's start, metres, degrees; R = Rz(yaw) Ry(pitch) Rx(roll)), interpolated per "
     "pulse; instead of --ego-speed and --ego-yaw-rate (docs/sweeps.md, 'Motion').",
-)
-@click.option(
-    "--moving-objects",
-    is_flag=True,
-    help="Move each scene's object as the scene catalog's motion.toml says (speed, heading of "
-    "travel, yaw rate, drawn once a sequence after the static scene's draws).",
 )
 @setting_option(SweepConfig, "sequence_frames", metavar="L")
 @click.option(

@@ -15,6 +15,7 @@ from simlidar.dataset.schema import (
     SOURCE_ATTRS,
     SPLITS,
     expected_shapes,
+    in_motion,
     reported_returns,
     split_source,
 )
@@ -22,6 +23,7 @@ from simlidar.dataset.shards import find_split_files, shard_of
 from simlidar.dataset.storage import datasets_of, entry_problem
 from simlidar.dataset.version import (
     GENERATOR,
+    MOTION_VERSION,
     PHYSICAL_VERSION,
     RAIN_WAVEFORM_VERSION,
     RETURNS_VERSION,
@@ -246,6 +248,7 @@ def check_split(path: Path, f: h5py.File) -> SplitCheck:
             "receiver" in attrs,
             reported_returns(attrs),
             bins,
+            in_motion(attrs),
         )
     except DatasetError as exc:  # an unknown source
         problems.append(f"{path}: {exc}")
@@ -340,15 +343,18 @@ def read_split_info(path: Path) -> SplitInfo:
 
 def written_version(attrs) -> str | None:
     """The version this simlidar writes for a split like this one, when it is not its
-    source's current version: a split with a receiver is RAIN_WAVEFORM_VERSION (4.2.0) with
+    source's current version: a split in motion is MOTION_VERSION (4.3.0); one with a receiver
+    is RAIN_WAVEFORM_VERSION (4.2.0) with
     rain or a stored waveform (``rain_rate_mm_h``, ``waveform_bin_ns`` in its configuration),
     RETURNS_VERSION (4.1.0) where its returns come from waveforms (attribute ``return_mode``),
     else SENSOR_VERSION (4.0.0); a scan-timed split is SCAN_VERSION (3.0.0); a generated split
     without a profile follows the physical rule, still written as PHYSICAL_VERSION (1.0.0)."""
     if split_source(attrs) != GENERATOR:
         return None
+    config = _decode(attrs.get("config", ""))
+    if in_motion({"config": config}):
+        return MOTION_VERSION
     if "receiver" in attrs:
-        config = _decode(attrs.get("config", ""))
         if isinstance(config, dict) and {"rain_rate_mm_h", "waveform_bin_ns"} & config.keys():
             return RAIN_WAVEFORM_VERSION
         return RETURNS_VERSION if "return_mode" in attrs else SENSOR_VERSION

@@ -63,6 +63,16 @@ WAVEFORM_SCHEMA: dict[str, tuple[str, object]] = {
     "waveform": ("float32", lambda h, w, t: (h, w, t)),
 }
 WAVEFORM_CHUNK = 1
+# Stored besides the others by datasets in motion (``--ego-speed``, ``--ego-yaw-rate``,
+# ``--moving-objects`` under scan timing; :func:`in_motion`) only: each sample's object's motion
+# as drawn (speed_mps, heading_deg, yaw_rate_deg_s; zeros without object or motion) and the
+# ego's (speed_mps, yaw_rate_deg_s)
+MOTION_SCHEMA: dict[str, tuple[str, object]] = {
+    "object_motion": ("float32", lambda h, w: (3,)),
+    "ego_motion": ("float32", lambda h, w: (2,)),
+}
+# the configuration keys (attribute ``config``) of a dataset in motion, stored only when set
+MOTION_CONFIG_KEYS = frozenset({"ego_speed_mps", "ego_yaw_rate_deg_s", "moving_objects"})
 # A sweep's frames file: its name, its `format` attribute and its datasets, name -> (dtype,
 # trailing shape given the lasers H and the cycles C of a rotation; SCHEMA's form, another
 # file's); beside them `emission_ns` (H, C) float64, the same for every frame. Its version:
@@ -108,6 +118,14 @@ POINT_DTYPE = np.dtype(
 RETURN_POINT_DTYPE = np.dtype(
     POINT_DTYPE.descr + [("return_number", "u1"), ("number_of_returns", "u1")]
 )
+# ... and, in a sweep in motion, the PLY and PCD exports' points also carry their coordinates
+# deskewed to the frame's reference pose and their instance id (1: the labelled object)
+MOTION_POINT_FIELDS = [
+    ("x_deskewed", "<f4"),
+    ("y_deskewed", "<f4"),
+    ("z_deskewed", "<f4"),
+    ("instance", "<u2"),
+]
 
 
 # Stored besides SWEEP_SCHEMA by sweeps in motion (attribute `sequence_frames`: the ego or the
@@ -258,6 +276,8 @@ ATTRIBUTES = {
     "input_sha256": Text(),
     "simulated_from": JsonObject(("sweep", "sensor_model")),
     "frames_without_objects": ListOf(_INDEX),
+    "motion": JsonObject(),
+    "motion_sha256": Text(),
 }
 
 # The attributes a split of each source always carries besides REQUIRED_ATTRS (its card
@@ -282,16 +302,28 @@ def reported_returns(attrs) -> int:
     return 0 if mode is None else 2 if mode == "dual" else 1
 
 
+def in_motion(attrs) -> bool:
+    """Whether a generated split (its decoded attributes) is of a dataset in motion: its
+    configuration holds one of :data:`MOTION_CONFIG_KEYS`."""
+    config = attrs.get("config")
+    return isinstance(config, dict) and bool(MOTION_CONFIG_KEYS & config.keys())
+
+
 def generated_schema(
-    timing: str = "flash", receiver: bool = False, returns: int = 0, waveform_bins: int = 0
+    timing: str = "flash",
+    receiver: bool = False,
+    returns: int = 0,
+    waveform_bins: int = 0,
+    motion: bool = False,
 ) -> dict[str, tuple[str, object]]:
     """:data:`SCHEMA`, with :data:`SCAN_SCHEMA` under scan timing, :data:`RECEIVER_SCHEMA`
-    under a receiver, :data:`RETURNS_SCHEMA` where a pulse reports ``returns`` > 0 returns and
+    under a receiver, :data:`RETURNS_SCHEMA` where a pulse reports ``returns`` > 0 returns,
     :data:`WAVEFORM_SCHEMA` where it keeps ``waveform_bins`` > 0 samples of its waveform (their
-    trailing shapes then given H and W alone)."""
+    trailing shapes then given H and W alone) and :data:`MOTION_SCHEMA` in ``motion``."""
     schema = (
         SCHEMA | (SCAN_SCHEMA if timing == "scan" else {}) | (RECEIVER_SCHEMA if receiver else {})
     )
+    schema |= MOTION_SCHEMA if motion else {}
     if returns:
         schema |= {
             name: (dtype, lambda h, w, tail=tail: tail(h, w, returns))
@@ -312,15 +344,16 @@ def generated_shapes(
     receiver: bool = False,
     returns: int = 0,
     waveform_bins: int = 0,
+    motion: bool = False,
 ) -> dict[str, tuple[str, tuple]]:
     """name -> (dtype, trailing shape) of a generated split of ``height`` rows (the sensor's
-    beams) and ``width`` columns, of ``timing`` "flash" or "scan", with a receiver or not, and
+    beams) and ``width`` columns, of ``timing`` "flash" or "scan", with a receiver or not,
     ``returns`` reported returns a pulse (0: none stored), ``waveform_bins`` samples of its
-    waveform (0: none stored)."""
+    waveform (0: none stored), in ``motion`` or not."""
     return {
         name: (dtype, tail(height, width))
         for name, (dtype, tail) in generated_schema(
-            timing, receiver, returns, waveform_bins
+            timing, receiver, returns, waveform_bins, motion
         ).items()
     }
 
@@ -344,12 +377,13 @@ def expected_shapes(
     receiver: bool = False,
     returns: int = 0,
     waveform_bins: int = 0,
+    motion: bool = False,
 ) -> dict[str, tuple]:
     """name -> (dtype, full shape) of every dataset a split of ``source`` must hold
     (``timing``: a generated split's ``timing`` attribute, "flash" where it has none;
     ``receiver``: whether it has a ``receiver`` attribute; ``returns``: its
     :func:`reported_returns`; ``waveform_bins``: its attribute of that name, 0 where it has
-    none).
+    none; ``motion``: :func:`in_motion`).
 
     source : the split's ``source``: ``GENERATOR`` or a key of :data:`CONVERTED_SCHEMAS` (any
         other is a DatasetError)
@@ -359,7 +393,7 @@ def expected_shapes(
         has none
     """
     if source == GENERATOR:
-        shapes = generated_shapes(h, w, timing, receiver, returns, waveform_bins)
+        shapes = generated_shapes(h, w, timing, receiver, returns, waveform_bins, motion)
         return {name: (dtype, (n, *tail)) for name, (dtype, tail) in shapes.items()}
     if source not in CONVERTED_SCHEMAS:
         known = ", ".join([GENERATOR, *CONVERTED_SCHEMAS])

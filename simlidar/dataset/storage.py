@@ -30,7 +30,7 @@ def datasets_of(path: Path, f: h5py.File) -> tuple[dict[str, h5py.Dataset], list
     the writers' (:func:`storage_problem`), a group under a name the schemas use, and more
     than :data:`MAX_LINKS` links. Read from the file's structure alone, before any data."""
     datasets, problems, seen = {}, [], []
-    names = set(generated_schema("scan", receiver=True, returns=2, waveform_bins=1))
+    names = set(generated_schema("scan", True, 2, 1, motion=True))
     names |= {n for s in CONVERTED_SCHEMAS.values() for n in s}
 
     def visit(name: str):

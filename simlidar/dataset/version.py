@@ -35,6 +35,11 @@ RETURNS_VERSION = "4.1.0"
 # (``--waveform-bin``): the dataset ``waveform`` added (a MINOR too, released with rain); the
 # others keep theirs.
 RAIN_WAVEFORM_VERSION = "4.2.0"
+# Windows in motion (``--timing scan`` with ``--ego-speed``, ``--ego-yaw-rate`` or
+# ``--moving-objects``, issue 59), any profile: every pulse cast at its own emission time; the
+# datasets ``object_motion`` and ``ego_motion`` and their configuration keys added (a new
+# MINOR); datasets without motion keep their versions and bytes.
+MOTION_VERSION = "4.3.0"
 
 # Release dates are part of the published metadata (croissant.json's datePublished), so they are
 # constants too: a dataset's bytes never depend on the day it was generated.
@@ -45,6 +50,7 @@ RELEASE_DATES: dict[str, str] = {
     "4.0.0": "2026-11-25",
     "4.1.0": "2026-11-26",
     "4.2.0": "2026-11-26",
+    "4.3.0": "2026-11-28",
 }
 
 RELEASE_NOTES: dict[str, str] = {
@@ -108,6 +114,19 @@ RELEASE_NOTES: dict[str, str] = {
         "bytes; a card now lists the release notes up to its own dataset's version (4.1.0 for "
         "older datasets, as their cards did), so a later release leaves it as it was."
     ),
+    "4.3.0": (
+        "Windows in motion (`--timing scan` with `--ego-speed`, `--ego-yaw-rate` or "
+        "`--moving-objects`, issue 59), any profile: the sensor moves with the ego vehicle and "
+        "each scene's object as the scene catalog's motion.toml says, and every pulse is cast "
+        "at its own emission time (the window's first firing is t = 0, the ego then at the "
+        "scene's origin and the object at its placement, `object_pose`), so an object moves "
+        "within its window. New datasets `object_motion` (N, 3) float32 (speed m/s, heading "
+        "deg, yaw rate deg/s, as drawn; zeros without object) and `ego_motion` (N, 2) float32 "
+        "(speed m/s, yaw rate deg/s); configuration keys `ego_speed_mps`, "
+        "`ego_yaw_rate_deg_s`, `moving_objects`; attributes `motion` and `motion_sha256` (the "
+        "motion table used) with moving objects. Fields added, hence a new MINOR. Datasets "
+        "without motion keep their versions and bytes."
+    ),
 }
 
 
@@ -116,7 +135,9 @@ def dataset_version(config) -> str:
     RAIN_WAVEFORM_VERSION for rain or a stored waveform, RETURNS_VERSION under a receiver whose
     returns come from waveforms, SENSOR_VERSION under another receiver, SCAN_VERSION under scan
     timing, PHYSICAL_VERSION for the physical pulse rule (its records are those of 1.0.0), else
-    DATASET_VERSION."""
+    DATASET_VERSION; MOTION_VERSION, before all of them, for a dataset in motion."""
+    if config.moves:
+        return MOTION_VERSION
     if config.receiver is not None:
         if config.rain_rate_mm_h > 0.0 or config.waveform_bin_ns > 0.0:
             return RAIN_WAVEFORM_VERSION

@@ -143,14 +143,14 @@ class GeneratorConfig:
     ego_speed_mps: float = setting(
         0.0,
         "The ego vehicle's speed along the road in m/s: the sensor moves while it turns, and "
-        "every pulse is cast from where the sensor is at its emission time (sweeps only; "
-        "docs/sweeps.md, 'Motion').",
+        "every pulse is cast from where the sensor is at its emission time (sweeps, and "
+        "windows under scan timing; docs/sweeps.md, 'Motion').",
         Range(0, MAX_SPEED_MPS, "m/s", note="(0: standing)"),
     )
     ego_yaw_rate_deg_s: float = setting(
         0.0,
         "The ego vehicle's yaw rate in deg/s, counter-clockwise (a left turn) positive: its "
-        "heading and its travel turn together (sweeps only).",
+        "heading and its travel turn together (sweeps, and windows under scan timing).",
         Range(-MAX_YAW_RATE_DEG_S, MAX_YAW_RATE_DEG_S, "deg/s", note="(0: straight)"),
     )
     # stored as its size and digest (the poses themselves: the sweep's `ego_trajectory`)
@@ -164,8 +164,8 @@ class GeneratorConfig:
     moving_objects: bool = setting(
         False,
         "Move each scene's object as the scene catalog's motion.toml says (speed, heading of "
-        "travel, yaw rate, drawn once a sequence after the static scene's draws; sweeps "
-        "only).",
+        "travel, yaw rate, drawn once a scene after the static scene's draws; sweeps, and "
+        "windows under scan timing).",
         Choice((False, True)),
     )
 
@@ -345,6 +345,16 @@ class GeneratorConfig:
         tag += f"-{self.return_mode}" if self.return_mode != "strongest" else ""
         tag += f"-wave{float(self.waveform_bin_ns)!r}" if self.waveform_bin_ns else ""
         return tag
+
+    @property
+    def motion_tag(self) -> str:
+        """What a dataset's or sweep's name says of its motion:
+        ``[-ego<v>][-traj<sha256, 8 digits>][-yaw<w>][-moving]``, numbers as Python's repr."""
+        tag = f"-ego{float(self.ego_speed_mps)!r}" if self.ego_speed_mps else ""
+        if self.ego_trajectory is not None:
+            tag += f"-traj{self.ego_trajectory.summary()['sha256'][:8]}"
+        tag += f"-yaw{float(self.ego_yaw_rate_deg_s)!r}" if self.ego_yaw_rate_deg_s else ""
+        return tag + ("-moving" if self.moving_objects else "")
 
     @property
     def waveform_bins(self) -> int:

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from simlidar.dataset.kitti import LABEL_COLUMNS, SCAN_DTYPE
+from simlidar.dataset.schema import MOTION_POINT_FIELDS
 from simlidar.errors import ConfigError, DatasetError, shown
 from simlidar.generator.frames import check_frame, deskewed_xyz, frame_points
 from simlidar.motion.poses import Poses
@@ -211,8 +212,25 @@ def sequence_files(path: str | Path, frame: int) -> dict[str, bytes]:
     return files
 
 
-_PLY_TYPES = {"<f4": "float", "u1": "uchar", "<f8": "double"}
-_PCD_TYPES = {"<f4": ("4", "F"), "u1": ("1", "U"), "<f8": ("8", "F")}
+_PLY_TYPES = {"<f4": "float", "u1": "uchar", "<f8": "double", "<u2": "ushort"}
+_PCD_TYPES = {"<f4": ("4", "F"), "u1": ("1", "U"), "<f8": ("8", "F"), "<u2": ("2", "U")}
+
+
+def with_motion_fields(path: str | Path, frame: int, points: np.ndarray) -> np.ndarray:
+    """A frame's ``points`` with, in a sweep in motion, :data:`MOTION_POINT_FIELDS`: each
+    point deskewed to the frame's reference pose (:func:`deskewed_xyz`) and its instance id
+    (:func:`instance_ids`); the points as they are for a sweep that does not move."""
+    instances = instance_ids(path, frame, points["surface"])
+    if instances is None:
+        return points
+    more = np.empty(len(points), np.dtype(points.dtype.descr + MOTION_POINT_FIELDS))
+    for name in points.dtype.names:
+        more[name] = points[name]
+    xyz = deskewed_xyz(path, frame, points)
+    for k, name in enumerate(("x_deskewed", "y_deskewed", "z_deskewed")):
+        more[name] = xyz[:, k]
+    more["instance"] = instances
+    return more
 
 
 def export_frame(path: str | Path, frame: int, out: str | Path, fmt: str) -> list[Path]:
@@ -224,7 +242,8 @@ def export_frame(path: str | Path, frame: int, out: str | Path, fmt: str) -> lis
     the files the frame completes, :func:`sequence_files`), ``ply``
     (``ply/NNNNNN.ply``, binary little endian, every field of :data:`POINT_DTYPE`, or of
     :data:`RETURN_POINT_DTYPE` for a sweep that stores every reported return: one point a
-    return, with its return number) or ``pcd`` (``pcd/NNNNNN.pcd``, PCD 0.7 binary, the same
+    return, with its return number; in motion also :data:`MOTION_POINT_FIELDS`,
+    :func:`with_motion_fields`) or ``pcd`` (``pcd/NNNNNN.pcd``, PCD 0.7 binary, the same
     fields). Returns the files written."""
     points = frame_points(path, frame)
     out, stem = Path(out), f"{frame:06d}"
@@ -236,6 +255,7 @@ def export_frame(path: str | Path, frame: int, out: str | Path, fmt: str) -> lis
             files.append(out / name)
             blobs.append(blob)
     elif fmt == "ply":
+        points = with_motion_fields(path, frame, points)
         header = ["ply", "format binary_little_endian 1.0", f"element vertex {len(points)}"]
         header += [
             f"property {_PLY_TYPES[points.dtype[k].str.lstrip('|')]} {k}"
@@ -244,6 +264,7 @@ def export_frame(path: str | Path, frame: int, out: str | Path, fmt: str) -> lis
         files = [out / "ply" / f"{stem}.ply"]
         blobs = ["\n".join([*header, "end_header"]).encode() + b"\n" + points.tobytes()]
     elif fmt == "pcd":
+        points = with_motion_fields(path, frame, points)
         kinds = [_PCD_TYPES[points.dtype[k].str.lstrip("|")] for k in points.dtype.names]
         header = [
             "# .PCD v0.7 - Point Cloud Data file format",

@@ -26,6 +26,7 @@ from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.generated_card import generated_card, generated_croissant
 from simlidar.generator.returns import check_physics, receiver_physics
+from simlidar.generator.sequences import check_motion
 from simlidar.generator.shard import compressed_rows, remove_partials, split_shards, write_shard
 from simlidar.generator.simulate import class_plan, simulate
 from simlidar.processes import capped_workers, die_with_parent, one_blas_thread
@@ -208,15 +209,17 @@ def check_disk_space(config: GeneratorConfig, datasets: int, out: str | Path) ->
 
 
 def generated_name(config: GeneratorConfig) -> str:
-    """``simlidar-<classes>c-noise<level>-<profile>[-<sensor>][-scan][-fog<V>][-rain<R>][-beam<Q>][-<mode>][-wave<ns>][-var<v>][-shift<s>]-v<version>``,
+    """``simlidar-<classes>c-noise<level>-<profile>[-<sensor>][-scan][-fog<V>][-rain<R>][-beam<Q>][-<mode>][-wave<ns>][-ego<v>][-yaw<w>][-moving][-var<v>][-shift<s>]-v<version>``,
     numbers as Python's repr (0.2, 0.33); ``-<sensor>`` names a sensor other than the VLP-16,
     ``-scan`` scan timing, ``-fog`` a fog's visibility in metres, ``-rain`` a rain's rate in
     mm/h, ``-beam`` a beam footprint's rings of sub-rays, ``-last`` / ``-dual`` a return mode
-    other than strongest, ``-wave`` a stored waveform's bin in ns, ``-var`` and ``-shift``
-    values that differ from the profile's own."""
+    other than strongest, ``-wave`` a stored waveform's bin in ns, ``-ego`` / ``-yaw`` the
+    ego's speed (m/s) and yaw rate (deg/s), ``-moving`` moving objects, ``-var`` and
+    ``-shift`` values that differ from the profile's own."""
     over = config.overrides
     sensor = f"-{config.sensor.name}" if config.sensor.name != "vlp16" else ""
     sensor += ("-scan" if config.timing == "scan" else "") + config.receiver_tag
+    sensor += config.motion_tag
     variation = f"-var{float(over['variation'])!r}" if "variation" in over else ""
     shift = f"-shift{float(over['shift_max'])!r}" if "shift_max" in over else ""
     return (
@@ -246,6 +249,9 @@ def checked_request(
     if isinstance(shard_samples, bool) or not isinstance(shard_samples, int) or shard_samples < 1:
         raise ConfigError(f"shard_samples={shard_samples!r}: expected a number of samples >= 1")
     class_plan(catalog, config.classes)
+    if config.moves:
+        check_window_motion(config, catalog)
+        batch_size = min(batch_size, MAX_BATCH // 2)  # cast_moving's grid cells
     if config.receiver is not None:
         physics = receiver_physics(config.profile)
         check_physics(physics, config.sensor, catalog.surfaces, config.return_mode)
@@ -253,6 +259,34 @@ def checked_request(
         per_sample = config.sensor.beams * config.width * config.waveform_bins * 4
         batch_size = max(1, min(batch_size, WAVEFORM_BATCH_BYTES // per_sample))
     return batch_size
+
+
+def check_window_motion(config: GeneratorConfig, catalog: Catalog) -> None:
+    """Refuse in one line (ConfigError) motion that windows cannot take: flash timing (every
+    pulse at one instant: nothing moves between them), a trajectory file (a sweep's sequence
+    follows one; a window is 10 ms of a rotation) and what a sweep's motion must satisfy over
+    one rotation (:func:`~simlidar.generator.sequences.check_motion`)."""
+    if config.timing != "scan":
+        raise ConfigError(
+            f"{_motion_words(config)} with timing={config.timing!r}: expected --timing scan "
+            "(flash timing fires every pulse of a window at one instant, so nothing moves "
+            "between them)"
+        )
+    if config.ego_trajectory is not None:
+        raise ConfigError(
+            f"ego_trajectory ({config.ego_trajectory.source}): expected --ego-speed and "
+            "--ego-yaw-rate for windows (a trajectory file drives a sweep's sequences: "
+            "simlidar sweep --trajectory)"
+        )
+    check_motion(config, catalog, 1)
+
+
+def _motion_words(config: GeneratorConfig) -> str:
+    """How ``config`` moves, as its options name it."""
+    words = [f"--ego-speed {config.ego_speed_mps!r}"] * bool(config.ego_speed_mps)
+    words += [f"--ego-yaw-rate {config.ego_yaw_rate_deg_s!r}"] * bool(config.ego_yaw_rate_deg_s)
+    words += ["--trajectory"] * (config.ego_trajectory is not None)
+    return " ".join(words + ["--moving-objects"] * config.moving_objects)
 
 
 def write_local(
@@ -331,13 +365,6 @@ def generate(
     """
     from tqdm import tqdm
 
-    if config.moves:
-        raise ConfigError(
-            f"ego_speed_mps={config.ego_speed_mps!r}, ego_yaw_rate_deg_s="
-            f"{config.ego_yaw_rate_deg_s!r}, moving_objects={config.moving_objects!r}: windows "
-            "in motion are not built yet; expected no motion for generate (simlidar sweep "
-            "takes it)"
-        )
     catalog = catalog.for_sensor(config.sensor.name)  # what is stored: the recipes used
     batch_size = checked_request(config, catalog, batch_size, workers, shard_samples)
     configs = [config.with_noise(level) for level in noise_levels]

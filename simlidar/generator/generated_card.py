@@ -66,13 +66,15 @@ _DOCS = {  # one line per dataset of a split file; the full table is docs/datase
     "returns_surface": "surface label of each reported return (0 = none)",
     "waveform": "each pulse's received waveform, W, sampled every `waveform_bin_ns` from its "
     "emission",
+    "object_motion": "object's speed m/s, heading deg, yaw rate deg/s as drawn (0 = still)",
+    "ego_motion": "the ego's speed m/s and yaw rate deg/s",
 }
 
 
 def _schema(config: GeneratorConfig, attrs) -> dict:
     """The datasets a generated split of ``config`` and ``attrs`` holds (generated_schema)."""
     returns, bins = reported_returns(attrs), attrs.get("waveform_bins", 0)
-    return generated_schema(config.timing, "receiver" in attrs, returns, bins)
+    return generated_schema(config.timing, "receiver" in attrs, returns, bins, config.moves)
 
 
 def stored_config(info) -> GeneratorConfig:
@@ -115,6 +117,8 @@ def generated_front_matter(path: Path) -> dict:
         title, config_name = f"{title}, sensor {sensor.name}", f"{config_name}-{sensor.name}"
     if config.timing == "scan":
         title, config_name = f"{title}, scan timing", f"{config_name}-scan"
+    if config.moves:
+        title, config_name = f"{title}, in motion", f"{config_name}{config.motion_tag}"
     return hf_front_matter(splits, features, LICENSE, title, tags(sensor), config_name)
 
 
@@ -164,6 +168,9 @@ def regenerate_command(
         "beam_samples",
         "return_mode",
         "waveform_bin_ns",
+        "ego_speed_mps",
+        "ego_yaw_rate_deg_s",
+        "moving_objects",
     }
     other = {k for k, v in config.to_dict().items() if k not in cli_fields}
     shipped = config.profile is None or (
@@ -207,6 +214,12 @@ def regenerate_command(
         parts.append(f"--return-mode {config.return_mode}")
     if config.waveform_bin_ns:
         parts.append(f"--waveform-bin {config.waveform_bin_ns!r}")
+    if config.ego_speed_mps:
+        parts.append(f"--ego-speed {config.ego_speed_mps!r}")
+    if config.ego_yaw_rate_deg_s:
+        parts.append(f"--ego-yaw-rate {config.ego_yaw_rate_deg_s!r}")
+    if config.moving_objects:
+        parts.append("--moving-objects")
     over = config.overrides
     if "shift_max" in over:
         parts.append(f"--shift {config.shift_max!r}")
@@ -288,6 +301,35 @@ def _missing_meaning(config: GeneratorConfig) -> str:
             "ms); 1.0 stays 1.0."
         )
     return text
+
+
+def _motion_lines(attrs, config: GeneratorConfig) -> str:
+    """The Generation process paragraph on motion (none where nothing moves)."""
+    if not config.moves:
+        return ""
+    ego = (
+        f"the ego vehicle drives at {config.ego_speed_mps!r} m/s with a yaw rate of "
+        f"{config.ego_yaw_rate_deg_s!r} deg/s"
+        if config.ego_speed_mps or config.ego_yaw_rate_deg_s
+        else "the ego vehicle stands"
+    )
+    things = "the objects stand"
+    if "motion" in attrs:
+        tables = "; ".join(
+            f"`{name}` " + ", ".join(f"{key} {value}" for key, value in table.items())
+            for name, table in attrs["motion"].items()
+        )
+        things = (
+            f"each scene's object moves as the scene catalog's motion table says ({tables}; "
+            f"sha256 `{attrs['motion_sha256']}`), drawn after the scene's own parameters "
+            "(`object_motion`)"
+        )
+    return (
+        f"In motion: {ego}, and {things}. Every pulse is cast at its own emission time "
+        "(`emission_ns`), exactly for rigid motion: t = 0 is the window's first firing, the "
+        "sensor then at the scene's origin and the object at `object_pose`; the light's own "
+        'flight is left out (simlidar\'s `docs/sweeps.md`, "Motion").\n'
+    )
 
 
 def _receiver_lines(attrs, config: GeneratorConfig) -> str:
@@ -458,6 +500,7 @@ def generated_card(path: str | Path) -> str:
         )
         + "\n",
         _receiver_lines(attrs, config),
+        _motion_lines(attrs, config),
         f"Noise: `delays = min(clean_delays + a * u, 1)` with `u ~ U(0, 1)` per pulse and "
         f"a = {attrs['noise']}{_noise_details(config)}. Seed {attrs['seed']}: every sample has "
         "its own random stream "

@@ -23,7 +23,13 @@ Conventions (``docs/sensor-model.md`` explains them):
 
 import numpy as np
 
-from simlidar.dataset.schema import RECEIVER_SCHEMA, RETURNS_SCHEMA, SCHEMA, WAVEFORM_SCHEMA
+from simlidar.dataset.schema import (
+    MOTION_SCHEMA,
+    RECEIVER_SCHEMA,
+    RETURNS_SCHEMA,
+    SCHEMA,
+    WAVEFORM_SCHEMA,
+)
 from simlidar.sensor.model import Sensor, tof_ns
 
 NO_RETURN = 1.0
@@ -119,7 +125,8 @@ def split_rows(samples, config) -> dict[str, np.ndarray]:
     ``clean_delays`` are written under the rule too, before noise), under scan timing both
     made arrival times (:func:`scan_delays`) and the emission times stored; under a receiver
     its fields (:data:`~simlidar.dataset.schema.RECEIVER_SCHEMA`), and where returns come from
-    waveforms theirs (:data:`~simlidar.dataset.schema.RETURNS_SCHEMA`); every other field as
+    waveforms theirs (:data:`~simlidar.dataset.schema.RETURNS_SCHEMA`), in motion the motions
+    (:data:`~simlidar.dataset.schema.MOTION_SCHEMA`); every other field as
     simulated."""
     rule = config.pulse_rule
     clean, noisy = profile_pulses(
@@ -140,4 +147,6 @@ def split_rows(samples, config) -> dict[str, np.ndarray]:
         rows |= {name: getattr(samples, name) for name in RETURNS_SCHEMA}
     if config.waveform_bins:
         rows |= {name: getattr(samples, name) for name in WAVEFORM_SCHEMA}
+    if config.moves:
+        rows |= {name: getattr(samples, name) for name in MOTION_SCHEMA}
     return rows | {name: getattr(samples, name) for name in SCHEMA if name not in rows}

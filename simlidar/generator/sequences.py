@@ -4,13 +4,15 @@ sequence starts as the head turns on (:func:`frame_cycles`), each pulse's time a
 objects' motions at it (:func:`frame_motion`), the fields a frame in motion stores, and what a
 sweep in motion must satisfy (:func:`check_motion`)."""
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
 
 from simlidar.errors import ConfigError
 from simlidar.generator.config import GeneratorConfig
-from simlidar.motion.poses import PlanarMotion, Poses
+from simlidar.generator.returns import fingerprint
+from simlidar.motion.poses import PlanarMotion
 from simlidar.motion.trajectory import Trajectory
 from simlidar.scene.build import CELL_HALF_EXTENT_M
 from simlidar.scene.motion import KEYS as MOTION_KEYS
@@ -52,10 +54,6 @@ class FrameMotion:
     ego: PlanarMotion | Trajectory  # the sensor's motion from the sequence's start
     things: PlanarMotion | None  # each frame's object's, fields (n, 1, 1); None: standing
 
-    def objects(self, times_s: np.ndarray) -> Poses | None:
-        """The objects' poses (relative to their placements) at ``times_s`` (n, ...)."""
-        return None if self.things is None else self.things.poses(times_s)
-
     def fields(self, scene_of: np.ndarray, boxes: np.ndarray, drawn: dict | None) -> dict:
         """The frames' SWEEP_MOTION_SCHEMA fields; ``boxes`` (n, 7), each object's box at its
         placement, moved to the frame's reference time in place."""
@@ -87,14 +85,31 @@ def frame_motion(
     start_ns = first_cycle * sensor.cycle_us * 1000.0
     times_s = (start_ns[:, None, None] + sweep_emission_ns(sensor)[None]) * 1e-9
     middle = first_cycle + cycles_per_rotation(sensor) // 2
-    ego = config.ego_motion
-    things = None
-    if drawn is not None:
-        column = {key: value[:, None, None] for key, value in drawn.items()}
-        at = np.nan_to_num(scene.object_pose[:, :2])[:, :, None, None]  # none: no object
-        things = PlanarMotion(column["speed_mps"], column["yaw_rate_deg_s"],
-                              column["heading_deg"], (at[:, 0], at[:, 1]))  # fmt: skip
-    return FrameMotion(times_s, start_ns, middle * sensor.cycle_us * 1e-6, ego, things)
+    things = placed_motion(scene.object_pose, drawn)
+    return FrameMotion(times_s, start_ns, middle * sensor.cycle_us * 1e-6, config.ego_motion,
+                       things)  # fmt: skip
+
+
+def placed_motion(object_pose: np.ndarray, drawn: dict | None) -> PlanarMotion | None:
+    """The motion of each scene's object about its placement, from its pose ``object_pose``
+    (n, 3: x, y, yaw; NaN without object) and ``drawn`` (each key of motion.KEYS -> (n,),
+    :meth:`~simlidar.scene.recipe.Catalog.object_motion`), fields (n, 1, 1); None without
+    ``drawn`` (the objects stand still)."""
+    if drawn is None:
+        return None
+    column = {key: value[:, None, None] for key, value in drawn.items()}
+    at = np.nan_to_num(object_pose[:, :2])[:, :, None, None]  # none: no object
+    return PlanarMotion(column["speed_mps"], column["yaw_rate_deg_s"], column["heading_deg"],
+                        (at[:, 0], at[:, 1]))  # fmt: skip
+
+
+def ray_times(times_s: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """Each ray's time from its pulse's ``times_s`` (n, H, C), where ``directions`` (n, H, C S,
+    3) holds S sub-rays a pulse (a beam footprint: every sub-ray leaves with its pulse)."""
+    subrays = directions.shape[2] // times_s.shape[2]
+    if subrays == 1:
+        return times_s
+    return np.repeat(times_s[..., None], subrays, axis=-1).reshape(directions.shape[:3])
 
 
 def objects_reach_m(catalog: Catalog, span_s: float, ego_m: float) -> float:
@@ -160,3 +175,13 @@ def check_motion(config: GeneratorConfig, catalog: Catalog, sequence: int) -> No
             f"origin; expected at most {room_m:.4g} m (the scene's cell; fewer frames a "
             "sequence, --sequence-frames, or a lower speed)"
         )
+
+
+def motion_attrs(config: GeneratorConfig, catalog: Catalog) -> dict:
+    """The attributes a sweep's or a split's file stores of the objects' motion: with moving
+    objects, the catalog's motion.toml as used (``motion``, not part of the stored catalog) and
+    its digest (``motion_sha256``); none otherwise."""
+    if not config.moving_objects:
+        return {}
+    motion = {name: m.source for name, m in sorted(catalog.motion.items())}
+    return {"motion": json.dumps(motion, sort_keys=True), "motion_sha256": fingerprint(motion)}

@@ -26,6 +26,7 @@ from simlidar.dataset.writer import SplitWriter, deflated_block
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.pulses import split_rows
 from simlidar.generator.returns import fingerprint, receiver_physics
+from simlidar.generator.sequences import motion_attrs
 from simlidar.generator.simulate import class_plan
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.model import row_order
@@ -77,6 +78,7 @@ def _shapes(config: GeneratorConfig) -> dict[str, tuple[str, tuple]]:
         config.receiver is not None,
         config.reported_returns,
         config.waveform_bins,
+        config.moves,
     )
 
 
@@ -218,4 +220,4 @@ def generated_split_attrs(config: GeneratorConfig, catalog: Catalog, split: str)
     if config.waveform_bins:
         attrs["waveform_bin_ns"] = config.waveform_bin_ns
         attrs["waveform_bins"] = config.waveform_bins
-    return attrs
+    return attrs | motion_attrs(config, catalog)

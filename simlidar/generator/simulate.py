@@ -2,7 +2,9 @@
 
 Randomness: every sample has its own stream, ``SeedSequence(seed, spawn_key=(split, index))``,
 read in a fixed order: 2 variates for the class factor not fixed by the label, the noise
-variates (H x W, H the sensor's beams), then one block of parameters per attempt. A sample's
+variates (H x W, H the sensor's beams), then one block of parameters per attempt (in motion,
+with moving objects, each block ends with the object's motion: drawn after every draw of the
+static scene, so that a scene without motion keeps its bytes). A sample's
 content therefore depends on (seed, split, index, config, catalog) only, never on the batch
 it was made in (the streams of a batch are made and drawn together, numpy's numbers bit for
 bit: :mod:`simlidar.generator.streams`). A profile with a receiver (``sensor``) draws its own
@@ -23,11 +25,15 @@ from simlidar.generator.returns import (
     receiver_physics,
     receiver_stream,
 )
+from simlidar.generator.sequences import placed_motion, ray_times
 from simlidar.generator.streams import Streams
 from simlidar.scene.build import build_batch
+from simlidar.scene.motion import COLUMNS as MOTION_COLUMNS
+from simlidar.scene.motion import KEYS as MOTION_KEYS
 from simlidar.scene.recipe import Catalog
 from simlidar.sensor.footprint import subray_count, subray_directions
 from simlidar.sensor.model import tof_ns
+from simlidar.sensor.moving import cast_moving
 from simlidar.sensor.raycast import MAX_BATCH, Hits, cast, compiled_for
 from simlidar.sensor.rays import column_centres_deg, emission_times_ns, window_rays
 
@@ -118,6 +124,9 @@ class Samples:
     returns_surface: np.ndarray | None = None  # (n, H, W, R) uint8, 0: none
     # where a waveform is stored (GeneratorConfig.waveform_bins) only, else None:
     waveform: np.ndarray | None = None  # (n, H, W, T) float32, watts
+    # in motion (GeneratorConfig.moves) only, else None:
+    object_motion: np.ndarray | None = None  # (n, 3) float32 speed, heading, yaw rate as drawn
+    ego_motion: np.ndarray | None = None  # (n, 2) float32 the ego's speed and yaw rate
 
 
 def split_beams(hits: Hits, width: int) -> Hits:
@@ -156,6 +165,7 @@ def batched_backend(
     max_range_m,
     incidence=False,
     compiled=False,
+    motion=None,
 ):
     """Scenes -> first hits for a whole batch: one array of triangles, one Embree scene, one call.
 
@@ -169,12 +179,21 @@ def batched_backend(
     incidence : also give each hit's |cos incidence| (asked only under a receiver)
     compiled : build the scenes and cast by the compiled kernels (the same triangles and hits;
         asked only on long runs, :func:`simlidar.sensor.raycast.compiled_for`)
+    motion : in motion only (asked only then): (the ego's motion, the objects' as drawn or
+        None, each ray's time in s (B, H, W)); every pulse is cast at its own time
+        (:func:`simlidar.sensor.moving.cast_moving`)
     returns : Hits, object pose (B, 3)
     """
     scene = build_batch(catalog, layout, obj, layout_uniforms, object_uniforms, compiled=compiled)
-    hits = cast(
-        scene, origins, directions, slots, max_range_m, incidence=incidence, compiled=compiled
-    )
+    if motion is None:
+        hits = cast(
+            scene, origins, directions, slots, max_range_m, incidence=incidence, compiled=compiled
+        )
+        return hits, scene.object_pose
+    ego, drawn, times = motion
+    things = placed_motion(scene.object_pose, drawn)
+    hits = cast_moving(scene, origins, directions, slots, max_range_m, ego.poses(times), things,
+                       times, incidence=incidence, compiled=compiled)  # fmt: skip
     return hits, scene.object_pose
 
 
@@ -203,8 +222,9 @@ def simulate(
     ``backend`` has the signature of :func:`batched_backend`; the speed benchmark swaps in the
     naive per-sample trimesh way to compare with on the same samples.
     """
-    if not 0 < stop - start <= MAX_BATCH:
-        raise ConfigError(f"batch of {stop - start} samples: expected 1..{MAX_BATCH}")
+    largest = MAX_BATCH // 2 if config.moves else MAX_BATCH  # cast_moving's cells
+    if not 0 < stop - start <= largest:
+        raise ConfigError(f"batch of {stop - start} samples: expected 1..{largest}")
     sensor, width = config.sensor, config.width
     catalog = catalog.for_sensor(sensor.name).with_variation(config.variation)
     plan = class_plan(catalog, config.classes)
@@ -224,6 +244,8 @@ def simulate(
     lc, oc = catalog.layout_columns, catalog.object_columns
     azimuth = column_centres_deg(width, config.fov_deg)  # negative: left half of the window
     columns = FIXED_COLUMNS + lc + oc
+    drawn_motion = np.zeros((n, 3))  # in motion: each sample's object's, as drawn
+    motion_columns = MOTION_COLUMNS if config.moving_objects else 0
     range_m = np.full((n, sensor.beams, width), np.nan)
     surface = np.zeros((n, sensor.beams, width), np.uint8)
     pose = np.full((n, 3), np.nan)
@@ -244,8 +266,9 @@ def simulate(
     pending = np.arange(n)
     while len(pending):
         attempts[pending] += 1
-        u = streams.random(columns, pending)
+        u = streams.random(columns + motion_columns, pending)
         origins, directions = window_rays(sensor, width, config.fov_deg, u[:, 0], compiled)
+        times_ns = emission_times_ns(sensor, width, config.fov_deg, u[:, 0])
         if beams:  # every sub-ray, cast with the others; sub-ray 0 is the beam's axis
             directions, weights = subray_directions(
                 directions,
@@ -256,12 +279,18 @@ def simulate(
             origins = np.broadcast_to(origins[..., None, :], directions.shape)
             origins, directions = (a.reshape(len(pending), sensor.beams, -1, 3)
                                    for a in (origins, directions))  # fmt: skip
+        if config.moves:  # t = 0: the window's first firing, the scene as built
+            drawn = None
+            if motion_columns:
+                drawn = catalog.object_motion(obj[pending], u[:, columns:])
+                drawn_motion[pending] = np.stack([drawn[key] for key in MOTION_KEYS], axis=-1)
+            more["motion"] = (config.ego_motion, drawn, ray_times(times_ns * 1e-9, directions))
         hits, object_pose = backend(
             catalog,
             layout[pending],
             obj[pending],
             u[:, FIXED_COLUMNS : FIXED_COLUMNS + lc],
-            u[:, FIXED_COLUMNS + lc :],
+            u[:, FIXED_COLUMNS + lc : columns],
             origins,
             directions,
             index[pending] % MAX_BATCH,
@@ -299,7 +328,7 @@ def simulate(
         pose[done] = object_pose[ok]
         hits_out[done] = on_object[ok]
         phase[done] = u[ok, 0]
-        emission[done] = emission_times_ns(sensor, width, config.fov_deg, u[ok, 0])
+        emission[done] = times_ns[ok]
         if config.shift_max > 0:
             shift[done] = (2.0 * u[ok, 1] - 1.0) * config.shift_max
         pending = pending[~ok]
@@ -337,6 +366,10 @@ def simulate(
         range_m, surface = got.range_m, got.surface
         received |= {"intensity": got.intensity, "reflectance": got.reflectance}
         received["power_w"] = got.power_w
+    if config.moves:
+        ego = (config.ego_speed_mps, config.ego_yaw_rate_deg_s)
+        received["object_motion"] = drawn_motion.astype(np.float32)
+        received["ego_motion"] = np.tile(np.array(ego, np.float32), (n, 1))
     tof, clean = delays_from_range(range_m, sensor)
     if config.shift_max > 0:
         clean = shift_delays(clean, shift)

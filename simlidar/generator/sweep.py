@@ -58,7 +58,13 @@ from simlidar.generator.returns import (
     receiver_physics,
     receiver_stream,
 )
-from simlidar.generator.sequences import check_motion, frame_cycles, frame_motion
+from simlidar.generator.sequences import (
+    check_motion,
+    frame_cycles,
+    frame_motion,
+    motion_attrs,
+    ray_times,
+)
 from simlidar.generator.simulate import (
     FIXED_COLUMNS,
     SPLIT_IDS,
@@ -216,13 +222,10 @@ def simulate_frames(
     if not config.moves:
         hits = cast(scene, origins, directions, index % MAX_BATCH, sensor.max_range_m,
                     incidence=True, compiled=compiled)  # fmt: skip
-    else:  # every sub-ray of a pulse leaves with it
-        times = motion.times_s
-        if beams:
-            subrays = directions.shape[2] // times.shape[2]
-            times = np.repeat(times[..., None], subrays, axis=-1).reshape(directions.shape[:3])
+    else:
+        times = ray_times(motion.times_s, directions)
         hits = cast_moving(scene, origins, directions, index % MAX_BATCH, sensor.max_range_m,
-                           motion.ego.poses(times), motion.objects(times), incidence=True,
+                           motion.ego.poses(times), motion.things, times, incidence=True,
                            compiled=compiled)  # fmt: skip
     cycles = cycles_per_rotation(sensor)
     beam_hits, hits = (hits, axis_hits(hits, cycles)) if beams else (None, hits)
@@ -379,11 +382,7 @@ def motion_tag(config: GeneratorConfig, sweep: SweepConfig) -> str:
     ``[-ego<v>][-traj<sha256, 8 digits>][-yaw<w>][-moving][-seq<L>]``, numbers as Python's
     repr; ``-seq<L>`` where
     sequences are not the default's (:meth:`SweepConfig.sequence`)."""
-    tag = f"-ego{float(config.ego_speed_mps)!r}" if config.ego_speed_mps else ""
-    if config.ego_trajectory is not None:
-        tag += f"-traj{config.ego_trajectory.summary()['sha256'][:8]}"
-    tag += f"-yaw{float(config.ego_yaw_rate_deg_s)!r}" if config.ego_yaw_rate_deg_s else ""
-    tag += "-moving" if config.moving_objects else ""
+    tag = config.motion_tag
     default = SweepConfig(frames=sweep.frames).sequence(config)
     return tag + (f"-seq{sweep.sequence(config)}" if sweep.sequence(config) != default else "")
 
@@ -461,12 +460,7 @@ def sweep(
     check_motion(config, catalog, sequence)
     if config.moves or sequence != 1:
         attrs["sequence_frames"] = sequence
-    if config.moving_objects:  # the catalog's motion.toml, as used: not part of the catalog
-        motion = {name: m.source for name, m in sorted(catalog.motion.items())}
-        attrs |= {
-            "motion": json.dumps(motion, sort_keys=True),
-            "motion_sha256": fingerprint(motion),
-        }
+    attrs |= motion_attrs(config, catalog)
     schema = sweep_schema(reported_returns(attrs), "sequence_frames" in attrs)
     shapes = {name: (dtype, tail(h, c)) for name, (dtype, tail) in schema.items()}
     name = sweep_name(config, sweep_config)

@@ -165,6 +165,48 @@ def test_instance_ids_mark_the_labelled_object_s_points(drive):
         assert ((labels >> 16).sum() > 0) == (frame >= 2)
 
 
+def _ply(path) -> np.ndarray:
+    """A binary little-endian PLY's vertices, by its header's properties."""
+    blob = path.read_bytes()
+    head, body = blob.split(b"end_header\n", 1)
+    types = {"float": "<f4", "double": "<f8", "uchar": "u1", "ushort": "<u2"}
+    fields = [
+        (line.split()[2], types[line.split()[1]])
+        for line in head.decode().splitlines()
+        if line.startswith("property")
+    ]
+    return np.frombuffer(body, np.dtype(fields))
+
+
+def test_ply_and_pcd_points_carry_their_time_deskewed_coordinates_and_instance(drive, tmp_path):
+    """In motion the PLY and PCD points keep their raw coordinates and time and add their
+    deskewed coordinates (the KITTI scan's, to the float32) and instance id (the label's
+    upper 16 bits); the PCD holds the PLY's bytes after its own header."""
+    for frame in (0, 3):
+        ply = export_frame(drive / "frames.h5", frame, tmp_path, "ply")[0]
+        pcd = export_frame(drive / "frames.h5", frame, tmp_path, "pcd")[0]
+        points = _ply(ply)
+        raw = frame_points(drive / "frames.h5", frame)
+        for name in raw.dtype.names:
+            np.testing.assert_array_equal(points[name], raw[name])
+        scan = np.fromfile(drive / "velodyne" / f"{frame:06d}.bin", "<f4").reshape(-1, 4)
+        np.testing.assert_array_equal(
+            np.stack([points[k] for k in ("x_deskewed", "y_deskewed", "z_deskewed")], -1),
+            scan[:, :3],
+        )
+        labels = np.fromfile(drive / "labels" / f"{frame:06d}.label", "<u4")
+        np.testing.assert_array_equal(points["instance"], labels >> 16)
+        assert (points["instance"].sum() > 0) == (frame >= 2)
+        assert not np.array_equal(points["x"], points["x_deskewed"])  # 10 m/s: they differ
+        head = pcd.read_bytes().split(b"DATA binary\n", 1)
+        assert (
+            b"FIELDS x y z intensity surface laser t_ns x_deskewed y_deskewed z_deskewed instance"
+            in head[0]
+            and b"SIZE 4 4 4 4 1 1 8 4 4 4 2" in head[0]
+        )
+        assert head[1] == points.tobytes()
+
+
 def test_frames_exported_in_any_order_write_the_same_files(drive, tmp_path):
     """The frame that ends a sequence writes its tracking labels, the sweep's last frame
     poses.txt: exporting the frames backwards gives the sweep's export byte for byte."""

@@ -139,16 +139,6 @@ def test_moving_objects_need_a_motion_table(catalog_copy, tmp_path, cli):
     assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
 
 
-def test_generate_refuses_motion_until_windows_move(tmp_path):
-    from simlidar.errors import ConfigError
-    from simlidar.generator.generate import generate
-
-    with pytest.raises(ConfigError, match="windows in motion are not built yet"):
-        generate(GeneratorConfig(ego_speed_mps=3.0, train_size=32, test_size=32), [0.2],
-                 load_catalog(), tmp_path, progress=False)  # fmt: skip
-    assert not any(tmp_path.iterdir())
-
-
 def test_a_trajectory_file_of_a_straight_drive_is_that_drive(tmp_path, cli):
     """Two rows, 0 s at the origin and 1 s 10 m ahead, interpolate to 10 t: the points, the
     poses and the deskewed scans are those of --ego-speed 10 to the bit."""

@@ -72,10 +72,10 @@ def test_a_car_driving_at_the_sensor_is_hit_where_it_is_at_each_pulse():
         ((15.0, 0.0, 0.0), (4.0, 1.8, 1.5), CAR, True),  # its near face at x = 13 m
         ((60.5, 0.0, -5.0), (1.0, 200.0, 30.0), WALL, False),
     )
-    motion = PlanarMotion(speed_mps=20.0, heading_deg=180.0, origin_m=(15.0, 0.0)).poses(t)
+    motion = PlanarMotion(speed_mps=20.0, heading_deg=180.0, origin_m=(15.0, 0.0))
     still = PlanarMotion().poses(t)
     hits = cast_moving(scene, origins, directions, np.array([5]), sensor.max_range_m, still,
-                       motion)  # fmt: skip
+                       motion, t)  # fmt: skip
     on_car = hits.surface == CAR
     assert on_car.sum() > 50 and hits.on_object[on_car].all() and not hits.on_object[~on_car].any()
     near = on_car & (directions[..., 0] > 0.99)  # pulses nearly straight ahead: the near face
@@ -96,8 +96,8 @@ def test_a_moving_object_seen_from_a_moving_car():
     origins, directions, t = _frame(sensor)
     scene = _scene(((15.0, 0.0, 0.0), (4.0, 1.8, 1.5), CAR, True))
     ego = PlanarMotion(speed_mps=10.0).poses(t)
-    follows = PlanarMotion(speed_mps=10.0, origin_m=(15.0, 0.0)).poses(t)
-    moving = cast_moving(scene, origins, directions, np.array([0]), 100.0, ego, follows)
+    follows = PlanarMotion(speed_mps=10.0, origin_m=(15.0, 0.0))
+    moving = cast_moving(scene, origins, directions, np.array([0]), 100.0, ego, follows, t)
     static = cast(scene, origins, directions, np.array([0]), 100.0)
     hit = ~np.isnan(static.range_m)
     assert hit.sum() > 50
@@ -122,13 +122,13 @@ def test_a_batch_of_frames_is_the_frames_one_at_a_time():
     )
     times = np.concatenate([t, t + 0.1])  # frame 1 a rotation later
     ego = PlanarMotion(speed_mps=8.0, yaw_rate_deg_s=10.0).poses(times)
-    thing = PlanarMotion(speed_mps=3.0, heading_deg=90.0, origin_m=(15.0, 0.0)).poses(times)
+    thing = PlanarMotion(speed_mps=3.0, heading_deg=90.0, origin_m=(15.0, 0.0))
     rays = np.concatenate([origins] * 2), np.concatenate([directions] * 2)
-    both = cast_moving(two, *rays, np.array([2, 3]), 100.0, ego, thing, incidence=True)
+    both = cast_moving(two, *rays, np.array([2, 3]), 100.0, ego, thing, times, incidence=True)
     for k in (0, 1):
         alone = cast_moving(scene, origins, directions, np.array([2 + k]), 100.0,
                             PlanarMotion(8.0, 10.0).poses(times[k:k + 1]),
-                            PlanarMotion(3.0, 0.0, 90.0, (15.0, 0.0)).poses(times[k:k + 1]),
+                            PlanarMotion(3.0, 0.0, 90.0, (15.0, 0.0)), times[k:k + 1],
                             incidence=True)  # fmt: skip
         np.testing.assert_array_equal(both.range_m[k], alone.range_m[0])
         np.testing.assert_array_equal(both.surface[k], alone.surface[0])
@@ -142,7 +142,7 @@ def test_the_compiled_kernels_give_the_same_hits():
     scene = _scene(((15.0, 2.0, 0.0), (4.0, 1.8, 1.5), CAR, True),
                    ((40.5, 0.0, -5.0), (1.0, 200.0, 30.0), WALL, False))  # fmt: skip
     ego = PlanarMotion(speed_mps=12.0, yaw_rate_deg_s=-20.0).poses(t)
-    thing = PlanarMotion(6.0, 15.0, 90.0, (15.0, 2.0)).poses(t)
+    thing = PlanarMotion(6.0, 15.0, 90.0, (15.0, 2.0))
     forms = [
         cast_moving(
             scene,
@@ -152,6 +152,7 @@ def test_the_compiled_kernels_give_the_same_hits():
             100.0,
             ego,
             thing,
+            t,
             incidence=True,
             compiled=compiled,
         )  # fmt: skip
@@ -160,3 +161,55 @@ def test_the_compiled_kernels_give_the_same_hits():
     for name in ("range_m", "surface", "on_object", "cos_incidence"):
         np.testing.assert_array_equal(getattr(forms[0], name), getattr(forms[1], name), name)
     assert (forms[0].surface == CAR).sum() > 50
+
+
+def test_the_object_cast_only_near_it_gives_the_hits_of_casting_every_ray():
+    """The object is cast only with the rays that pass near it over the frame: its hits are
+    those of casting every ray into its frame at its time, to the bit, for objects that turn,
+    cross, come on fast, stand, or are absent (a batch of five frames, every pulse of each)."""
+    from simlidar.sensor.moving import OBJECT_CELLS, nearest
+    from simlidar.sensor.raycast import MAX_BATCH
+
+    sensor = default_sensor()
+    specs = [
+        ((15.0, 2.0, 0.0), (4.0, 1.8, 1.5)),
+        ((8.0, -3.0, 0.0), (0.6, 0.6, 1.8)),
+        ((30.0, 0.0, 0.0), (10.0, 2.5, 3.5)),
+        ((6.0, 1.0, 0.0), (4.0, 1.8, 1.5)),
+    ]
+    wall = ((40.5, 0.0, -5.0), (1.0, 200.0, 30.0), WALL, False)
+    scenes = [_scene((at, size, CAR, True), wall) for at, size in specs] + [_scene(wall)]
+    scene = SceneBatch(
+        np.concatenate([s.triangles for s in scenes]),
+        np.concatenate([s.surface for s in scenes]),
+        np.concatenate([np.full(len(s.triangles), k) for k, s in enumerate(scenes)]),
+        np.concatenate([s.closed for s in scenes]),
+        np.concatenate([s.is_object for s in scenes]),
+        np.zeros((5, 3)),
+    )
+    frames = [_frame(sensor, phase) for phase in (0.1, 0.3, 0.5, 0.7, 0.9)]
+    origins, directions, t = (np.concatenate(parts) for parts in zip(*frames))
+    t = t + np.arange(5)[:, None, None] * 0.1  # later frames of a sequence
+    column = np.array([6.0, 1.5, 15.0, 0.0, 9.0])[:, None, None]
+    things = PlanarMotion(column, np.array([30.0, 0.0, -5.0, 0.0, 0.0])[:, None, None],
+                          np.array([90.0, -90.0, 180.0, 0.0, 0.0])[:, None, None],
+                          (np.array([15.0, 8.0, 30.0, 6.0, 0.0])[:, None, None],
+                           np.array([2.0, -3.0, 0.0, 1.0, 0.0])[:, None, None]))  # fmt: skip
+    ego = PlanarMotion(speed_mps=10.0, yaw_rate_deg_s=5.0).poses(t)
+    slots = np.arange(100, 105)
+    got = cast_moving(scene, origins, directions, slots, 100.0, ego, things, t, incidence=True)
+    # the reference: every ray cast against each body in one scene each, no filter
+    world_o, world_d = ego.to_scene(origins), ego.rotate(directions)
+    body = scene.is_object
+    alone = [replace(scene, triangles=scene.triangles[keep], surface=scene.surface[keep],
+                     sample=scene.sample[keep], closed=scene.closed[keep],
+                     is_object=scene.is_object[keep]) for keep in (~body, body)]  # fmt: skip
+    moved = things.poses(t)
+    world = cast(alone[0], world_o, world_d, slots, 100.0, cull=False, incidence=True)
+    thing = cast(alone[1], moved.to_body(world_o), moved.unrotate(world_d),
+                 (slots + OBJECT_CELLS) % MAX_BATCH, 100.0, cull=False, incidence=True)  # fmt: skip
+    want = nearest(world, thing)
+    for name in ("range_m", "surface", "on_object", "cos_incidence"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(want, name), name)
+    on_car = (want.surface == CAR).sum(axis=(1, 2))
+    assert (on_car[:4] > 20).all() and on_car[4] == 0
