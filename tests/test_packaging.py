@@ -52,6 +52,9 @@ def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
         assert f"simlidar/_content/{path.relative_to(ROOT).as_posix()}" in names
     assert not [n for n in names if "benchmark/results" in n]
     assert "simlidar/bench/cell.schema.json" in names  # simlidar report checks cells with it
+    # the licence pyproject names, as a file of the wheel's metadata
+    licence = [n for n in names if n.endswith("LICENSE") and ".dist-info/" in n]
+    assert licence and zipfile.ZipFile(wheel).read(licence[0]) == (ROOT / "LICENSE").read_bytes()
 
     env_dir = tmp_path / "venv"
     venv.EnvBuilder(with_pip=False).create(env_dir)
@@ -93,3 +96,26 @@ def test_the_wheel_carries_the_catalog_and_generates(tmp_path):
         [str(env_dir / "bin" / "simlidar"), "sensors"], cwd=work, capture_output=True, text=True
     )
     assert listed.returncode == 0 and "hdl64e: Velodyne HDL-64E S2" in listed.stdout
+
+
+def test_the_licence_and_the_citation_agree_with_the_package():
+    """LICENSE is the MIT licence pyproject declares; CITATION.cff is valid YAML of CFF 1.2.0
+    whose version and licence are the package's and which cites the paper the cards cite."""
+    import tomllib
+
+    import yaml
+
+    import simlidar
+    from simlidar.generator.about import CITATION
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    assert project["license"] == "MIT"
+    assert (ROOT / "LICENSE").read_text().startswith("MIT License\n")
+    cff = yaml.safe_load((ROOT / "CITATION.cff").read_text())
+    assert cff["cff-version"] == "1.2.0" and cff["license"] == "MIT"
+    assert cff["version"] == simlidar.__version__
+    assert cff["authors"] == [{"name": project["authors"][0]["name"]}]
+    paper = cff["references"][0]
+    assert "arXiv:2001.09220" in paper["journal"] and "arXiv:2001.09220" in CITATION
+    assert [a["family-names"] for a in paper["authors"]] == [
+        "Wang", "Zhou", "Li", "Li", "Yuan", "Jin"]  # fmt: skip

@@ -27,6 +27,14 @@ def check_writable(folder: str | Path) -> None:
         raise DatasetError(f"--out {folder}: cannot write there ({exc.strerror})") from None
 
 
+def checkpoint_path(out: str | Path, model: str, dataset: str | Path, seed: int) -> Path:
+    """Where ``simlidar train`` keeps a run's weights: ``<out>/<model>-<dataset>-seed<seed>.pt``,
+    the dataset by its directory's name (``.`` by the folder it names), so that runs of one
+    model on two datasets never share a file."""
+    name = Path(dataset).absolute().resolve().name or "dataset"
+    return Path(out) / f"{model}-{name}-seed{seed}.pt"
+
+
 def save_checkpoint(result: TrainResult, path: str | Path) -> Path:
     """State dict plus the recipe and the run's figures; loads with ``weights_only=True``."""
     path = Path(path)

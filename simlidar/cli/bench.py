@@ -15,7 +15,7 @@ from simlidar.cli.options import (
     scheduler_option,
     setting_option,
 )
-from simlidar.errors import ConfigError, SimlidarError
+from simlidar.errors import ConfigError, DatasetError, SimlidarError
 from simlidar.models.training_config import TrainingConfig
 from simlidar.settings import help_of
 
@@ -125,15 +125,30 @@ def _chosen(result) -> str:
 @_override("max_seconds")
 @_selection
 @_hardware
+@click.option(
+    "--force", is_flag=True, help="Replace a checkpoint of the same model, dataset and seed."
+)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def train(
-    model, dataset, out, seed, epochs, max_seconds, validation, patience, device, threads, as_json
+    model,
+    dataset,
+    out,
+    seed,
+    epochs,
+    max_seconds,
+    validation,
+    patience,
+    device,
+    threads,
+    force,
+    as_json,
 ):
     """Train a model on a dataset's train split, keep the epoch with the best accuracy on a
     held-out validation part of it (the last epoch of a cosine schedule), score that once on
-    the test split, save a checkpoint."""
+    the test split, save a checkpoint named by model, dataset and seed
+    (<out>/<model>-<dataset>-seed<seed>.pt; an existing one is replaced only with --force)."""
     need_torch("train")
-    from simlidar.bench.checkpoints import check_writable, save_checkpoint
+    from simlidar.bench.checkpoints import check_writable, checkpoint_path, save_checkpoint
     from simlidar.bench.hardware import threads as using_threads
     from simlidar.bench.selection import ANNEALED
     from simlidar.bench.train import train as train_model
@@ -147,6 +162,9 @@ def train(
         recipe["training"].update({k: v for k, v in given.items() if v is not None})
         check_trainable(dataset)  # a sound dataset, or a one-line error
         check_writable(out)  # before training, not after
+        path = checkpoint_path(out, recipe["name"], dataset, seed)
+        if path.exists() and not force:
+            raise DatasetError(f"{path} already exists: pass --force to replace it")
         with using_threads(threads):
             result = train_model(
                 recipe, dataset, seed=seed, epochs=epochs, max_seconds=max_seconds, device=device
@@ -160,7 +178,6 @@ def train(
             "or lower --epochs",
             err=True,
         )
-    path = out / f"{recipe['name']}-seed{seed}.pt"
     record = {
         "model": recipe["name"],
         "dataset": str(dataset),
@@ -248,7 +265,8 @@ def _stdout_kept_for(as_json: bool):
     type=click.Path(file_okay=False, path_type=Path),
     default=None,
     callback=_absolute,
-    help="Output directory (default: bench/<suite name>).",
+    help="Output directory (default: bench/<suite name>; with --dataset, bench/<suite "
+    "name>-<dataset directory name>, apart from the suite's own cells).",
 )
 @_override("epochs")
 @_override("max_seconds")
@@ -294,7 +312,8 @@ def bench(
     except ConfigError as exc:
         raise click.BadParameter(str(exc), param_hint="'--suite'") from None
     # every path absolute before a model's code runs (importing a builder runs it)
-    out = out if out is not None else (Path("bench") / chosen.name).absolute()
+    default = chosen.name if dataset is None else f"{chosen.name}-{dataset.name}"
+    out = out if out is not None else (Path("bench") / default).absolute()
     names = None
     if models is not None:
         from simlidar.models.registry import load_recipe

@@ -252,7 +252,13 @@ def generate(
     if as_json:
         record = {
             "datasets": [
-                {"path": str(w.path), "noise": w.noise, "classes": w.classes, "splits": w.splits}
+                {
+                    "path": str(w.path),
+                    "noise": w.noise,
+                    "classes": w.classes,
+                    "splits": w.splits,
+                    "kept": w.kept,
+                }
                 for w in written
             ],
             "seconds": round(seconds, 3),
@@ -260,10 +266,11 @@ def generate(
         click.echo(json.dumps(record))
     else:
         for w in written:
-            click.echo(
-                f"wrote {w.path} (train {w.splits['train']}, test {w.splits['test']}, "
-                f"noise {w.noise:g}) and its preview.png"
-            )
+            sizes = f"train {w.splits['train']}, test {w.splits['test']}, noise {w.noise:g}"
+            if w.kept:
+                click.echo(f"kept {w.path} ({sizes}): already there, the same dataset, verified")
+            else:
+                click.echo(f"wrote {w.path} ({sizes}) and its preview.png")
         click.echo(f"done in {seconds:.1f} s")
 
 

@@ -26,6 +26,7 @@ from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.generated_card import generated_card, generated_croissant
 from simlidar.generator.returns import check_physics, receiver_physics
+from simlidar.generator.reuse import differs
 from simlidar.generator.sequences import check_motion
 from simlidar.generator.shard import compressed_rows, remove_partials, split_shards, write_shard
 from simlidar.generator.simulate import class_plan, simulate
@@ -184,6 +185,7 @@ class Written:
     noise: float
     classes: int
     splits: dict[str, int]
+    kept: bool = False  # already there, the same dataset (simlidar.generator.reuse)
 
 
 def _bytes_per_pulse(config: GeneratorConfig) -> int:
@@ -349,7 +351,9 @@ def generate(
         part of it is used and stored
     out : the folder that receives the dataset directories (made if missing)
     batch_size : samples simulated at a time (at most :data:`MAX_BATCH`); no effect on the bytes
-    force : replace a dataset directory of the same name (else an error names it)
+    force : replace a dataset directory of the same name; without it, one that is already the
+        requested dataset (:func:`simlidar.generator.reuse.differs`) is kept and any other
+        is refused (a DatasetError names it and why)
     progress : a progress bar on stderr
     preview : draw each dataset's ``preview.png``
     workers : processes that simulate batches and compress their rows (the calling process
@@ -372,9 +376,21 @@ def generate(
     finals = [out / generated_name(c) for c in configs]
     if len(set(finals)) != len(finals):
         raise DatasetError(f"noise levels {noise_levels}: expected distinct levels")
-    existing = [str(f) for f in finals if f.exists()]
-    if existing and not force:
-        raise DatasetError(f"{existing[0]} already exists: pass --force to overwrite it")
+    levels, kept = [c.noise for c in configs], []
+    if not force:
+        for final, c in zip(finals, configs):
+            if final.exists():
+                why = differs(final, c, catalog, shard_samples, preview)
+                if why is not None:
+                    raise DatasetError(
+                        f"{final} already exists and {why}: pass --force to overwrite it"
+                    )
+                kept.append(Written(final, c.noise, c.classes, dict(c.split_sizes), kept=True))
+        todo = [(f, c) for f, c in zip(finals, configs) if not f.exists()]
+        if not todo:
+            return kept
+        finals, configs = [f for f, _ in todo], [c for _, c in todo]
+        noise_levels = [c.noise for c in configs]
     check_disk_space(config, len(configs), out)
     shards = split_shards(config, shard_samples)
     if scheduler is None:  # the test split first: its preview is drawn while train is written
@@ -433,4 +449,5 @@ def generate(
                 claim.release()
             if created and out.is_dir() and not any(out.iterdir()):
                 out.rmdir()
-    return [Written(f, c.noise, c.classes, dict(c.split_sizes)) for f, c in zip(finals, configs)]
+    made = [Written(f, c.noise, c.classes, dict(c.split_sizes)) for f, c in zip(finals, configs)]
+    return sorted(kept + made, key=lambda w: levels.index(w.noise))

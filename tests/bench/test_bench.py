@@ -301,6 +301,22 @@ def test_bad_suites_are_named(tmp_path, text, message):
         load_suite(path)
 
 
+def test_bench_on_a_dataset_of_ones_own_has_a_folder_of_its_own(
+    tiny_suite, tmp_path, datasets, cli, monkeypatch
+):
+    """Without --out, a run with --dataset writes bench/<suite>-<dataset>, never the suite's
+    own bench/<suite> (whose cells are of its datasets)."""
+    monkeypatch.chdir(tmp_path)
+    ok = cli("bench", "--suite", str(tiny_suite), "--models", "cnn", "--dataset",
+             str(datasets[0.1]), "--epochs", "1")  # fmt: skip
+    assert ok.exit_code == 0, ok.output
+    name = json.loads((tmp_path / "bench").iterdir().__next__().joinpath("suite.json")
+                      .read_text())["name"]  # fmt: skip
+    folders = [p.name for p in (tmp_path / "bench").iterdir()]
+    assert folders == [f"{name}-{datasets[0.1].name}"]
+    assert (tmp_path / "bench" / folders[0] / "results.json").is_file()
+
+
 def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets, cli):
     out = tmp_path / "out"
     ok = cli(

@@ -68,16 +68,26 @@ def test_the_train_command(datasets, tmp_path, cli):
     assert record["epochs"] == 1 and record["early"]["samples"] == 64
     # the accuracy printed is the saved model's on the test split, recomputed here
     x, y = load_split(datasets[0.1], "test")
-    model, _ = load_checkpoint(tmp_path / "snn_simlidar-seed0.pt", (1, 16, 16), 32)
+    saved = tmp_path / f"snn_simlidar-{Path(datasets[0.1]).name}-seed0.pt"
+    assert record["checkpoint"] == str(saved)
+    model, _ = load_checkpoint(saved, (1, 16, 16), 32)
     predicted = predictions(model, torch.from_numpy(x)[:, None])
     accuracy = float((predicted.numpy() == y).mean())
     assert record["test_accuracy"] == round(accuracy, 4)  # as train prints it
-    text = cli(*one_epoch, "--epochs", "1")
+    before = saved.read_bytes()
+    again = cli(*one_epoch, "--epochs", "1")  # refused before training: nothing replaced
+    assert again.exit_code == 1 and "Traceback" not in again.output
+    assert again.output.strip().splitlines() == [
+        f"Error: {saved} already exists: pass --force to replace it"
+    ]
+    assert saved.read_bytes() == before
+    text = cli(*one_epoch, "--epochs", "1", "--force")
     assert text.exit_code == 0 and "snn_simlidar: test accuracy" in text.stdout
     assert "event-driven: accuracy" in text.stdout and "pJ at 45 pJ/spike" in text.stdout
     assert "epoch 1 of 1 kept (best validation accuracy of 32 held-out samples)" in text.stdout
-    assert (tmp_path / "snn_simlidar-seed0.pt").is_file()
+    assert saved.is_file()
     base = ["train", "--model", "mlp", "--dataset", str(datasets[0.1]), "--out", str(tmp_path)]
+    base += ["--force"]
     whole = cli(*base, "--epochs", "3", "--validation", "0", "--json")
     assert whole.exit_code == 0, whole.output
     record = json.loads(whole.stdout)
@@ -280,7 +290,7 @@ def test_the_train_command_says_what_a_cosine_schedule_kept(datasets, tmp_path, 
     text = (Path(__file__).parents[2] / "baselines" / "mlp.toml").read_text()
     recipe.write_text(text.replace("[training]", '[training]\nlr_schedule = "cosine"'))
     base = ["train", "--model", str(recipe), "--dataset", str(datasets[0.1])]
-    base += ["--out", str(tmp_path / "runs"), "--validation", "0.34"]
+    base += ["--out", str(tmp_path / "runs"), "--validation", "0.34", "--force"]
     whole = cli(*base, "--epochs", "3")
     assert whole.exit_code == 0, whole.output
     assert "epoch 3 of 3 kept (the last of its cosine schedule; validation accuracy" in whole.stdout
@@ -294,6 +304,7 @@ def test_the_train_command_says_what_a_cosine_schedule_kept(datasets, tmp_path, 
         "annealed (learning rate 0.001 in that epoch)"
     )
     plain = ["train", "--model", "mlp", "--dataset", str(datasets[0.1]), "--out", str(tmp_path)]
+    plain += ["--force"]
     capped = cli(*plain, "--epochs", "5", "--max-seconds", "0")
     assert capped.exit_code == 0 and "warning" not in capped.stderr  # constant rate: no schedule
 
@@ -325,7 +336,7 @@ def test_train_on_a_full_disk_prints_the_result_then_one_line(datasets, tmp_path
             preexec_fn=_limit_file_size(64 * 1024),  # the MLP's checkpoint takes about 450 KB
         )
         assert done.returncode == 1, done.stderr
-        checkpoint = runs / "mlp-seed0.pt"
+        checkpoint = runs / f"mlp-{Path(datasets[0.1]).name}-seed0.pt"
         assert done.stderr.strip().splitlines()[-1] == (
             f"Error: {checkpoint}: cannot write the checkpoint (File too large)"
         )

@@ -237,11 +237,39 @@ def test_an_existing_dataset_is_kept_without_force(tmp_path, catalog):
     config = GeneratorConfig(train_size=8, test_size=8, classes=4)
     first = generate(config, [0.2], catalog, tmp_path, progress=False, preview=False)[0]
     before = (first.path / "train.h5").read_bytes()
-    with pytest.raises(DatasetError, match="already exists: pass --force"):
+    with pytest.raises(DatasetError, match="already exists and has no preview.png: pass --force"):
         generate(config, [0.2], catalog, tmp_path, progress=False)
     assert (first.path / "train.h5").read_bytes() == before
     generate(config, [0.2], catalog, tmp_path, progress=False, force=True)
     assert sorted(p.name for p in tmp_path.iterdir()) == [first.path.name]
+
+
+def test_a_dataset_already_there_is_kept_and_only_the_missing_levels_are_made(tmp_path, catalog):
+    """After the quick start's noise 0.2, the paper's four levels: the 0.2 dataset, the same
+    one and sound, is kept as it is (its files untouched) and the others are made, each the
+    bytes it has when made alone; one that differs (another seed under the same name is
+    impossible, so a tampered file) is refused in one line, nothing written."""
+    config = GeneratorConfig(train_size=8, test_size=8, classes=4)
+    first = generate(config, [0.2], catalog, tmp_path / "a", progress=False)[0]
+    stamp = {p.name: p.stat().st_mtime_ns for p in first.path.iterdir()}
+    written = generate(config, [0.1, 0.2], catalog, tmp_path / "a", progress=False)
+    assert [(w.noise, w.kept) for w in written] == [(0.1, False), (0.2, True)]
+    assert {p.name: p.stat().st_mtime_ns for p in first.path.iterdir()} == stamp
+    alone = generate(config, [0.1], catalog, tmp_path / "b", progress=False)[0]
+    for file in alone.path.iterdir():
+        assert (written[0].path / file.name).read_bytes() == file.read_bytes(), file.name
+    again = generate(config, [0.1, 0.2], catalog, tmp_path / "a", progress=False)
+    assert all(w.kept for w in again)
+    with open(first.path / "test.h5", "r+b") as f:  # one byte of the data changed
+        f.seek(-100, 2)
+        byte = f.read(1)
+        f.seek(-100, 2)
+        f.write(bytes([byte[0] ^ 1]))
+    with pytest.raises(DatasetError, match="already exists and does not verify"):
+        generate(config, [0.2, 0.33], catalog, tmp_path / "a", progress=False)
+    assert sorted(p.name for p in (tmp_path / "a").iterdir()) == sorted(
+        w.path.name for w in written
+    )
 
 
 def test_a_failure_leaves_nothing_half_written(tmp_path, catalog, monkeypatch):
