@@ -58,3 +58,16 @@ def test_the_cli_page_lists_every_command():
     listed = set(re.findall(r"^\| `([a-z-]+)", table, re.M))
     assert set(main.commands) <= listed, sorted(set(main.commands) - listed)
     assert "report" in main.commands
+
+
+def test_the_python_api_page_runs(tmp_path):
+    """docs/python-api.md's examples: generate, profiles, reuse, simulate, motion, sweeps and
+    another sensor from Python."""
+    result = doctest.testfile(
+        str(DOCS / "python-api.md"),
+        module_relative=False,
+        globs={"out": tmp_path / "out"},
+        optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
+    )
+    assert result.attempted >= 15
+    assert result.failed == 0

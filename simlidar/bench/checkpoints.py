@@ -10,6 +10,7 @@ import torch
 
 from simlidar.atomic import write_file
 from simlidar.bench.train import TrainResult, is_spiking
+from simlidar.dataset.reader import dataset_splits
 from simlidar.errors import DatasetError
 from simlidar.models.registry import build_model
 
@@ -35,8 +36,11 @@ def checkpoint_path(out: str | Path, model: str, dataset: str | Path, seed: int)
     return Path(out) / f"{model}-{name}-seed{seed}.pt"
 
 
-def save_checkpoint(result: TrainResult, path: str | Path) -> Path:
-    """State dict plus the recipe and the run's figures; loads with ``weights_only=True``."""
+def save_checkpoint(result: TrainResult, path: str | Path, dataset: Path | None = None) -> Path:
+    """State dict plus the recipe and the run's figures, and with ``dataset`` (the dataset
+    directory it was trained on) what the model depends on in it (``trained_on``,
+    :func:`data_record`: ``simlidar evaluate`` holds another dataset to it); loads with
+    ``weights_only=True``."""
     path = Path(path)
     check_writable(path.parent)
     data = {
@@ -45,9 +49,25 @@ def save_checkpoint(result: TrainResult, path: str | Path) -> Path:
         "history": result.history,
         "silent_from": result.silent_from,
     }
+    if dataset is not None:
+        data["trained_on"] = data_record(dataset)
     buffer = io.BytesIO()  # torch's own writer reports a full disk as "file write failed"
     torch.save(data, buffer)
     return write_file(path, lambda tmp: tmp.write_bytes(buffer.getbuffer()), what="the checkpoint")
+
+
+def data_record(dataset: Path) -> dict:
+    """What a model depends on in a dataset besides its samples: the input shape (C, H, W),
+    the class names (label i is class_names[i]), the timing (``flash``: times of flight;
+    ``scan``: arrival times in the sweep) and the dataset profile (None: the physical rule).
+    What :func:`simlidar.bench.evaluate.check_fit` compares with a checkpoint's ``trained_on``."""
+    info = dataset_splits(dataset)["test"]
+    return {
+        "input_shape": [1, info.height, info.width],
+        "class_names": [str(n) for n in info.attrs["class_names"]],
+        "timing": str(info.attrs.get("timing", "flash")),
+        "profile": None if "profile" not in info.attrs else str(info.attrs["profile"]),
+    }
 
 
 def load_checkpoint(path: str | Path, input_shape, classes):

@@ -125,7 +125,7 @@ def run_cell(
     timing["train"] = time.perf_counter() - start
     result.model.cpu()
     if checkpoint is not None:
-        save_checkpoint(result, checkpoint)
+        save_checkpoint(result, checkpoint, dataset)
     record = {
         "dataset": dataset.name,
         "source": attrs.get("source", GENERATOR),

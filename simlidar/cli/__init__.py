@@ -27,6 +27,7 @@ COMMANDS = {
     **dict.fromkeys(("info", "preview", "card", "verify", "pack", "fetch"), "release"),
     **dict.fromkeys(("train", "bench"), "bench"),
     "report": "report",
+    "evaluate": "evaluate",
     "convert": "convert",
 }
 

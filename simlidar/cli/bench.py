@@ -214,7 +214,7 @@ def train(
 
             click.echo(format_stepped(record["stepped"]))
     try:
-        save_checkpoint(result, path)
+        save_checkpoint(result, path, dataset)
     except SimlidarError:
         if as_json:  # the result all the same, with no checkpoint
             click.echo(json.dumps(record))

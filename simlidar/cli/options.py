@@ -55,6 +55,10 @@ class Group(click.Group):
         sys.exit(code if isinstance(code, int) else 0)
 
 
+# the characters of a command's first sentence that ``simlidar --help`` shows: all of it
+SHORT_HELP_LIMIT = 1000
+
+
 class LazyGroup(Group):
     """A :class:`Group` whose commands are imported when one is asked for (click's lazy
     loading: ``list_commands`` and ``get_command``), so that ``simlidar generate`` does not
@@ -88,6 +92,18 @@ class LazyGroup(Group):
 
     def get_command(self, ctx, cmd_name: str) -> click.Command | None:
         return self._load(cmd_name) if cmd_name in self.lazy else self._commands.get(cmd_name)
+
+    def format_commands(self, ctx, formatter) -> None:
+        """The commands, each with the first sentence of its help whole, wrapped to the
+        terminal (click's own cut it at one line's width with "...")."""
+        rows = []
+        for name in self.list_commands(ctx):
+            command = self.get_command(ctx, name)
+            if command is not None and not command.hidden:
+                rows.append((name, command.get_short_help_str(limit=SHORT_HELP_LIMIT)))
+        if rows:
+            with formatter.section("Commands"):
+                formatter.write_dl(rows)
 
     def _load(self, name: str) -> click.Command:
         if name not in self._commands:

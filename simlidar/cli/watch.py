@@ -1,4 +1,5 @@
-"""Watching a command that runs a model's own code (``simlidar train`` and ``bench``): the
+"""Watching a command that runs a model's own code (``simlidar train``, ``bench`` and
+``evaluate``): the
 console command runs it again in a child process, which reports its exit code on a pipe just
 before it ends (:class:`simlidar.cli.Entry`). A model's code may end the process
 (``os._exit``, a signal) or leave a thread running that the interpreter would wait for; the
@@ -16,7 +17,7 @@ import click
 # the commands that run a model's own code, each in a watched child process (Entry): the
 # parent, a second Python with click, adds about 0.25 s of wall time to a run (a bench that
 # stops at a bad --models: 3.62 s against 3.37, medians of 8), against a model's seconds
-WATCHED = frozenset({"train", "bench"})
+WATCHED = frozenset({"train", "bench", "evaluate"})
 # set in the watched child: "<parent pid>:<its end of the pipe to report on>:<program name>"
 WATCH_ENV = "SIMLIDAR_WATCHED_BY"
 # after the child has reported its exit code, how long its interpreter may take to end before

@@ -3,14 +3,19 @@
 Examples (tested) are in ``docs/loading.md``.
 """
 
+import bisect
+import math
+import os
+from collections import OrderedDict
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from simlidar.dataset.reader import SplitInfo, read_split, value_problems
-from simlidar.dataset.schema import WAVEFORM_SCHEMA, generated_schema
+from simlidar.dataset.reader import SplitInfo, load_arrays, read_split, value_problems
+from simlidar.dataset.schema import CHUNK_SAMPLES, WAVEFORM_SCHEMA, generated_schema
 from simlidar.errors import ConfigError, DatasetError, shown
+from simlidar.resources import available_memory, check_memory
 from simlidar.settings import Range
 
 # Tonic's event layout (its N-MNIST's): x column, y row, t time in ticks, p polarity
@@ -91,22 +96,44 @@ def _field_checked(info: SplitInfo, field, allowed: tuple[str, ...] = FIELDS) ->
     return info
 
 
-class _SplitRows:
-    """One split's samples read by index: (delays (H, W) float32 numpy, label).
+# A split whose requested rows (the delays and the labels) take at most this many bytes is read
+# into memory whole on its first sample, by each process that reads it: the paper's 3,000
+# samples are 3.1 MB, a 512 MiB split is 500,000 VLP-16 samples of 16 x 16 or 22,000 KITTI
+# crops. A larger one keeps the CACHE_CHUNKS chunks of CHUNK_SAMPLES rows it read last.
+MEMORY_BUDGET = 512 * 2**20
+CACHE_CHUNKS = 4  # decompressed chunks a split larger than its budget keeps (LRU)
 
-    The HDF5 files (one, or the split's shards) are opened lazily, once in each process that
-    reads from them, so a ``DataLoader`` with ``num_workers > 0`` works (h5py handles do not
-    survive a fork).
+
+class _SplitRows:
+    """One split's samples read by index: (delays (H, W) float32 numpy, label), and its
+    ``classes`` (the class names, in label order).
+
+    The requested rows are read from HDF5 a block at a time: the whole split on the first
+    sample where it fits ``memory_budget`` (:data:`MEMORY_BUDGET` when made) and the memory
+    this process has, else the chunk of :data:`CHUNK_SAMPLES` rows holding the sample, the
+    last :data:`CACHE_CHUNKS` kept. Each block's values are checked once as it is read
+    (:func:`_check_values`); a block that fails is checked again sample by sample, so that the
+    sound samples of a damaged file still read and a bad one is refused naming it. A sample
+    is returned as a copy: a transform may change it in place.
+
+    Nothing is read or opened until the first sample, and neither blocks nor HDF5 handles are
+    pickled to ``DataLoader`` workers; a worker forked after its parent read keeps the
+    parent's blocks and opens its own files (h5py handles do not survive a fork).
     """
 
     def __init__(self, path: str | Path, split: str, field: str):
         info = _field_checked(split_info(path, split), field)
         self.info = info
         self.files = info.files
-        self.starts = np.cumsum((0, *info.sizes))  # the first sample of each file
+        self.starts = tuple(int(n) for n in np.cumsum((0, *info.sizes)))  # each file's first
         self.field = field
         self.size = info.size
+        self.classes = list(info.attrs["class_names"])
+        self.memory_budget = MEMORY_BUDGET
+        self._whole = None  # whether the split is read whole; decided on the first sample
+        self._blocks = OrderedDict()  # (file, first row) -> (arrays, sound), oldest first
         self._h5 = None  # open files, by position in self.files
+        self._pid = None  # the process that opened them
 
     def __len__(self) -> int:
         return self.size
@@ -115,23 +142,68 @@ class _SplitRows:
         if not -self.size <= index < self.size:
             raise IndexError(f"index {index} out of range for {self.size} samples")
         index %= self.size
-        part = int(np.searchsorted(self.starts, index, side="right")) - 1
-        if self._h5 is None:
-            self._h5 = {}
+        part = bisect.bisect_right(self.starts, index) - 1
+        row = index - self.starts[part]
+        first, arrays, sound = self._block(part, row)
+        delays, label = arrays[self.field][row - first].copy(), arrays["labels"][row - first]
+        if not sound:
+            where = f"{self.files[part]} (sample {row})"
+            _check_values(where, self.info.attrs, {self.field: delays, "labels": label})
+        return delays, int(label)
+
+    def _block(self, part: int, row: int) -> tuple[int, dict[str, np.ndarray], bool]:
+        """The block of file ``part`` holding its ``row``: its first row, its arrays (the
+        field and the labels) and whether all its values are sound."""
+        if self._whole is None:
+            self._whole = self._fits()
+        first = 0 if self._whole else row - row % CHUNK_SAMPLES
+        key = (part, first)
+        if key in self._blocks:
+            self._blocks.move_to_end(key)
+            return (first, *self._blocks[key])
+        names = (self.field, "labels")
+        if self._whole:
+            arrays = load_arrays(self.files[part], names)
+        else:
+            f = self._file(part)
+            arrays = {n: f[n][first : first + CHUNK_SAMPLES] for n in names}
+            while len(self._blocks) >= CACHE_CHUNKS:
+                self._blocks.popitem(last=False)
+        sound = not value_problems(self.files[part], self.info.attrs, arrays)
+        self._blocks[key] = (arrays, sound)
+        return first, arrays, sound
+
+    def _fits(self) -> bool:
+        """Whether the split's requested rows fit ``memory_budget`` and this process's memory;
+        where not, a ResourceError if even :data:`CACHE_CHUNKS` chunks do not."""
+        names = (self.field, "labels")
+        with h5py.File(self.files[0], "r") as f:
+            row = sum(f[n].dtype.itemsize * math.prod(f[n].shape[1:]) for n in names)
+        room = available_memory()
+        if self.size * row <= self.memory_budget and (room is None or self.size * row <= room):
+            return True
+        check_memory(
+            CACHE_CHUNKS * CHUNK_SAMPLES * row,
+            f"{self.files[0]}: {CACHE_CHUNKS} chunks of {CHUNK_SAMPLES} rows of {list(names)}",
+        )
+        return False
+
+    def _file(self, part: int) -> h5py.File:
+        """File ``part``, opened once in each process that reads from it."""
+        if self._pid != os.getpid():  # a forked worker drops the copies of its parent's
+            self._h5, self._pid = {}, os.getpid()
         if part not in self._h5:
             self._h5[part] = h5py.File(self.files[part], "r")
-        f, row = self._h5[part], index - int(self.starts[part])
-        delays, label = f[self.field][row], f["labels"][row]
-        where = f"{self.files[part]} (sample {row})"
-        _check_values(where, self.info.attrs, {self.field: delays, "labels": label})
-        return delays, int(label)
+        return self._h5[part]
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
-        state["_h5"] = None  # each worker opens its own handle
+        state["_h5"], state["_pid"], state["_blocks"] = None, None, OrderedDict()
         return state
 
     def __del__(self) -> None:
+        if getattr(self, "_pid", None) != os.getpid():
+            return  # handles a forked worker inherited are its parent's
         for f in (getattr(self, "_h5", None) or {}).values():
             try:
                 f.close()
@@ -140,9 +212,9 @@ class _SplitRows:
 
 
 class _PulseSplit(_SplitRows):
-    """A ``torch.utils.data.Dataset`` over one split: (delays as a float tensor, label).
-
-    Files are opened lazily in each worker process, so ``num_workers > 0`` works.
+    """A ``torch.utils.data.Dataset`` over one split: (delays as a float tensor, label), the
+    values :func:`load_split` returns, read into memory or a chunk at a time in each process
+    (``DataLoader`` workers too): :class:`_SplitRows`; ``classes``: the class names.
 
     transform : optional callable applied to the (H, W) float tensor
     target_transform : optional callable applied to the label (an int)
@@ -329,7 +401,6 @@ class EventDataset(_SplitRows):
         self.tick_ns = tick_ns
         self.no_return = spike_threshold(self.info.attrs)
         self.sensor_size = sensor_size(self.info.width, self.info.height)
-        self.classes = list(self.info.attrs["class_names"])
         self.transform = transform
         self.target_transform = target_transform
 

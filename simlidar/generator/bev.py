@@ -252,15 +252,21 @@ def _scatter(ax, across_m, ahead_m, surface, names, surfaces=None, sizes=None) -
 def _axes(ax, title: str, across_m: tuple, ahead_m: tuple, marker: float | None = None) -> None:
     """A bird's-eye axes' extent (``across_m``: its left and right edges, metres to the right
     of the sensor; ``ahead_m``: its bottom and top, metres ahead), title and legend, whose
-    markers are ten times the points' or, given ``marker``, all of that area (points^2)."""
+    markers all have the area ``marker`` (points^2; by default :data:`LEGEND_MARKER`), whatever
+    the points' sizes, so that no marker covers a label."""
     ax.set_xlim(*across_m)
     ax.set_ylim(*ahead_m)
     ax.set_aspect("equal")
     ax.set_title(title, fontsize=8)
     ax.tick_params(labelsize=6)
-    legend = ax.legend(fontsize=5, markerscale=10 if marker is None else 1, loc="lower left")
-    for handle in legend.legend_handles if marker is not None else []:
-        handle.set_sizes([marker])
+    legend = ax.legend(fontsize=5, loc="lower left")
+    for handle in legend.legend_handles:
+        handle.set_sizes([LEGEND_MARKER if marker is None else marker])
+
+
+# a legend marker's area in points^2: about the height of its 5-point label (markers scaled
+# from the points' own sizes grew to 30 points across for an object's and covered the labels)
+LEGEND_MARKER = 12.0
 
 
 def _label(fig) -> None:

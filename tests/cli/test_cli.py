@@ -108,13 +108,19 @@ def test_bad_input_gets_one_line_and_an_exit_code(cli, tmp_path, monkeypatch, ar
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]  # nothing written
 
 
-def test_an_existing_dataset_needs_force(cli, tmp_path):
+def test_an_existing_dataset_is_kept_or_needs_force(cli, tmp_path):
+    """The same request again keeps the dataset (a `kept` line, exit 0, its files untouched);
+    another request under the same name (another seed's file there) needs --force."""
     assert cli("generate", *SMALL, "--out", tmp_path).exit_code == 0
     target = tmp_path / "simlidar-32c-noise0.2-paper-v2.0.0" / "train.h5"
     before = target.read_bytes()
     again = cli("generate", *SMALL, "--out", tmp_path)
-    assert again.exit_code == 1
-    assert "already exists: pass --force" in again.stderr
+    assert again.exit_code == 0 and again.stdout.startswith(f"kept {target.parent} (")
+    assert target.read_bytes() == before
+    (target.parent / "preview.png").unlink()  # no longer the dataset the request makes
+    refused = cli("generate", *SMALL, "--out", tmp_path)
+    assert refused.exit_code == 1
+    assert "already exists and has no preview.png: pass --force" in refused.stderr
     assert target.read_bytes() == before
     assert cli("generate", *SMALL, "--out", tmp_path, "--force").exit_code == 0
 
@@ -350,3 +356,19 @@ def test_every_numeric_option_takes_ascii_digits_only(command, option):
         except click.BadParameter:
             pass
     assert taken
+
+
+def test_the_command_list_shows_each_commands_first_sentence_whole(cli):
+    """`simlidar --help` lists every command with the first sentence of its help, wrapped,
+    never cut with "..." (click cut them at one line's width)."""
+    import re
+
+    from simlidar.cli import main
+
+    listing = cli("--help").output.split("Commands:")[1]
+    flat = " ".join(listing.split())
+    assert "..." not in listing
+    for name, command in main.commands.items():
+        first = " ".join(command.help.split("\n\n")[0].split())
+        sentence = re.split(r"(?<=\.)\s", first)[0]
+        assert f"{name} {sentence}" in flat, name

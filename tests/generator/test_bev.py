@@ -117,3 +117,23 @@ def test_a_file_that_is_not_a_sweep_is_refused(tmp_path):
     with pytest.raises(ConfigError, match=r"other\.h5: expected a simlidar sweep file"):
         draw_motion(tmp_path / "other.h5", tmp_path / "out")
     assert not any((tmp_path / "out").iterdir())
+
+
+def test_every_legend_marker_has_one_size_so_none_covers_a_label():
+    """A bird's-eye legend's markers all have LEGEND_MARKER's area, however large the points
+    of their surface are drawn (an object's markers were scaled to 30 points across and
+    covered the labels below them)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from simlidar.generator.bev import LEGEND_MARKER, _axes, _scatter
+
+    fig, ax = plt.subplots()
+    many = np.zeros(2000)
+    _scatter(ax, np.r_[many, 1.0], np.r_[many, 2.0], np.r_[many.astype(int), 1], ["road", "car"])
+    _axes(ax, "two surfaces", (-40, 40), (-20, 80))
+    sizes = [float(h.get_sizes()[0]) for h in ax.get_legend().legend_handles]
+    plt.close(fig)
+    assert sizes == [LEGEND_MARKER, LEGEND_MARKER]
