@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 import torch
+from outside_builders import PLAIN_MODEL
 
 from simlidar.bench.checkpoints import data_record
 from simlidar.bench.merge import SCHEMA
@@ -34,22 +35,7 @@ lr = 3e-3
 batch_size = 32
 epochs = 4
 """
-PLAIN = """
-from torch import nn
-
-
-class Plain(nn.Module):
-    def __init__(self, pixels, classes):
-        super().__init__()
-        self.fc = nn.Linear(pixels, classes)
-
-    def forward(self, x):
-        return self.fc(x.flatten(1))
-
-
-def build(input_shape, classes, generator=None, **kw):
-    return Plain(input_shape[1] * input_shape[2], classes)
-"""
+PLAIN = "\nfrom torch import nn\n" + PLAIN_MODEL
 
 
 @pytest.fixture(scope="module")

@@ -28,6 +28,7 @@ import time
 from pathlib import Path
 
 import pytest
+from outside_builders import PLAIN_MODEL
 
 BUILDERS = """
 import atexit
@@ -37,20 +38,10 @@ import threading
 import time
 
 from torch import nn
-
-
-class Plain(nn.Module):
-    def __init__(self, pixels, classes):
-        super().__init__()
-        self.fc = nn.Linear(pixels, classes)
-
-    def forward(self, x):
-        return self.fc(x.flatten(1))
-
-
-def build(input_shape, classes, generator=None):
-    return Plain(input_shape[1] * input_shape[2], classes)
-
+"""
+BUILDERS += (
+    PLAIN_MODEL
+    + """
 
 def exits(input_shape, classes, generator=None):  # when built, before anything is written
     os._exit(0)
@@ -90,6 +81,7 @@ def sleeps(input_shape, classes, generator=None):
         started.write(str(os.getpid()))
     time.sleep(3600)
 """
+)
 SUITE = 'name = "misbehaving"\nmodels = ["cnn"]\nseeds = [0]\ndatasets = [{path}]\n'
 SUITE += "[budget]\nepochs = 1\n"
 TIMEOUT_S = 120  # a tiny bench takes a few seconds; a hang is what this catches

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 import torch
+from outside_builders import PLAIN_MODEL
 
 from simlidar.errors import ConfigError
 from simlidar.models.registry import build_model, builder, load_recipe
@@ -29,23 +30,10 @@ datasets = [{paths}]
 epochs = {epochs}
 """
 TRAINING = '[training]\noptimizer = "adam"\nlr = 1e-2\nbatch_size = 32\nepochs = {epochs}\n'
-PLAIN = """
-import torch
-from torch import nn
-
-
-class Plain(nn.Module):  # no declaration: a conventional classifier of delay images
-    def __init__(self, pixels, classes):
-        super().__init__()
-        self.fc = nn.Linear(pixels, classes)
-
-    def forward(self, x):
-        return self.fc(x.flatten(1))
-
-
-def build(input_shape, classes, generator=None, **kw):
-    return Plain(input_shape[1] * input_shape[2], classes)
-
+PLAIN = (
+    "\nimport torch\nfrom torch import nn\n"
+    + PLAIN_MODEL
+    + """
 
 def wrong_shape(input_shape, classes, generator=None):
     return Plain(input_shape[1] * input_shape[2], classes + 1)
@@ -140,6 +128,7 @@ def chatty(input_shape, classes, generator=None):
     print("x" * 1_000_000)
     return build(input_shape, classes)
 """
+)
 
 
 @pytest.fixture
