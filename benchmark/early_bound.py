@@ -1,4 +1,4 @@
-"""The early-information bound: how early a decision can be right, per dataset and encoding.
+"""The early-information estimate: how early a decision can be right, per dataset and encoding.
 
     python -m simlidar.cli generate --profile paper --noise 0.1,0.2 --train-size 3000 \\
         --test-size 600 --seed 0 --out /tmp/data
@@ -7,7 +7,10 @@
 
 For each dataset and encoding (``direction/missing``, :func:`simlidar.models.ttfs.encode`),
 :func:`simlidar.bench.bound.dataset_bound` trains the learner on what has arrived by the k-th
-input spike, k in ``--ks`` and each sample's own count, for every seed. Each (dataset,
+input spike, k in ``--ks`` and each sample's own count, for every seed: the best accuracy of
+the learners tried, an estimate of what the data allow, not a bound (a stronger learner can beat
+it; docs/paper-table.md, "How early a decision can be right"; the folders, files and JSON keys
+keep the older name "bound"). Each (dataset,
 encoding) is a JSON file under ``--out``/runs (a rerun skips the ones present, or adds to a
 run of several families those of ``--learners`` it lacks, at its own seeds, k and columns:
 ``--learners mlp,wide,cnn`` adds the CNN; given more ``--seeds`` than a run of several
@@ -58,7 +61,7 @@ def main(argv=None) -> int:
         "--columns",
         type=integers(1),
         default=None,
-        help="scan-timed data on the sensor's clock: also the bound once the sweep's first C "
+        help="scan-timed data on the sensor's clock: also the estimate once the sweep's first C "
         "firings are back, for each C (simlidar.bench.bound.bound's columns; the rows that "
         "benchmark/sweep_decisions.py reads)",
     )
@@ -303,13 +306,14 @@ def network_cells() -> list[dict]:
 
 
 def cell_bounds(results: list[dict], cells: list[dict]) -> list[dict]:
-    """Each cell beside the bound of its dataset and encoding, where a run of several
+    """Each cell beside the estimate of its dataset and encoding, where a run of several
     learners on a test split of the cell's size has one: behind a gate of k the row at k (the
     network read at most k spikes); otherwise the per-sample form at the cell's own decision
     counts (the better of the seeds' mean and their ensemble) and the looser rounded-up form,
-    and the larger of the two. ``ensemble``: the bound's best seed ensemble there (a learner
-    with a right or wrong on each test sample, which a seed mean is not; None where the run
-    keeps none), ``samples`` the test split's size."""
+    and the larger of the two, under the key ``bound`` (the older name, kept). ``ensemble``:
+    the estimate's best seed ensemble there (a learner with a right or wrong on each test
+    sample, which a seed mean is not; None where the run keeps none), ``samples`` the test
+    split's size."""
     from simlidar.bench.bound import per_sample_accuracy, rounded_up_accuracy, test_samples
 
     runs = {
@@ -350,14 +354,19 @@ def cell_bounds(results: list[dict], cells: list[dict]) -> list[dict]:
 
 
 def above_the_bound(found: list[dict]) -> list[dict]:
-    """The cells of :func:`cell_bounds` that score above their bound, each with what its lead
-    can mean on its test split: ``lead`` in test samples over the bound's best seed ensemble
-    there (the learner that has a right or wrong on every sample), and ``mcnemar_p_min``, the
-    smallest two-sided exact McNemar p-value any pattern of right and wrong gives that lead (the
-    network alone right on ``lead`` samples and the ensemble alone right on none: 2 ** (1 -
-    lead), 1 for a lead of one sample or none; above 0.05 up to a lead of 5, so such a lead is
-    within the test split's sampling whichever samples it is made of); and the mean over its
-    variant's seeds (``seeds_mean``), which the bound may still hold."""
+    """The cells of :func:`cell_bounds` (or any entries with its keys: ``source``, ``variant``,
+    ``dataset``, ``accuracy``, ``bound``: the estimate, ``ensemble``, ``samples``) that score
+    above their estimate, each with what its lead can mean on its test split: ``lead`` in test
+    samples over the estimate's best seed ensemble there (the learner that has a right or wrong
+    on every sample); ``mcnemar_p_min``, the smallest two-sided exact McNemar p-value any
+    pattern of right and wrong gives that lead (the network alone right on ``lead`` samples and
+    the ensemble alone right on none: 2 ** (1 - lead), 1 for a lead of one sample or none; above
+    0.05 up to a lead of 5, so such a lead is within the test split's sampling whichever samples
+    it is made of); ``mcnemar_p_max``, the largest (:func:`mcnemar_p_max`: the two disagreeing
+    on as many samples as their counts allow); and the mean over its variant's seeds
+    (``seeds_mean``), which the estimate may still hold. Where ``mcnemar_p_min`` is at most
+    0.05 and ``mcnemar_p_max`` above, whether the lead is beyond the test split's sampling
+    depends on which samples make it: only the cell's right or wrong on each sample tells."""
     variants: dict[tuple, list[float]] = {}
     for e in found:
         variants.setdefault((e["source"], e["variant"], e["dataset"]), []).append(e["accuracy"])
@@ -369,20 +378,42 @@ def above_the_bound(found: list[dict]) -> list[dict]:
         if e["ensemble"] is not None:
             lead = round((e["accuracy"] - e["ensemble"]) * e["samples"])
         p = None if lead is None else min(1.0, 2.0 ** (1 - lead))
+        p_max = None
+        if lead is not None:
+            right = round(e["accuracy"] * e["samples"])
+            p_max = mcnemar_p_max(lead, right, right - lead, e["samples"])
         seeds = variants[(e["source"], e["variant"], e["dataset"])]
-        above.append({**e, "lead": lead, "mcnemar_p_min": p, "seeds_mean": float(np.mean(seeds))})
+        above.append(
+            {**e, "lead": lead, "mcnemar_p_min": p, "mcnemar_p_max": p_max,
+             "seeds_mean": float(np.mean(seeds))}
+        )  # fmt: skip
     return above
 
 
+def mcnemar_p_max(lead: int, right: int, ensemble_right: int, samples: int) -> float:
+    """The largest two-sided exact McNemar p-value that any pattern of right and wrong gives a
+    network ``right`` of ``samples`` test samples, ``lead`` more than an ensemble
+    (``ensemble_right``): the two disagreeing on as many samples as the counts allow, the
+    ensemble alone right on min(ensemble_right, samples - right) of them, the network on those
+    plus ``lead``; 1 for no lead."""
+    from scipy.stats import binomtest
+
+    if lead <= 0:
+        return 1.0
+    alone = min(ensemble_right, samples - right)
+    return float(binomtest(alone + lead, 2 * alone + lead).pvalue)
+
+
 def report(out: Path) -> None:
-    """bound.json, bound.md and bound.png from every run under ``out``/runs."""
+    """bound.json, bound.md and bound.png (the estimate's; the files keep the older name)
+    from every run under ``out``/runs."""
     results = [json.loads(p.read_text()) for p in sorted((out / "runs").glob("*.json"))]
     points = snn_points()
     (out / "bound.json").write_text(
         json.dumps({"bounds": results, "snn_simlidar_tuned": points}, indent=1) + "\n"
     )
     lines = [
-        "# The early-information bound",
+        "# The early-information estimate",
         "",
         "Test accuracy of a learner given what has arrived by the k-th input spike (one MLP,",
         "mean +- population std over seeds; or, in runs of several learner families, the best",
@@ -390,6 +421,13 @@ def report(out: Path) -> None:
         "(ties at the k-th spike's time arrive together), `authors` the mean counted by the",
         "authors' rule (t > 0). Made by `benchmark/early_bound.py` (its docstring has the",
         "command; docs/paper-table.md the published ones).",
+        "",
+        "The estimate is the best accuracy of the learners tried, an estimate of what the data",
+        "allow, not a bound: a stronger learner can beat it. Its uncertainty: where it is a seed",
+        "mean, its family's seed spread (+-); where it is an ensemble, one figure, its family's",
+        "seeds beside it; a test split of N samples puts a binomial standard error of up to",
+        "50 / sqrt(N) points on any figure (2.0 at 600). The folder, files and JSON keys keep the",
+        "older name, `bound`.",
         "",
     ]
     for r in results:
@@ -432,7 +470,7 @@ def report(out: Path) -> None:
 
 
 def _families_table(r: dict) -> list[str]:
-    """A run of several learner families (issue 42): per k the bound (the best family's seed
+    """A run of several learner families (issue 42): per k the estimate (the best family's seed
     mean or seed ensemble, named), every family's seed mean +- sample standard deviation and
     ensemble, and the per-sample form's learner asked about every test sample at that k."""
     from simlidar.bench.bound import per_sample_accuracy
@@ -446,7 +484,7 @@ def _families_table(r: dict) -> list[str]:
         f"row once validation chose the epochs), {r['seconds']:.0f} s; +- is the sample "
         "standard deviation over seeds",
         "",
-        "| k | spikes (median) | authors (mean) | bound % | best | "
+        "| k | spikes (median) | authors (mean) | estimate % | best | "
         + " | ".join(f"{n} % | {n} ensemble %" for n in names)
         + (" | any-k learner, ensemble % |" if form else " |"),
         "| ---: | ---: | ---: | ---: | --- | " + " | ".join("---: | ---:" for _ in names)
@@ -474,7 +512,7 @@ def _families_table(r: dict) -> list[str]:
             "C columns has had its listening window (its emission + tof_max); `time` is the",
             "median of that moment, us after the window's first firing.",
             "",
-            "| columns | time (us, median) | spikes (median) | bound % | best | "
+            "| columns | time (us, median) | spikes (median) | estimate % | best | "
             + " | ".join(f"{n} % | {n} ensemble %" for n in names) + " |",
             "| ---: | ---: | ---: | ---: | --- | " + " | ".join("---: | ---:" for _ in names)
             + " |",
@@ -493,23 +531,45 @@ def _families_table(r: dict) -> list[str]:
     return lines
 
 
+# how a table of cells above the estimate reads (cells.md here, weather.md of benchmark/weather.py)
+ABOVE_LEGEND = (
+    "Lead: test samples right beyond the estimate's best seed ensemble there; p: the smallest",
+    "and the largest two-sided exact McNemar p-value that any pattern of right and wrong gives",
+    "that lead (`early_bound.above_the_bound`): where even the smallest is above 0.05, the lead",
+    "is within the test split's sampling whichever samples make it; where only the largest is,",
+    "it may be, and only the cell's right or wrong on each sample would tell. Seeds' mean: the",
+    "variant's, beside the estimate.",
+)
+
+
+def p_text(p: float | None) -> str:
+    """A p-value of :func:`above_the_bound` as its tables show it: two decimals, 3 significant
+    digits below 0.01, "-" for none."""
+    if p is None:
+        return "-"
+    return f"{p:.2f}" if p >= 0.01 else f"{p:.3g}"
+
+
 def _cells_table(found: list[dict]) -> str:
-    """Every committed spiking-network cell beside the bound (:func:`cell_bounds`), grouped by
-    source, variant and dataset: the accuracy of each seed and the bound's smallest margin."""
+    """Every committed spiking-network cell beside the estimate (:func:`cell_bounds`), grouped
+    by source, variant and dataset: the accuracy of each seed and the estimate's smallest
+    margin."""
     groups: dict[tuple, list[dict]] = {}
     for entry in found:
         groups.setdefault((entry["source"], entry["variant"], entry["dataset"]), []).append(entry)
     lines = [
-        "# Committed spiking-network cells beside the bound",
+        "# Committed spiking-network cells beside the early-information estimate",
         "",
-        "Behind a gate of k: the bound's row at k. Otherwise the per-sample form at each test",
-        "sample's own decision count (the any-k learner: the better of its seeds' mean and",
-        "ensemble) and the looser rounded-up form (each sample read at the first measured k at",
-        "or above its count), the bound being the larger (per seed: each seed decided at its own",
-        "counts; the lowest shown). Margin: the smallest of bound minus accuracy over the seeds.",
+        "The estimate: the best accuracy of the learners tried, not a bound (a stronger learner",
+        "can beat it; docs/paper-table.md). Behind a gate of k: the estimate's row at k.",
+        "Otherwise the per-sample form at each test sample's own decision count (the any-k",
+        "learner: the better of its seeds' mean and ensemble) and the looser rounded-up form",
+        "(each sample read at the first measured k at or above its count), the estimate being",
+        "the larger (per seed: each seed decided at its own counts; the lowest shown). Margin:",
+        "the smallest of estimate minus accuracy over the seeds.",
         "",
         "| source | variant | dataset | encoding | seeds: accuracy % | form | per sample % | "
-        "rounded up % | bound % | margin |",
+        "rounded up % | estimate % | margin |",
         "| --- | --- | --- | --- | --- | --- | ---: | ---: | ---: | ---: |",
     ]
     for (source, variant, dataset), entries in sorted(groups.items()):
@@ -530,23 +590,21 @@ def _cells_table(found: list[dict]) -> str:
     if above:
         lines += [
             "",
-            "## Cells above the bound",
+            "## Cells above the estimate",
             "",
-            "Lead: test samples right beyond the bound's best seed ensemble there; p: the",
-            "smallest two-sided exact McNemar p-value any pattern of right and wrong gives that",
-            "lead (`early_bound.above_the_bound`); seeds' mean: the variant's, beside the bound.",
+            *ABOVE_LEGEND,
             "",
-            "| source | variant | dataset | seed | accuracy % | bound % | best ensemble % | "
-            "lead (samples) | p at least | seeds' mean % |",
-            "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+            "| source | variant | dataset | seed | accuracy % | estimate % | best ensemble % | "
+            "lead (samples) | p at least | p at most | seeds' mean % |",
+            "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
         ]
         for e in above:
             ensemble = "-" if e["ensemble"] is None else f"{e['ensemble']:.2%}"
             lead = "-" if e["lead"] is None else f"{e['lead']} of {e['samples']}"
-            p = "-" if e["mcnemar_p_min"] is None else f"{e['mcnemar_p_min']:.2f}"
             lines.append(
                 f"| {e['source']} | {e['variant']} | {e['dataset']} | {e['seed']} | "
-                f"{e['accuracy']:.2%} | {e['bound']:.2%} | {ensemble} | {lead} | {p} | "
+                f"{e['accuracy']:.2%} | {e['bound']:.2%} | {ensemble} | {lead} | "
+                f"{p_text(e['mcnemar_p_min'])} | {p_text(e['mcnemar_p_max'])} | "
                 f"{e['seeds_mean']:.2%} |"
             )
     return "\n".join(lines) + "\n"
@@ -576,7 +634,7 @@ def plot(results: list[dict], points: list[dict], path: Path) -> None:
     ax.set_ylabel("test accuracy %")
     ax.set_ylim(0, 101)
     ax.legend(fontsize=7, loc="lower right")
-    ax.set_title("How early a decision can be right: the bound and the networks")
+    ax.set_title("How early a decision can be right: the estimate and the networks")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
 

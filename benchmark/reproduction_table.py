@@ -6,11 +6,12 @@ results under benchmark/results/ give, with a verdict by fixed rules.
     python benchmark/reproduction_table.py --write README.md  # replace README's table
 
 The paper's figures come from ``baselines/reported/wang2020.toml``; ours from the committed
-cells (one JSON file a training seed) and bound runs, read by the functions below, never typed
-in. "Ours" is the mean over training seeds with the 95 % interval of the mean (Student's t,
-``paper_table.interval``); where a committed figure has no per-seed values (an ensemble, one
-seed) the cell says so. The verdict comes from :func:`verdict`'s rules. In FILE the table sits
-between the lines ``<!-- reproduction-table:start -->`` and ``<!-- reproduction-table:end -->``.
+cells (one JSON file a training seed) and the early-information estimate's runs (its folder
+``bound/``, the older name), read by the functions below, never typed in. "Ours" is the mean
+over training seeds with the 95 % interval of the mean (Student's t, ``paper_table.interval``);
+where a committed figure has no per-seed values (an ensemble, one seed) the cell says so. The
+verdict comes from :func:`verdict`'s rules. In FILE the table sits between the lines
+``<!-- reproduction-table:start -->`` and ``<!-- reproduction-table:end -->``.
 """
 
 import argparse
@@ -126,8 +127,9 @@ def decision_time(noise: float) -> Callable[[dict], Measured]:
 
 
 def bound_after(noise: float) -> Callable[[dict], Measured]:
-    """The early-information bound with what has arrived by the paper's fewest spikes (its
-    "as few as 13-16": the 16th), the better of the two encodings (bound/runs)."""
+    """The early-information estimate with what has arrived by the paper's fewest spikes (its
+    "as few as 13-16": the 16th), the better of the two encodings (bound/runs): the best
+    learner tried, not a bound (docs/paper-table.md)."""
 
     def measure(paper: dict) -> Measured:
         k = paper["simlidar"]["input_spikes"][1]
@@ -137,11 +139,12 @@ def bound_after(noise: float) -> Callable[[dict], Measured]:
             run_ = read_json(RESULTS / "bound" / "runs" / name)
             row = next((r for r in run_["rows"] if r.get("k") == k), None)
             if row is None:
-                raise ResultsError(f"{name}: expected a bound row at k = {k}")
+                raise ResultsError(f"{name}: expected an estimate's row at k = {k}")
             if best is None or row["accuracy_mean"] > best[0]["accuracy_mean"]:
                 best = row, words, len(run_["seeds"])
         row, words, seeds = best
-        note = f"the best learner given the first {k} spikes, {words}"
+        note = f"the early-information estimate (the best learner tried) given the first {k} "
+        note += f"spikes, {words}"
         if row["best"].endswith("/ensemble"):  # one value: the learners' averaged answers
             alone = f"an ensemble of {seeds} learner seeds"
             return Measured((100 * row["accuracy_mean"],), "%", seeds, alone, note)
@@ -302,13 +305,14 @@ def paper_numbers() -> dict:
         raise ResultsError(f"{PAPER_FILE}: expected the paper's numbers (TOML): {exc}") from None
 
 
-def split(text: str, path: Path) -> tuple[str, str, str]:
-    """``text`` cut around its table: (before START's line, the table, from END's line on)."""
+def split(text: str, path: Path, start: str = START, end: str = END) -> tuple[str, str, str]:
+    """``text`` cut around its table: (before ``start``'s line, the table, from ``end``'s line
+    on); other generated blocks of a page have markers of their own (benchmark/weather.py)."""
     lines = text.split("\n")
-    starts = [i for i, line in enumerate(lines) if line.strip() == START]
-    ends = [i for i, line in enumerate(lines) if line.strip() == END]
+    starts = [i for i, line in enumerate(lines) if line.strip() == start]
+    ends = [i for i, line in enumerate(lines) if line.strip() == end]
     if len(starts) != 1 or len(ends) != 1 or ends[0] < starts[0]:
-        raise ResultsError(f"{path}: expected one line {START} and, after it, one line {END}")
+        raise ResultsError(f"{path}: expected one line {start} and, after it, one line {end}")
     (i,), (j,) = starts, ends
     before = "\n".join(lines[: i + 1]) + "\n"
     return before, "\n".join(lines[i + 1 : j]).strip("\n"), "\n" + "\n".join(lines[j:])

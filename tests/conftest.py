@@ -288,3 +288,13 @@ def hdf5_bomb():
     """``hdf5_bomb(copy, n=20_000_000, rows=None, stored=False)``: make a dataset copy's
     train.h5 declare ``n`` samples it does not store (the card and sums agreeing)."""
     return _bomb
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark the tests of tests/slow_tests.py ``slow``: ``python -m pytest -m "not slow"`` is the
+    quick run (README, Development); CI runs every test."""
+    from slow_tests import SLOW
+
+    for item in items:
+        if item.nodeid.split("[")[0] in SLOW:
+            item.add_marker(pytest.mark.slow)

@@ -190,7 +190,7 @@ def test_the_weather_page_quotes_the_committed_weather_run():
                 for h in header[1:]]  # fmt: skip
         keys = [k.replace(" ", "") for k in keys]
         for model, *cells in rows:
-            if model.startswith("*bound"):
+            if model.startswith("*estimate"):
                 want = [f"{result['bound'][k]['accuracy']:.1f}" for k in keys]
             else:
                 points = {p["weather"]: p for p in result["points"][model]}

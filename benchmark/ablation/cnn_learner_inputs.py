@@ -1,23 +1,23 @@
-"""What gives the bound's CNN learner its lead on `physical`? (issue 42)
+"""What gives the early-information estimate's CNN learner its lead on `physical`? (issue 42)
 
     python benchmark/ablation/cnn_learner_inputs.py DATA/simlidar-32c-noise0.2-physical-v1.0.0 \\
         [--variants bound,no-mask,channel,no-mask-channel] [--seeds 0,1,2,3,4] \\
         [--out cnn-learner-inputs.jsonl]
     python benchmark/ablation/cnn_learner_inputs.py --summary cnn-learner-inputs.jsonl
 
-On `physical` noise 0.2 with every spike, the bound's CNN family (``simlidar.bench.bound.
+On `physical` noise 0.2 with every spike, the estimate's CNN family (``simlidar.bench.bound.
 LEARNERS["cnn"]``: the paper's CNN, fresh noise every epoch, its epochs chosen on validation
-rows) scores 89.0 % on average (the scan-timed bound, 5 seeds; this script's ``bound`` row is
-the same learner on the flash twin), where the paper's CNN trained as the spiking networks are
+rows) scores 89.0 % on average (the scan-timed estimate, 5 seeds; this script's ``bound`` row
+is the same learner on the flash twin), where the paper's CNN trained as the spiking networks are
 (``benchmark/ablation/scnn_variants.py --variants relu-cnn``) scores 78.2 % and the spiking
 CNN 75.8-76.3 %. The learner differs from those networks in what it is shown: a view of two
 channels (each pixel's spike time, and whether it has arrived: a missing return is a 0 there)
 each standardised pixel by pixel over the training rows, where a network reads the delays of
 one channel as they are. This script trains that learner (every spike, near returns first, a
-missing return no spike: the bound's ``near_first/as_value`` row) on the view changed one
+missing return no spike: the estimate's ``near_first/as_value`` row) on the view changed one
 way at a time:
 
-* ``bound``: the view as the bound shows it;
+* ``bound``: the view as the estimate shows it (the variant keeps the estimate's older name);
 * ``no-mask``: the arrived channel all zeros (a missing pixel then shows only the sample's
   last spike time, as a late return would);
 * ``channel``: each channel standardised by one mean and deviation over every pixel, not
@@ -61,7 +61,7 @@ def masked(view: np.ndarray, keep: bool) -> np.ndarray:
 
 
 def cell(dataset: Path, variant: str, seed: int) -> dict:
-    """The bound's CNN learner with every spike (near first, a missing return no spike) on
+    """The estimate's CNN learner with every spike (near first, a missing return no spike) on
     ``dataset``, the view changed as ``variant`` says, trained with ``seed``."""
     from simlidar.bench.augment import fresh_noise
     from simlidar.bench.bound import LEARNERS, arrived, spike_times, train_learner

@@ -1,20 +1,21 @@
-"""Are the mid-sweep cells above the bound there beyond the test split's sampling? (issue 42)
+"""Are the mid-sweep cells above the estimate there beyond the test split's sampling? (issue 42)
 
     python benchmark/ablation/mid_sweep_exceptions.py --data /tmp/data --jobs 2
     python benchmark/ablation/mid_sweep_exceptions.py --no-train       # the report again
 
-A few committed column-gated cells of ``benchmark/sweep_decisions.py`` score above the bound
-of their columns (``sweep_decisions.bound_for``; ``MID_SWEEP_ABOVE_THE_BOUND`` in
-tests/test_benchmark_scripts.py lists them): at 4 and 6 columns, where a fifth to a third of
-the test samples are right and learners tried so far do no better. This script finds every
+A few committed column-gated cells of ``benchmark/sweep_decisions.py`` score above the
+early-information estimate of their columns (``sweep_decisions.bound_for``: the best of the
+learners tried, not a bound; ``MID_SWEEP_ABOVE_THE_ESTIMATE`` in tests/test_benchmark_scripts.py
+lists them): at 4 and 6 columns, where a fifth to a third of the test samples are right and
+learners tried so far do no better. This script finds every
 such cell, and for each point (dataset, columns) it has, retrains every committed seed's cell
 on the CPU (one thread; checked to the bit: the committed test accuracy, so the same network;
 the flash dataset made under ``--data`` if missing) and compares its test predictions, sample
-by sample, with the bound row's best seed ensemble (whose right or wrong on each test sample
-the bound's run stores; a row whose best is a seed mean has no such record, so its best
+by sample, with the estimate row's best seed ensemble (whose right or wrong on each test sample
+the estimate's run stores; a row whose best is a seed mean has no such record, so its best
 ensemble stands in):
 
-* per seed: the test samples only the network gets right, those only the bound's ensemble
+* per seed: the test samples only the network gets right, those only the estimate's ensemble
   gets right, and the exact McNemar p-value (two-sided binomial test on those samples);
 * per point: the seeds' mean accuracy minus the ensemble's, and its 95 % interval over the
   600 test samples (the mean of the per-sample differences, plus or minus 1.96 standard
@@ -22,7 +23,7 @@ ensemble stands in):
   same size could give.
 
 Writes ``exceptions.json`` (with each retrained cell's right or wrong per test sample, packed
-as the bound's runs pack theirs, from which the test recomputes every figure) and
+as the estimate's runs pack theirs, from which the test recomputes every figure) and
 ``exceptions.md`` under ``--out``.
 """
 
@@ -63,7 +64,7 @@ def scan_name(flash: str) -> str:
 
 def above_the_bound(bound_json: Path = BOUND) -> dict[tuple[str, int, str], list[int]]:
     """(flash dataset, columns, recipe) -> the seeds whose committed cell scores above the
-    bound for its columns on its scan twin (as tests/test_benchmark_scripts.py reads it)."""
+    estimate for its columns on its scan twin (as tests/test_benchmark_scripts.py reads it)."""
     found: dict[tuple[str, int, str], list[int]] = {}
     bounds: dict[str, dict] = {}  # scan twin -> its rows, bound.json read once a dataset
     for recipe, folder in COMMITTED.items():
@@ -120,7 +121,8 @@ def retrained(dataset: Path, recipe: str, seed: int, columns: int) -> dict:
 
 
 def compare(cells: list[dict], bound_row: dict, samples: int) -> dict:
-    """A point's retrained cells beside the bound row's best seed ensemble, sample by sample."""
+    """A point's retrained cells beside the estimate row's best seed ensemble, sample by sample
+    (the keys ``bound``, ``only_bound``, ... keep the estimate's older name)."""
     from scipy.stats import binomtest
 
     from simlidar.bench.bound import unpack
@@ -162,17 +164,18 @@ def write(out: Path, points: list[dict], command: str) -> None:
         json.dumps({"command": command, "points": points}, indent=1) + "\n"
     )
     lines = [
-        "# The mid-sweep cells above the bound, sample by sample",
+        "# The mid-sweep cells above the early-information estimate, sample by sample",
         "",
         f"Made by `{command}` (benchmark/ablation/mid_sweep_exceptions.py; its docstring says "
         "how). Each point's committed cells were trained again (the same test accuracy to the "
-        "bit) and compared on the 600 test samples with the bound row's best seed ensemble. "
+        "bit) and compared on the 600 test samples with the estimate row's best seed ensemble "
+        "(the estimate: the best of the learners tried, not a bound; docs/paper-table.md). "
         "`difference`: the seeds' mean accuracy minus the ensemble's, points, with its 95 % "
         "interval over the test samples; per seed, the samples only the network gets right, "
         "only the ensemble, and the exact McNemar p-value.",
         "",
-        "| dataset | recipe | columns | bound (best) | ensemble | network (seeds) | "
-        "difference [95 %] | per seed: only net / only bound, p |",
+        "| dataset | recipe | columns | estimate (best) | ensemble | network (seeds) | "
+        "difference [95 %] | per seed: only net / only estimate, p |",
         "| --- | --- | ---: | ---: | ---: | ---: | ---: | --- |",
     ]
     for p in points:

@@ -7,11 +7,11 @@
     python benchmark/ablation/scnn_variants.py --summary scnn-variants.json   # the table
 
 On `physical` noise 0.2 the spiking CNN ``scnn_simlidar_tuned`` with every column scores
-76.33 % (5 seeds, ``benchmark/results/sweep-decisions-scnn/``) where the bound's CNN family (the
-paper's CNN with the same fresh noise) scores 89.0 % on average and 92.2 % as an ensemble
-(docs/snn.md). This script trains variants of that network, each changing one thing, under the
-committed cells' protocol (``sweep_decisions.committed_cell``: every training row, a fresh
-noise draw every epoch, the cosine schedule's last epoch scored):
+76.33 % (5 seeds, ``benchmark/results/sweep-decisions-scnn/``) where the early-information
+estimate's CNN family (the paper's CNN with the same fresh noise) scores 89.0 % on average and
+92.2 % as an ensemble (docs/snn.md). This script trains variants of that network, each changing
+one thing, under the committed cells' protocol (``sweep_decisions.committed_cell``: every
+training row, a fresh noise draw every epoch, the cosine schedule's last epoch scored):
 
 * ``cnn-shape``: the CNN family's layers (48 channels of 5x5 stride 2, 24 of 5x5 stride 2,
   dense 256) as TTFS layers, the rest of the recipe unchanged;
@@ -24,7 +24,7 @@ noise draw every epoch, the cosine schedule's last epoch scored):
   that ``cnn-shape`` and ``relu-cnn`` differ in the neuron and its training terms only;
 * ``no-return-channel``: a missing return is an input spike of a channel of its own at the
   window's end (``missing = "own_channel"``, :func:`simlidar.models.ttfs.encode`), where the
-  committed network gets no spike: the arrived-or-not channel of the bound's view, which is
+  committed network gets no spike: the arrived-or-not channel of the estimate's view, which is
   worth 6-7 points to the CNN learner (``benchmark/ablation/cnn_learner_inputs.py``).
 
 ``--recipe snn_simlidar_tuned`` trains the dense network's committed cells

@@ -13,7 +13,7 @@ def fresh_noise(dataset, attrs: dict, seed: int, rows: np.ndarray):
     profile rule, from ``clean_delays``) for each epoch, (len(rows), H, W) float32 delays: the
     paper's "adding noise randomly" as augmentation rather than one fixed draw per sample, for
     the training ``rows`` (the validation rows keep the file's draw, like the test split).
-    Seeded by the training seed. The early-information bound draws the same way. Under scan
+    Seeded by the training seed. The early-information estimate draws the same way. Under scan
     timing the noise is drawn on each pulse's time of flight, as the generator draws it, and the
     draw made arrival times again (before issue 42 it was added to the arrival times: a jitter
     of ``noise`` times the whole 9.5 ms window)."""

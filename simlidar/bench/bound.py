@@ -1,4 +1,4 @@
-"""The early-information bound: how early a decision *can* be right, before any spiking network.
+"""The early-information estimate: how early a decision can be right, before any spiking network.
 
 For k input spikes, a conventional classifier is given what has arrived by the k-th spike of
 each sample, in the encoding's time order (:func:`simlidar.models.ttfs.encode`): every pixel
@@ -6,14 +6,16 @@ whose spike time is at or before the k-th spike's (ties arrive together, as the 
 evaluator delivers them) shows its time, every other pixel the k-th spike's time, and a second
 channel says arrived (1) or not (0). ``k = None`` is each sample's own spike count: everything
 that ever spikes has arrived. Its test accuracy, trained on the same view of the train split
-and selected on a validation split, bounds what any network deciding after k spikes can reach
-on this data, as far as the learner is strong enough.
+and selected on a validation split, estimates what a network deciding after k spikes can reach
+on this data: an estimate from the learners tried, not a bound, since a stronger learner can
+beat it (docs/paper-table.md, "How early a decision can be right"). The module, its functions,
+:class:`BoundConfig` and the results' keys keep the older name "bound".
 
 The learner: simlidar's MLP (:func:`simlidar.models.conventional.mlp`, two hidden layers of
 256 by default) trained with Adam on the view, the epoch with the best validation accuracy
 kept (ties: the lower validation loss; the rows of
 :func:`simlidar.bench.selection.validation_split`), stopped after ``patience`` epochs without
-improvement: the first bound. The bound of issue 42 (:data:`LEARNERS`, :func:`bound`'s
+improvement: the first estimate. The estimate of issue 42 (:data:`LEARNERS`, :func:`bound`'s
 ``learners``) trains three families (that MLP, a wide one and the paper's CNN on the view as
 (2, H, W) images) with the networks' advantages
 (fresh noise every epoch, every training row: :attr:`BoundConfig.fresh_noise`) and takes,
@@ -27,7 +29,7 @@ time of flight, and the emission (its column's place in a 9.5 ms window, shifted
 sample by the firing phase by up to a 55 us firing cycle) dwarfs any time of flight (at most
 667 ns): fed as they arrive, the range is a ripple the learner does not find (3-6 %, chance 3.1
 %, at every k past the first column; benchmark/results/early-bound-scan/). The sensor knows
-when it fired each laser, so the bound of scan-timed data by default reads the sensor's clock
+when it fired each laser, so the estimate on scan-timed data by default reads the sensor's clock
 (``clock="sensor"``): spikes still arrive in arrival order, and each pixel shows what is known
 of its time of flight at the k-th spike's time T: its time of flight once it has arrived, else
 T minus its emission (at least 0), the range it is known to exceed, in units of ``tof_max_ns``.
@@ -149,7 +151,7 @@ def train_learner(
         and with ``draw`` "refit_epochs"
     height : the samples' rows H (P = H x W): the CNN sees the view as (2, H, W) images; the
         MLP reads (2, 1, P), the same numbers in the same order
-    standardise : "pixel" (the bound's): each feature (pixel and channel) by its own mean and
+    standardise : "pixel" (the estimate's): each feature (pixel and channel) by its own mean and
         standard deviation over the training rows; "channel": each channel by one mean and
         deviation over every pixel (benchmark/ablation/cnn_learner_inputs.py)
     """
@@ -248,7 +250,7 @@ def _epoch(model, optimizer, x: torch.Tensor, y: torch.Tensor, generator, config
         optimizer.step()
 
 
-# the learner families whose best a bound row gives (issue 42): the published MLP, a wider
+# the learner families whose best an estimate's row gives (issue 42): the published MLP, a wider
 # one and the paper's CNN, all with the networks' advantages; each also as the ensemble of its
 # seeds' learners
 LEARNERS = {
@@ -274,7 +276,7 @@ def bound(
     learners: dict[str, BoundConfig] | None = None,
     columns=(),
 ) -> dict:
-    """The bound on (delays (N, ...), labels (N,)) train and test splits: one row per k (and
+    """The estimate on (delays (N, ...), labels (N,)) train and test splits: one row per k (and
     one for each sample's own count, ``k`` None), each with the test accuracy of every seed
     and the spikes that had arrived in the test split (ours: every spike at or before the
     k-th's time; the authors' rule: those after t = 0). ``emission``: the train and test
@@ -296,7 +298,7 @@ def bound(
     learners : name -> configuration of several learner families (:data:`LEARNERS`); each row
         then holds every family's per-seed accuracies and the accuracy of its seeds' ensemble
         (their class probabilities averaged), and ``accuracy_mean`` is the best of those
-        (``best`` names it): the bound no learner of the project is to beat. Without it, one
+        (``best`` names it): the estimate, which a stronger learner can beat. Without it, one
         learner (``config``), as the published runs before issue 42.
     columns : scan-timed data on the sensor's clock (``emission``): also one row per count C
         of the sweep's first firings (``column_rows``), each sample seen when the last pulse
@@ -372,7 +374,7 @@ def bound(
 
 
 def best_of(found: dict[str, dict]) -> dict:
-    """A row's bound from its learner families ``found`` (name -> :func:`_family`): the best of
+    """A row's estimate from its learner families ``found`` (name -> :func:`_family`): the best of
     every family's seed mean and seed ensemble, named (``mlp``, ``wide/ensemble``, ...)."""
     best = max(
         ((f"{n}{form}", f[key]) for n, f in found.items()
@@ -390,9 +392,9 @@ def best_of(found: dict[str, dict]) -> dict:
 
 
 def with_families(result: dict, extra: dict) -> dict:
-    """A bound of several learner families (``result``) with the families of ``extra`` added:
-    a run of other families on the same data, encoding, seeds, k and columns; every row's bound
-    taken again over all of them."""
+    """An estimate of several learner families (``result``) with the families of ``extra``
+    added: a run of other families on the same data, encoding, seeds, k and columns; every row's
+    estimate taken again over all of them."""
     if extra["seeds"] != result["seeds"] or extra["encoding"] != result["encoding"]:
         raise ValueError("with_families: expected runs of the same seeds and encoding")
     merged = {**result, "learner": {**result["learner"], **extra["learner"]}}
@@ -442,7 +444,7 @@ def per_sample(
     scale: float = 1.0,
     fresh=None,
 ) -> dict:
-    """The bound's per-sample form: one learner per seed trained on views at any k (each
+    """The estimate's per-sample form: one learner per seed trained on views at any k (each
     training row at its own k, drawn uniformly from 1..P anew every epoch), then asked about
     every test sample at every k. A network that decided sample i after k_i input spikes is
     compared with the mean over i of whether the learner is right on sample i's view at k_i
@@ -500,7 +502,7 @@ def unpack(text: str, shape: tuple[int, int]) -> np.ndarray:
 
 
 def per_sample_accuracy(form: dict, spikes, which: str = "ensemble") -> float:
-    """The per-sample bound (:func:`per_sample`) of a network that decided each test sample
+    """The per-sample estimate (:func:`per_sample`) for a network that decided each test sample
     after ``spikes`` (N,) input spikes (0 counts as 1: a decision before any spike reads
     nothing, the view of the first spike knows at least as much): the share of test samples
     the learner (``which``: a seed, or the ensemble of the seeds) gets right at that count."""
@@ -519,7 +521,7 @@ def test_samples(result: dict) -> int:
 
 
 def rounded_up_accuracy(result: dict, spikes) -> float:
-    """A looser per-sample bound from :func:`bound`'s rows (several learners): each test
+    """A looser per-sample estimate from :func:`bound`'s rows (several learners): each test
     sample counted right where the best family's ensemble at the first measured k at or above
     its decision count ``spikes`` (N,) (the row of every spike beyond the largest) is right.
     That learner saw at least as much of the sample as the network had."""

@@ -1,15 +1,16 @@
-"""The early-information bound (``simlidar.bench.bound``) on toy datasets whose answer is known.
+"""The early-information estimate (``simlidar.bench.bound``) on toy datasets whose answer is
+known.
 
 Attack list:
 * the view by hand: ties at the k-th spike's time arrive together, a pixel that never spikes
   never arrives, a k beyond a sample's spike count shows everything, the authors' count leaves
   out spikes at t = 0;
-* a class written entirely in the earliest spike's position: the bound must reach ~100 % at
+* a class written entirely in the earliest spike's position: the estimate must reach ~100 % at
   k = 1..4 (a learner too weak, or a view that hides what has arrived, fails here);
-* a class written only in the last spikes: the bound must stay at chance until they arrive
+* a class written only in the last spikes: the estimate must stay at chance until they arrive
   (a view that leaked a later spike, its time or its mask, would beat chance) and reach ~100 %
-  once every spike has arrived; the Bayes accuracy of both toys is known (100 % and 25 %), so
-  no learner can beat the bound there;
+  once every spike has arrived; the Bayes accuracy of both toys is known (100 % and 25 %), a
+  bound no learner can beat there, and the estimate must reach it without passing it;
 * the encoding's direction reverses the two toys: far first, the late toy is decided at k = 1.
 """
 
@@ -84,7 +85,7 @@ def test_a_class_in_the_earliest_spike_is_known_at_once():
 
 
 def test_the_learner_standardises_pixel_by_pixel_unless_told_per_channel():
-    """The bound's standardisation (``pixel``) is the default, bit for bit; ``channel`` (one
+    """The estimate's standardisation (``pixel``) is the default, bit for bit; ``channel`` (one
     mean and deviation a channel: benchmark/ablation/cnn_learner_inputs.py) learns the early
     toy too, from another scaling; any other value is refused by name."""
     (d, y), (d_test, y_test) = _toy(400, 0, late=False), _toy(100, 1, late=False)
@@ -148,7 +149,7 @@ def test_the_sensor_clock_finds_a_class_written_in_the_time_of_flight():
 
 
 def test_several_learners_give_the_best_of_their_seeds_and_ensembles():
-    """Issue 42: a row's bound is the best of every family's seed mean and seed ensemble."""
+    """Issue 42: a row's estimate is the best of every family's seed mean and seed ensemble."""
     learners = {"mlp": FAST, "wide": BoundConfig(hidden=(128, 128), max_epochs=30, patience=5)}
     train, test = _toy(400, 0, late=False), _toy(100, 1, late=False)
     result = bound(train, test, CLASSES, math.inf, ks=(1,), seeds=(0, 1), learners=learners)
@@ -171,7 +172,7 @@ def test_several_learners_give_the_best_of_their_seeds_and_ensembles():
 def test_the_per_sample_form_knows_each_sample_at_its_own_count():
     """Early toy: the class is in each sample's first spike, so the learner trained at any k
     knows it once a few spikes have come; the late toy's class is in the last spike: at k = 4
-    it is at chance. A network that decided each sample at its own count is bounded by the
+    it is at chance. A network that decided each sample at its own count is compared with the
     matrix read there."""
     from simlidar.bench.bound import pack, per_sample, per_sample_accuracy, unpack
 
@@ -206,7 +207,7 @@ def _sweep_toy(n: int, seed: int):
     return (emission + tof * 1e-3).astype(np.float32), y, emission
 
 
-def test_the_bound_by_the_sweeps_first_columns_knows_what_they_hold():
+def test_the_estimate_by_the_sweeps_first_columns_knows_what_they_hold():
     """The rows by columns (the sensor time a column-gated network decides at): at 5 columns
     the class has not been fired at (chance), at 6 it has come back; the k rows are as before."""
     (*train, e_train), (*test, e_test) = _sweep_toy(600, 0), _sweep_toy(200, 1)
@@ -228,7 +229,7 @@ def test_the_bound_by_the_sweeps_first_columns_knows_what_they_hold():
 CNN = BoundConfig(hidden=(64,), max_epochs=30, patience=5, model="cnn")
 
 
-def test_a_family_added_later_gives_the_bound_of_both_at_once():
+def test_a_family_added_later_gives_the_estimate_of_both_at_once():
     """The CNN family (the view as (2, H, W) images) learns the early toy; added to a run of
     the MLP (``with_families``, as ``benchmark/early_bound.py --learners mlp,wide,cnn`` adds
     it to a committed run), every row is the one a run of both families at once gives."""
