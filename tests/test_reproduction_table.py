@@ -221,3 +221,24 @@ def test_the_paper_table_page_quotes_the_committed_paper_table():
                 f"{r['difference']:+.2f}",
                 f"{s['median']:.0f} ({s['p10']:.0f} / {s['p90']:.0f}, {s['max']})",
             ], recipe
+
+
+def test_the_paper_tables_mlp_and_one_draw_columns_are_the_committed_runs():
+    """docs/paper-table.md's last two columns: the ReLU MLP's mean and sample standard
+    deviation over its committed runs (seeds 0-2) and the one run of the tuned network on one
+    noise draw, from benchmark/results/paper-table/extras/."""
+    import numpy as np
+
+    extras = ROOT / "benchmark/results/paper-table/extras"
+    page = (ROOT / "docs/paper-table.md").read_text()
+    table = page.split("## The table")[1].split("\n\n")[1]
+    for cells in _rows(table)[1:]:
+        noise = f"{float(cells[0]):g}"
+        mlp = 100 * np.array([
+            json.loads((extras / f"mlp-{noise}-seed{s}.json").read_text())["test_accuracy"]
+            for s in (0, 1, 2)
+        ])  # fmt: skip
+        assert cells[5] == f"{mlp.mean():.2f} ± {mlp.std(ddof=1):.2f}", noise
+        one = extras / f"one-draw-{noise}-seed0.json"
+        want = f"{100 * json.loads(one.read_text())['test_accuracy']:.2f}" if one.exists() else ""
+        assert cells[6] == want, noise
