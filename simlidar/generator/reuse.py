@@ -25,13 +25,15 @@ def differs(
     ``simlidar verify`` finding nothing wrong (checksums included)."""
     from simlidar.release.verify import verify
 
+    if path.is_symlink() or not path.is_dir():
+        return "is not a dataset directory (a file, or a link)"
     names = {shard.name for shard in split_shards(config, shard_samples)}
     try:
         found = {p.name for split in SPLITS for p in find_split_files(path, split)}
         if found != names:
             return f"holds the split files {sorted(found)}, not {sorted(names)}"
         attrs = [read_split(path, split).attrs for split in SPLITS]
-    except DatasetError as exc:
+    except (DatasetError, OSError) as exc:
         return f"is not a dataset simlidar reads ({exc})"
     want = json.loads(config.to_json())
     for got in attrs:

@@ -349,3 +349,17 @@ def test_generate_refuses_what_the_disk_cannot_hold_before_writing(tmp_path):
     unit = size_text(shutil.disk_usage(tmp_path).free).split()[1]  # the free space, roughly
     assert match[2] == unit
     assert not out.exists()
+
+
+def test_a_file_or_link_under_the_datasets_name_is_refused_not_read(tmp_path, catalog):
+    config = GeneratorConfig(train_size=8, test_size=8, classes=4)
+    name = generate(config, [0.2], catalog, tmp_path / "a", progress=False)[0].path.name
+    (tmp_path / "b").mkdir()
+    (tmp_path / "b" / name).write_text("not a dataset")
+    with pytest.raises(DatasetError, match="already exists and is not a dataset directory"):
+        generate(config, [0.2], catalog, tmp_path / "b", progress=False)
+    (tmp_path / "c").mkdir()
+    (tmp_path / "c" / name).symlink_to(tmp_path / "a" / name)
+    with pytest.raises(DatasetError, match="already exists and is not a dataset directory"):
+        generate(config, [0.2], catalog, tmp_path / "c", progress=False)
+    assert (tmp_path / "b" / name).read_text() == "not a dataset"
