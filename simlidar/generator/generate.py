@@ -27,7 +27,7 @@ from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.generated_card import generated_card, generated_croissant
 from simlidar.generator.returns import check_physics, receiver_physics
 from simlidar.generator.reuse import differs
-from simlidar.generator.sequences import check_motion
+from simlidar.generator.sequences import check_window_motion
 from simlidar.generator.shard import compressed_rows, remove_partials, split_shards, write_shard
 from simlidar.generator.simulate import class_plan, simulate
 from simlidar.processes import capped_workers, die_with_parent, one_blas_thread
@@ -261,34 +261,6 @@ def checked_request(
         per_sample = config.sensor.beams * config.width * config.waveform_bins * 4
         batch_size = max(1, min(batch_size, WAVEFORM_BATCH_BYTES // per_sample))
     return batch_size
-
-
-def check_window_motion(config: GeneratorConfig, catalog: Catalog) -> None:
-    """Refuse in one line (ConfigError) motion that windows cannot take: flash timing (every
-    pulse at one instant: nothing moves between them), a trajectory file (a sweep's sequence
-    follows one; a window is 10 ms of a rotation) and what a sweep's motion must satisfy over
-    one rotation (:func:`~simlidar.generator.sequences.check_motion`)."""
-    if config.timing != "scan":
-        raise ConfigError(
-            f"{_motion_words(config)} with timing={config.timing!r}: expected --timing scan "
-            "(flash timing fires every pulse of a window at one instant, so nothing moves "
-            "between them)"
-        )
-    if config.ego_trajectory is not None:
-        raise ConfigError(
-            f"ego_trajectory ({config.ego_trajectory.source}): expected --ego-speed and "
-            "--ego-yaw-rate for windows (a trajectory file drives a sweep's sequences: "
-            "simlidar sweep --trajectory)"
-        )
-    check_motion(config, catalog, 1)
-
-
-def _motion_words(config: GeneratorConfig) -> str:
-    """How ``config`` moves, as its options name it."""
-    words = [f"--ego-speed {config.ego_speed_mps!r}"] * bool(config.ego_speed_mps)
-    words += [f"--ego-yaw-rate {config.ego_yaw_rate_deg_s!r}"] * bool(config.ego_yaw_rate_deg_s)
-    words += ["--trajectory"] * (config.ego_trajectory is not None)
-    return " ".join(words + ["--moving-objects"] * config.moving_objects)
 
 
 def write_local(

@@ -185,3 +185,31 @@ def motion_attrs(config: GeneratorConfig, catalog: Catalog) -> dict:
         return {}
     motion = {name: m.source for name, m in sorted(catalog.motion.items())}
     return {"motion": json.dumps(motion, sort_keys=True), "motion_sha256": fingerprint(motion)}
+
+
+def check_window_motion(config: GeneratorConfig, catalog: Catalog) -> None:
+    """Refuse in one line (ConfigError) motion that windows cannot take: flash timing (every
+    pulse at one instant: nothing moves between them), a trajectory file (a sweep's sequence
+    follows one; a window is 10 ms of a rotation) and what a sweep's motion must satisfy over
+    one rotation (:func:`~simlidar.generator.sequences.check_motion`)."""
+    if config.timing != "scan":
+        raise ConfigError(
+            f"{_motion_words(config)} with timing={config.timing!r}: expected --timing scan "
+            "(flash timing fires every pulse of a window at one instant, so nothing moves "
+            "between them)"
+        )
+    if config.ego_trajectory is not None:
+        raise ConfigError(
+            f"ego_trajectory ({config.ego_trajectory.source}): expected --ego-speed and "
+            "--ego-yaw-rate for windows (a trajectory file drives a sweep's sequences: "
+            "simlidar sweep --trajectory)"
+        )
+    check_motion(config, catalog, 1)
+
+
+def _motion_words(config: GeneratorConfig) -> str:
+    """How ``config`` moves, as its options name it."""
+    words = [f"--ego-speed {config.ego_speed_mps!r}"] * bool(config.ego_speed_mps)
+    words += [f"--ego-yaw-rate {config.ego_yaw_rate_deg_s!r}"] * bool(config.ego_yaw_rate_deg_s)
+    words += ["--trajectory"] * (config.ego_trajectory is not None)
+    return " ".join(words + ["--moving-objects"] * config.moving_objects)
