@@ -20,7 +20,6 @@ import re
 import time
 import zipfile
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import torch
@@ -296,8 +295,8 @@ def evaluate(path: Path, dataset: Path, model: str | None = None, threads: int =
         network, torch.from_numpy(x)[:, None], spec=spec, silent_from=spike_threshold(attrs)
     ).numpy()
     timing["scoring"] = time.perf_counter() - begun
-    # measure() reads a suite's board power alone (the paper's energy estimate): none here
-    figures = measure(network, recipe, dataset, SimpleNamespace(board_power_w=None), predicted,
+    # no suite, so no board power for the conventional energy estimate
+    figures = measure(network, recipe, dataset, None, predicted,
                       timing, spec)  # fmt: skip
     history = data.get("history", [])
     record = {

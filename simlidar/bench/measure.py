@@ -55,7 +55,7 @@ def measure(
     model: torch.nn.Module,
     recipe: dict,
     dataset: Path,
-    suite: Suite,
+    board_power_w: float | None,
     predicted: np.ndarray,
     timing: dict,
     spec: ModelSpec | None = None,
@@ -67,8 +67,8 @@ def measure(
     ``[spec]`` over it).
 
     dataset : the dataset directory whose test split is measured
-    suite : the cell's suite: its ``board_power_w`` gives a conventional model's energy
-        estimate (power x latency)
+    board_power_w : the suite's board power (``Suite.board_power_w``), which gives a
+        conventional model's energy estimate (power x latency); None: no estimate
     predicted : (N,) the model's class of each test sample (-1: no decision), for the accuracy
         and the confusion matrix
     """
@@ -99,7 +99,7 @@ def measure(
     elif spec.spiking:
         figures = metrics.spiking_figures(model, x, record.get("early"))
     else:
-        figures = metrics.conventional_figures(model, x, suite.board_power_w)
+        figures = metrics.conventional_figures(model, x, board_power_w)
     timing["latency_and_counts"] = time.perf_counter() - start
     record.update(figures)
     record["confusion"] = metrics.confusion_matrix(y, predicted, classes).tolist()
@@ -151,7 +151,9 @@ def remeasure(out: Path, suite: Suite, progress: bool = True) -> dict:
                 "expected the cell's own model"
             )
         timing = {k: v for k, v in record.get("timing_seconds", {}).items() if k == "train"}
-        record.update(measure(model, data["recipe"], dataset, suite, predicted, timing, spec))
+        record.update(
+            measure(model, data["recipe"], dataset, suite.board_power_w, predicted, timing, spec)
+        )
         write_json(path, record, indent=None)
     results = collect(out, suite)
     write_report(results, out)

@@ -146,7 +146,15 @@ def run_cell(
         "budget": recorded_rules(budget),
     }
     record.update(
-        measure(result.model, recipe, dataset, suite, result.test_predictions, timing, result.spec)
+        measure(
+            result.model,
+            recipe,
+            dataset,
+            suite.board_power_w,
+            result.test_predictions,
+            timing,
+            result.spec,
+        )
     )
     return record
 
