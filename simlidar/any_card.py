@@ -4,10 +4,10 @@ and the converters. What only needs one of them imports it; what takes any datas
 
 from pathlib import Path
 
-from simlidar.convert.converted_card import converted_card
 from simlidar.dataset.reader import dataset_splits
 from simlidar.dataset.version import GENERATOR
 from simlidar.errors import DatasetError
+from simlidar.generator.declared_card import converted_card
 from simlidar.generator.generated_card import generated_card
 from simlidar.release.card import CARD, write_card
 from simlidar.release.checksums import SUMS, read_sums, write_sums

@@ -1,4 +1,5 @@
-"""The examples in the docs run: docs/loading.md as doctests on a generated dataset."""
+"""The examples in the docs run: docs/loading.md (and the other pages' examples) as doctests on
+generated datasets."""
 
 import doctest
 from pathlib import Path
@@ -14,6 +15,22 @@ def test_loading_examples(datasets):
         optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
     )
     assert result.attempted >= 10
+    assert result.failed == 0
+
+
+def test_streams_loading_examples(tmp_path, catalog):
+    """docs/streams.md's examples on a small stream dataset (its sample 1 a car: 4 classes)."""
+    from simlidar.generator.stream_files import generate_streams
+
+    path = generate_streams(tmp_path, train_size=8, test_size=4, scenes=catalog, progress=False,
+                            preview=False)  # fmt: skip
+    result = doctest.testfile(
+        str(DOCS / "streams.md"),
+        module_relative=False,
+        globs={"path": str(path)},
+        optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
+    )
+    assert result.attempted >= 15
     assert result.failed == 0
 
 

@@ -1,7 +1,7 @@
 """Every source of datasets passes one conformance test (issue 44, item 3): the generator, the
-KITTI converter and the DVS barrel converter, each on a small input made here (the generator
-twice: the paper profile, and the receiver profile `sensor` with dual returns and fog, whose
-splits carry the receiver's fields). What any
+KITTI converter, the DVS barrel converter and the generator's pulse streams, each on a small
+input made here (the generator twice: the paper profile, and the receiver profile `sensor`
+with dual returns and fog, whose splits carry the receiver's fields). What any
 dataset directory must be, whatever made it: its splits name the source and a version the
 source's release notes list; it verifies; the loaders read it; its card is what
 ``simlidar card`` renders from its files alone, and rewriting it changes no byte; its Croissant
@@ -21,7 +21,8 @@ from simlidar.dataset.version import GENERATOR, SOURCES
 from simlidar.release.checksums import read_sums
 from simlidar.release.verify import verify
 
-EXAMPLES = (GENERATOR, f"{GENERATOR}/sensor", "kitti", "dvs-barrel")  # source[/variant]
+# source[/variant]
+EXAMPLES = (GENERATOR, f"{GENERATOR}/sensor", "kitti", "dvs-barrel", "simlidar-stream")
 
 
 def test_every_source_has_an_example_here():
@@ -50,6 +51,12 @@ def made(request, tmp_path_factory):
     if request.param == "kitti":
         kitti = request.getfixturevalue("built_kitti")
         return request.param, convert_kitti(kitti, out, progress=False)
+    if request.param == "simlidar-stream":
+        from simlidar.generator.stream_files import generate_streams
+
+        catalog = request.getfixturevalue("catalog")
+        return request.param, generate_streams(out, train_size=8, test_size=4, scenes=catalog,
+                                               progress=False)  # fmt: skip
     mat = write_mat(out / "tiny.mat")
     return request.param, convert_dvs_barrel(mat, out / "data", progress=False)
 

@@ -29,6 +29,7 @@ COMMANDS = {
     "report": "report",
     "evaluate": "evaluate",
     "convert": "convert",
+    "stream": "stream",
 }
 
 

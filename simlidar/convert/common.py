@@ -5,13 +5,8 @@ arrival time of the first pulse (or spike) of a cell as a fraction of a listenin
 1.0 where nothing arrived inside the window (``simlidar.generator.pulses.NO_RETURN``).
 """
 
-import json
-
-import h5py
 import numpy as np
 
-from simlidar import __version__
-from simlidar.dataset.version import SOURCES
 from simlidar.generator.pulses import NO_RETURN
 
 # The largest float32 below 1.0: a pulse inside the window never rounds up to "no return".
@@ -47,43 +42,3 @@ def choose_test(n: int, test_fraction: float, rng: np.random.Generator) -> np.nd
 def stream(seed: int, *key: int) -> np.random.Generator:
     """The random stream of ``seed`` for ``key`` (numpy SeedSequence child, as the generator)."""
     return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=key)))
-
-
-def converted_split_attrs(
-    source: str,
-    split: str,
-    config,
-    class_names: tuple[str, ...],
-    class_mode: str,
-    sensor: dict,
-    input_sha256: str,
-) -> dict:
-    """The attributes every converted split carries (``docs/converters.md``); a converter adds
-    its own (``tof_max_ns``, ``time_window_us``, ...).
-
-    source : the converter's source (``kitti``, ``dvs-barrel``), a key of
-        :data:`simlidar.dataset.version.SOURCES`, which gives the dataset version
-    split : ``train`` or ``test``
-    config : the converter's configuration (:class:`~simlidar.convert.config.KittiConfig`,
-        :class:`~simlidar.convert.config.DvsConfig`), stored as JSON with its seed
-    class_names : the class names, in label order
-    class_mode : what a class is (``object``, ``character``)
-    sensor : what recorded the data (its name, resolution, range or time unit), stored as JSON
-    input_sha256 : sha256 of the input (of what, per source: ``docs/converters.md``)
-    """
-    strings = h5py.string_dtype()
-    return {
-        "dataset_version": SOURCES[source][0],
-        "simlidar_version": __version__,
-        "source": source,
-        "split": split,
-        "config": config.to_json(),
-        "seed": config.seed,
-        "noise": 0.0,
-        "classes": len(class_names),
-        "class_mode": class_mode,
-        "class_names": np.array(class_names, dtype=strings),
-        "sensor": json.dumps(sensor, sort_keys=True),
-        "no_return_delay": NO_RETURN,
-        "input_sha256": input_sha256,
-    }

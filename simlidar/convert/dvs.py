@@ -16,17 +16,16 @@ import numpy as np
 from simlidar.atomic import building
 from simlidar.convert.common import (
     choose_test,
-    converted_split_attrs,
     delays_from_times,
 )
 from simlidar.convert.common import stream as random_stream
 from simlidar.convert.config import DvsConfig
-from simlidar.convert.converted_card import write_release_files
 from simlidar.dataset.dvs_barrel import CLASSES
 from simlidar.dataset.schema import CONVERTED_SCHEMAS, SPLITS, expected_shapes
 from simlidar.dataset.version import SOURCES
 from simlidar.dataset.writer import SplitWriter
 from simlidar.errors import ConfigError, DatasetError
+from simlidar.generator.declared_card import converted_split_attrs, write_release_files
 from simlidar.release.checksums import sha256_file
 
 SOURCE = "dvs-barrel"
@@ -188,8 +187,8 @@ def write_split(
     path : the split file to write (``train.h5``, ``test.h5``)
     recordings : the split's N recordings, in the order of ``rows``
     rows : (N,) the recordings' indices in ROI; delays : (N, 32, 32); labels : (N,)
-    attrs : the split's attributes (:func:`~simlidar.convert.common.converted_split_attrs`, and
-        ``time_window_us``)
+    attrs : the split's attributes
+        (:func:`~simlidar.generator.declared_card.converted_split_attrs`, and ``time_window_us``)
     """
     schema = CONVERTED_SCHEMAS[SOURCE]
     full = expected_shapes(SOURCE, len(rows), PIXELS, PIXELS)

@@ -22,12 +22,10 @@ import numpy as np
 from simlidar.atomic import building
 from simlidar.convert.common import (
     choose_test,
-    converted_split_attrs,
     delays_from_times,
     stream,
 )
 from simlidar.convert.config import KittiConfig
-from simlidar.convert.converted_card import write_release_files
 from simlidar.convert.kitti_files import (
     CLASSES,
     Frame,
@@ -50,6 +48,7 @@ from simlidar.dataset.storage import check_storage
 from simlidar.dataset.version import SOURCES
 from simlidar.dataset.writer import SplitWriter, attrs_fit
 from simlidar.errors import DatasetError
+from simlidar.generator.declared_card import converted_split_attrs, write_release_files
 from simlidar.sensor.model import tof_ns
 
 SOURCE = "kitti"

@@ -78,6 +78,6 @@ SOURCE = Source(
         "event_p": "event polarity as recorded",
         "event_t_us": "event timestamp as recorded, microseconds",
     },
-    call=("convert_dvs_barrel", "FILE.mat"),
+    call=("simlidar.convert", "convert_dvs_barrel", "FILE.mat"),
     about=ABOUT,
 )

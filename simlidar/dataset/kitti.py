@@ -94,6 +94,6 @@ SOURCE = Source(
         "truncated": "KITTI truncation, 0 (none) to 1",
         "occluded": "KITTI occlusion, 0 (visible) to 3 (unknown)",
     },
-    call=("convert_kitti", "ROOT"),  # the benchmark's training folder
+    call=("simlidar.convert", "convert_kitti", "ROOT"),  # the benchmark's training folder
     about=ABOUT,
 )

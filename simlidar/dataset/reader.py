@@ -237,6 +237,7 @@ def check_split(path: Path, f: h5py.File) -> SplitCheck:
     events = datasets["event_t_us"].shape[0] if "event_t_us" in datasets else 0
     bins = attrs.get("waveform_bins", 0)
     bins = bins if ATTRIBUTES["waveform_bins"].accepts(bins) else 0  # named above
+    rotations = attrs.get("rotations", 0)
     try:
         found.shapes = expected_shapes(
             source,
@@ -249,6 +250,7 @@ def check_split(path: Path, f: h5py.File) -> SplitCheck:
             reported_returns(attrs),
             bins,
             in_motion(attrs),
+            rotations if ATTRIBUTES["rotations"].accepts(rotations) else 0,  # named above
         )
     except DatasetError as exc:  # an unknown source
         problems.append(f"{path}: {exc}")

@@ -278,6 +278,11 @@ ATTRIBUTES = {
     "frames_without_objects": ListOf(_INDEX),
     "motion": JsonObject(),
     "motion_sha256": Text(),
+    "rotations": Range(1, 2**31, "an integer"),
+    "rotation_us": _US,
+    "span_us": _US,
+    "scenario_names": _NAMES,
+    "scenarios": JsonObject(),
 }
 
 # The attributes a split of each source always carries besides REQUIRED_ATTRS (its card
@@ -378,6 +383,7 @@ def expected_shapes(
     returns: int = 0,
     waveform_bins: int = 0,
     motion: bool = False,
+    rotations: int = 0,
 ) -> dict[str, tuple]:
     """name -> (dtype, full shape) of every dataset a split of ``source`` must hold
     (``timing``: a generated split's ``timing`` attribute, "flash" where it has none;
@@ -391,6 +397,7 @@ def expected_shapes(
     h, w : a sample's rows (H: a generated split's beams) and columns (W)
     e : the split's events (E), the rows of a converted split's per-event datasets; 0 where it
         has none
+    rotations : a stream split's rotations (R, its attribute ``rotations``); 0 for the others
     """
     if source == GENERATOR:
         shapes = generated_shapes(h, w, timing, receiver, returns, waveform_bins, motion)
@@ -398,7 +405,7 @@ def expected_shapes(
     if source not in CONVERTED_SCHEMAS:
         known = ", ".join([GENERATOR, *CONVERTED_SCHEMAS])
         raise DatasetError(f"source {source!r}: expected one of {known}")
-    dims = {"N": n, "E": e, "H": h, "W": w}
+    dims = {"N": n, "E": e, "H": h, "W": w, "R": rotations}
     return {
         name: (dtype, tuple(dims.get(d, d) for d in shape))
         for name, (dtype, shape) in CONVERTED_SCHEMAS[source].items()

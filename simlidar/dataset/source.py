@@ -40,8 +40,8 @@ class Source:
     attrs : the attributes a split always carries besides ``REQUIRED_ATTRS`` (its card reads
         them)
     fields : dataset -> one line on what it holds (the card's table and Croissant's fields)
-    call : the library function that converts it and its first argument (the card's
-        "Regenerate")
+    call : the library function that makes it (its module, its name) and its first argument
+        before the output folder (None: none), the card's "Regenerate"
     about : its prose, licence and citation
     """
 
@@ -52,7 +52,7 @@ class Source:
     schema: dict[str, tuple[str, tuple]]
     attrs: tuple[str, ...]
     fields: dict[str, str]
-    call: tuple[str, str]
+    call: tuple[str, str, str | None]
     about: About
 
 

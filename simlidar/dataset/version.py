@@ -9,7 +9,7 @@ converter of real data (``simlidar.convert``), keyed by the ``source`` attribute
 sweep's frames file has its own (``SWEEP_VERSION``).
 """
 
-from simlidar.dataset import dvs_barrel, kitti
+from simlidar.dataset import dvs_barrel, kitti, stream
 from simlidar.dataset.source import Source
 
 DATASET_VERSION = "2.0.0"
@@ -200,8 +200,10 @@ def notes_until(
 
 GENERATOR = "simlidar-generator"  # the source of a split file without a `source` attribute
 
-# every source of converted real data, by its splits' `source` attribute: one module each
-CONVERTED: dict[str, Source] = {s.name: s for s in (kitti.SOURCE, dvs_barrel.SOURCE)}
+# every source declared as a Source, by its splits' `source` attribute, one module each: the
+# converted real data, and the generator's pulse streams (simlidar.dataset.stream), whose card,
+# Croissant and checks are made from their declaration as the converted data's are
+CONVERTED: dict[str, Source] = {s.name: s for s in (kitti.SOURCE, dvs_barrel.SOURCE, stream.SOURCE)}
 
 # source -> (current version, {version: release date}, {version: release notes})
 SOURCES: dict[str, tuple[str, dict[str, str], dict[str, str]]] = {

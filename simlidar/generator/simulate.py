@@ -129,6 +129,29 @@ class Samples:
     ego_motion: np.ndarray | None = None  # (n, 2) float32 the ego's speed and yaw rate
 
 
+def layouts_seen(
+    catalog: Catalog, layout: np.ndarray, surface: np.ndarray, returned: np.ndarray, azimuth
+) -> np.ndarray:
+    """Whether each sample sees its layout: layouts whose defining structure can leave the
+    window must be seen (recipe key ``visible``), as a label the sensor cannot see is not a
+    label.
+
+    catalog : the scene recipes; layout : (n,) each sample's layout id
+    surface, returned : (n, H, C) each pulse's surface label and whether it returned
+    azimuth : (C,) each column's azimuth, degrees (negative: the left half)
+    returns : (n,) bool
+    """
+    ok = np.ones(len(layout), bool)
+    for lid in np.unique(layout):
+        rows = np.nonzero(layout == lid)[0]
+        for label, min_hits, side in catalog.layouts[lid].visible:
+            seen = (surface[rows] == label) & returned[rows]
+            if side != "any":
+                seen &= (azimuth < 0 if side == "left" else azimuth > 0)[None, None, :]
+            ok[rows] &= seen.sum(axis=(1, 2)) >= min_hits
+    return ok
+
+
 def split_beams(hits: Hits, width: int) -> Hits:
     """Hits of B windows' sub-rays cast as (B, H, W x S) -> the same as (B, H, W, S)."""
 
@@ -303,16 +326,7 @@ def simulate(
         r = quantise_range(hits.range_m, sensor)
         on_object = (hits.on_object & ~np.isnan(r)).sum(axis=(1, 2))
         ok = (obj[pending] == 0) | (on_object >= config.min_object_hits)
-        # Layouts whose defining structure can leave the window must be seen (recipe key
-        # `visible`): a label the sensor cannot see is not a label.
-        returned = ~np.isnan(r)
-        for lid in np.unique(layout[pending]):
-            rows = np.nonzero(layout[pending] == lid)[0]
-            for label, min_hits, side in catalog.layouts[lid].visible:
-                seen = (hits.surface[rows] == label) & returned[rows]
-                if side != "any":
-                    seen &= (azimuth < 0 if side == "left" else azimuth > 0)[None, None, :]
-                ok[rows] &= seen.sum(axis=(1, 2)) >= min_hits
+        ok &= layouts_seen(catalog, layout[pending], hits.surface, ~np.isnan(r), azimuth)
         done = pending[ok]
         range_m[done] = r[ok]
         surface[done] = np.where(np.isnan(r[ok]), 0, hits.surface[ok])

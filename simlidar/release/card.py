@@ -1,6 +1,6 @@
 """The dataset card (``README.md``) of any dataset directory: Hugging Face front matter and
 tables. What a card says comes from its source: :mod:`simlidar.generator.generated_card` for the
-generator's datasets, :mod:`simlidar.convert.converted_card` for converted data, and
+generator's datasets, :mod:`simlidar.generator.declared_card` for converted data, and
 :func:`simlidar.any_card.render_card` picks by the splits' ``source``."""
 
 import json

@@ -49,9 +49,11 @@ CONTEXT = {
 }
 DATA_TYPES = {
     "float32": "sc:Float",
+    "float64": "sc:Float",
     "int64": "sc:Integer",
     "int32": "sc:Integer",
     "uint8": "sc:Integer",
+    "uint16": "sc:Integer",
     "int8": "sc:Integer",
 }
 

@@ -3,7 +3,6 @@
 from pathlib import Path
 
 import h5py
-import numpy as np
 
 from simlidar.dataset.reader import (
     CHECKED_VALUES,
@@ -14,6 +13,7 @@ from simlidar.dataset.reader import (
 )
 from simlidar.dataset.schema import SPLITS, split_source
 from simlidar.dataset.shards import find_split_files, shard_of, split_of
+from simlidar.dataset.stream_loaders import event_problems
 from simlidar.errors import DatasetError, first_line
 from simlidar.release.card import read_front_matter
 from simlidar.release.checksums import check_sums
@@ -64,23 +64,11 @@ def _check_split(
                 names = [n for n in CHECKED_VALUES if n in shapes]
                 problems += value_problems(path, attrs, {n: datasets[n][rows] for n in names})
             if "event_count" in shapes:
-                problems += _check_events(path, f)
+                offsets = f["event_start"][:], f["event_count"][:]
+                problems += event_problems(path, *offsets, f["event_t_us"].shape[0])
         except OSError as exc:  # a chunk that does not decompress
             problems.append(f"{path}: unreadable data ({first_line(exc)})")
     return sorted(set(problems), key=problems.index), size
-
-
-def _check_events(path: Path, f: h5py.File) -> list[str]:
-    """Each sample's events are the rows event_start .. event_start + event_count, in order."""
-    start, count = f["event_start"][:], f["event_count"][:]
-    total = f["event_t_us"].shape[0]
-    if (
-        (count < 0).any()
-        or (start != np.concatenate([[0], np.cumsum(count)[:-1]])).any()
-        or (count.sum() != total)
-    ):
-        return [f"{path}: 'event_start' and 'event_count' do not tile the {total} events in order"]
-    return []
 
 
 def check_trainable(path: str | Path) -> None:

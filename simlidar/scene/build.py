@@ -112,12 +112,16 @@ def place_instances(
     object_ids: np.ndarray,
     layout_uniforms: np.ndarray,
     object_uniforms: np.ndarray,
+    placement: np.ndarray | None = None,
 ):
     """Sample the parameters of B scenes and place their primitives.
 
     layout_ids, object_ids : (B,) int, indices into catalog.layouts / catalog.objects
     layout_uniforms : (B, catalog.layout_columns) float in [0, 1)
     object_uniforms : (B, catalog.object_columns) float in [0, 1)
+    placement : (B, 3) [x_m, y_m, yaw_deg], each object's pose in place of its recipe's
+        placement draws (a stream's scenario, :mod:`simlidar.scene.scenarios`); None: the
+        recipes' (the draws are made either way, so the other parameters keep their values)
     returns : list of Instances, object pose (B, 3) [x_m, y_m, yaw_deg], NaN without object
     """
     pose = np.full((len(layout_ids), 3), np.nan)
@@ -131,13 +135,14 @@ def place_instances(
             rows = np.nonzero(group == rid)[0]
             recipe = recipes[rid]
             values = sample_params(recipe, uniforms[rows])
-            placement = None
+            at = None
             if objects and recipe.primitives:
-                placement = np.stack(
+                at = np.stack(
                     [values["distance_m"], values["lateral_m"], values["yaw_deg"]], axis=-1
                 )
-                pose[rows] = placement
-            placed += _recipe_instances(recipe, rows, values, placement, objects)
+                pose[rows] = at if placement is None else placement[rows]
+                at = pose[rows]
+            placed += _recipe_instances(recipe, rows, values, at, objects)
     return placed, pose
 
 
@@ -173,6 +178,7 @@ def build_batch(
     layout_uniforms: np.ndarray,
     object_uniforms: np.ndarray,
     compiled: bool = False,
+    placement: np.ndarray | None = None,
 ) -> SceneBatch:
     """Build the triangles of B scenes (arguments as :func:`place_instances`). A RecipeError
     names the primitive of any vertex that is not finite or lies more than
@@ -187,9 +193,11 @@ def build_batch(
     compiled : place the templates' copies by the compiled kernel
         (:func:`simlidar.scene.kernels.place_copies`: the same triangles, bit for bit; asked on
         long runs, as the ray cast's kernels are, :func:`simlidar.sensor.raycast.compiled_for`)
+    placement : (B, 3) each object's pose in place of its recipe's placement draws
+        (:func:`place_instances`); None: the recipes'
     """
     placed, pose = place_instances(
-        catalog, layout_ids, object_ids, layout_uniforms, object_uniforms
+        catalog, layout_ids, object_ids, layout_uniforms, object_uniforms, placement
     )
     shapes = [template(inst.primitive.kind, inst.primitive.segments) for inst in placed]
     counts = [len(inst.sample) * len(shape.triangles) for inst, shape in zip(placed, shapes)]

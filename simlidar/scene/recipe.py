@@ -26,6 +26,7 @@ from simlidar.scene.parse import (
     parse_recipe,
     read_recipe_toml,
 )
+from simlidar.scene.scenarios import SCENARIOS_FILE, load_scenarios
 
 NO_OBJECT = "none"
 
@@ -43,6 +44,10 @@ class Catalog:
     # object name -> how it moves (the catalog's motion.toml, :mod:`simlidar.scene.motion`);
     # not part of the stored catalog: a sweep with moving objects stores it on its own
     motion: dict = field(default_factory=dict, compare=False, repr=False)
+    # how objects come into view in a stream (the catalog's scenarios.toml,
+    # :mod:`simlidar.scene.scenarios`); None without the file; not part of the stored catalog:
+    # a stream stores it on its own
+    scenarios: object = field(default=None, compare=False, repr=False)
 
     def for_sensor(self, name: str) -> "Catalog":
         """The catalog as the sensor ``name`` sees it: the recipes with the parameters of
@@ -165,7 +170,12 @@ def load_catalog(root: str | Path | None = None) -> Catalog:
     }
     motion_file = root / MOTION_FILE
     motion = load_motion(motion_file, [r.name for r in objects[1:]]) if motion_file.exists() else {}
-    return Catalog(str(root), tuple(surfaces), layouts, objects, variants, motion=motion)
+    scenarios_file = root / SCENARIOS_FILE
+    scenarios = None
+    if scenarios_file.exists():
+        scenarios = load_scenarios(scenarios_file, [r.name for r in objects[1:]])
+    return Catalog(str(root), tuple(surfaces), layouts, objects, variants, motion=motion,
+                   scenarios=scenarios)  # fmt: skip
 
 
 def _sensor_variant(

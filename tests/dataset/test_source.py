@@ -6,7 +6,7 @@ def test_every_converted_source_declares_each_dataset_its_release_and_its_prose(
     from simlidar.dataset.schema import CONVERTED_SCHEMAS, SOURCE_ATTRS
     from simlidar.dataset.version import CONVERTED, SOURCES
 
-    assert set(CONVERTED) == {"kitti", "dvs-barrel"}
+    assert set(CONVERTED) == {"kitti", "dvs-barrel", "simlidar-stream"}
     for name, source in CONVERTED.items():
         assert list(source.schema)[:2] == ["delays", "labels"]
         assert set(source.fields) == set(source.schema), name

@@ -1,16 +1,24 @@
-"""The card (``README.md``), ``croissant.json``, preview and checksums of a converted dataset,
-made from its split files and the source's declaration (:class:`simlidar.dataset.source.Source`).
+"""The card (``README.md``), ``croissant.json``, preview and checksums of a dataset whose
+source is declared as a :class:`simlidar.dataset.source.Source` (converted real data, the
+generator's pulse streams), made from its split files and that declaration; and the attributes
+every such split carries (:func:`converted_split_attrs`).
 
 The generator's datasets get theirs from :mod:`simlidar.release.card` and
 :mod:`simlidar.release.croissant`; the table and Croissant helpers are shared with them.
 """
 
+import json
 from pathlib import Path
 
+import h5py
+import numpy as np
+
+from simlidar import __version__
 from simlidar.dataset.reader import dataset_splits
 from simlidar.dataset.schema import CONVERTED_SCHEMAS, SPLITS
 from simlidar.dataset.version import CONVERTED, SOURCES, notes_until
 from simlidar.generator.about import CITATION
+from simlidar.generator.pulses import NO_RETURN
 from simlidar.release.card import (
     card_head,
     class_table,
@@ -25,12 +33,14 @@ from simlidar.release.info import dataset_info
 from simlidar.release.preview import write_preview
 
 
-def _shape(shape: tuple, height: int, width: int) -> tuple:
-    return tuple({"H": height, "W": width}.get(d, d) for d in shape)
+def _shape(shape: tuple, info) -> tuple:
+    """A declared shape with a split's sizes: H rows, W columns, R rotations (a stream's)."""
+    sizes = {"H": info.height, "W": info.width, "R": info.attrs.get("rotations")}
+    return tuple(sizes.get(d, d) for d in shape)
 
 
 def _shape_text(shape: tuple, info) -> str:
-    return str(_shape(shape, info.height, info.width)).replace("'", "")
+    return str(_shape(shape, info)).replace("'", "")
 
 
 def _source_rows(splits: dict) -> list[list]:
@@ -69,9 +79,7 @@ def converted_front_matter(path: Path) -> dict:
     info = splits["train"]
     about = CONVERTED[info.source].about
     features = [
-        hf_feature(
-            name, dtype, _shape(shape, info.height, info.width)[1:], info.attrs["class_names"]
-        )
+        hf_feature(name, dtype, _shape(shape, info)[1:], info.attrs["class_names"])
         for name, (dtype, shape) in CONVERTED_SCHEMAS[info.source].items()
         if shape[0] == "N"  # per-event datasets are not features of a sample
     ]
@@ -81,9 +89,10 @@ def converted_front_matter(path: Path) -> dict:
 
 def regenerate_call(source: str, config: dict) -> str:
     """The Python call that converts the same input into the same bytes."""
-    function, first = CONVERTED[source].call
+    module, function, first = CONVERTED[source].call
     args = ", ".join(f"{k}={tuple(v) if isinstance(v, list) else v!r}" for k, v in config.items())
-    return f"from simlidar.convert import {function}\n{function}({first!r}, 'data', {args})"
+    given = "" if first is None else f"{first!r}, "
+    return f"from {module} import {function}\n{function}({given}'data', {args})"
 
 
 def converted_card(path: str | Path) -> str:
@@ -180,7 +189,7 @@ def converted_croissant(path: str | Path, name: str | None = None) -> dict:
                     split,
                     n,
                     schema[n][0],
-                    _shape(schema[n][1], info.height, info.width),
+                    _shape(schema[n][1], info),
                     CONVERTED[info.source].fields[n],
                     sharded=info.sharded,
                 )
@@ -215,3 +224,43 @@ def write_release_files(path: Path, name: str, preview: bool = True) -> None:
     write_croissant(path, converted_croissant(path, name))
     write_card(path, converted_card(path))
     write_sums(path)
+
+
+def converted_split_attrs(
+    source: str,
+    split: str,
+    config,
+    class_names: tuple[str, ...],
+    class_mode: str,
+    sensor: dict,
+    input_sha256: str,
+) -> dict:
+    """The attributes every converted split carries (``docs/converters.md``); a converter adds
+    its own (``tof_max_ns``, ``time_window_us``, ...).
+
+    source : the converter's source (``kitti``, ``dvs-barrel``), a key of
+        :data:`simlidar.dataset.version.SOURCES`, which gives the dataset version
+    split : ``train`` or ``test``
+    config : the converter's configuration (:class:`~simlidar.convert.config.KittiConfig`,
+        :class:`~simlidar.convert.config.DvsConfig`), stored as JSON with its seed
+    class_names : the class names, in label order
+    class_mode : what a class is (``object``, ``character``)
+    sensor : what recorded the data (its name, resolution, range or time unit), stored as JSON
+    input_sha256 : sha256 of the input (of what, per source: ``docs/converters.md``)
+    """
+    strings = h5py.string_dtype()
+    return {
+        "dataset_version": SOURCES[source][0],
+        "simlidar_version": __version__,
+        "source": source,
+        "split": split,
+        "config": config.to_json(),
+        "seed": config.seed,
+        "noise": 0.0,
+        "classes": len(class_names),
+        "class_mode": class_mode,
+        "class_names": np.array(class_names, dtype=strings),
+        "sensor": json.dumps(sensor, sort_keys=True),
+        "no_return_delay": NO_RETURN,
+        "input_sha256": input_sha256,
+    }
