@@ -200,6 +200,8 @@ def train(
     max_seconds: float | None = None,
     progress: bool = True,
     device: torch.device | str = "cpu",
+    rows: "Rows | None" = None,
+    test: tuple[torch.Tensor, torch.Tensor] | None = None,
 ) -> TrainResult:
     """Train the recipe's model on ``dataset``'s train split (less the validation rows), keep
     the epoch the selection rule picks, and score it once on the test split.
@@ -216,6 +218,9 @@ def train(
     epochs, max_seconds : over the recipe's ``[training]`` values (None: the recipe's)
     progress : a progress bar on stderr
     device : where the model trains
+    rows, test : the training and validation rows and the test rows ((N, 1, H, W) delays and
+        labels) in place of the splits' samples: a stream split's rotation windows
+        (:mod:`simlidar.bench.stream_task`); None: the splits' own
     """
     from tqdm import tqdm
 
@@ -224,7 +229,12 @@ def train(
         epochs=epochs, max_seconds=max_seconds
     )
     attrs = split_info(dataset, "train").attrs
-    data = training_rows(dataset, attrs, seed, training.validation, where)
+    data = rows or training_rows(dataset, attrs, seed, training.validation, where)
+    if rows is not None and training.noise_augment:
+        raise ConfigError(
+            f"{where}: key 'training.noise_augment': true; expected false for rows given "
+            "apart from the split's samples (the noise is drawn for those)"
+        )
     generator = torch.Generator().manual_seed(seed)
     silent_from = spike_threshold(attrs)  # the encoding follows the data's profile
     device = torch.device(device)
@@ -233,7 +243,7 @@ def train(
         model, spec = prepared_model(recipe, data.x_train, classes, generator, device, silent_from)
     run = Run(model, spec, training, generator, device, silent_from, where)
     if hasattr(model, "simlidar_fit"):
-        return _own_fit(run, data, recipe, dataset)
+        return _own_fit(run, data, recipe, dataset, test)
     draw = fresh_noise(dataset, attrs, seed, data.trained) if training.noise_augment else None
     optimizer = make_optimizer(model.parameters(), training)
     epochs, validating = training.epochs, len(data.y_val) > 0
@@ -274,13 +284,21 @@ def train(
             stopped = "time"
             break
     selection.restore(model)
-    return _result(run, recipe, dataset, history, selection.best_epoch, stopped, len(data.y_val))
+    return _result(run, recipe, dataset, history, selection.best_epoch, stopped, len(data.y_val),
+                   test=test)  # fmt: skip
 
 
-def _result(run: Run, recipe, dataset, history, best_epoch, stopped, validation_size, rule=None):
-    """The TrainResult of a finished run, its kept weights scored once on the test split."""
-    x_test, y_test = (torch.from_numpy(a) for a in load_split(dataset, "test"))
-    predicted = predictions(run.model, x_test[:, None], spec=run.spec, silent_from=run.silent_from)
+def _result(
+    run: Run, recipe, dataset, history, best_epoch, stopped, validation_size, rule=None, test=None
+):
+    """The TrainResult of a finished run, its kept weights scored once on the test split (or
+    on the ``test`` rows given, (N, 1, H, W) and labels)."""
+    if test is None:
+        x_test, y_test = (torch.from_numpy(a) for a in load_split(dataset, "test"))
+        x_test = x_test[:, None]
+    else:
+        x_test, y_test = test
+    predicted = predictions(run.model, x_test, spec=run.spec, silent_from=run.silent_from)
     return TrainResult(
         model=run.model,
         recipe=recipe,
@@ -300,7 +318,7 @@ def _result(run: Run, recipe, dataset, history, best_epoch, stopped, validation_
     )
 
 
-def _own_fit(run: Run, data: Rows, recipe: dict, dataset) -> TrainResult:
+def _own_fit(run: Run, data: Rows, recipe: dict, dataset, test=None) -> TrainResult:
     """A model with its own ``simlidar_fit``: it trains itself on the encoded train rows (and
     may watch the validation rows); simlidar scores the validation rows (recorded) and reads
     the test split once."""
@@ -322,4 +340,4 @@ def _own_fit(run: Run, data: Rows, recipe: dict, dataset) -> TrainResult:
         )
         record.update(val_accuracy=score[0], val_loss=score[1])
     record["seconds"] = time.perf_counter() - start
-    return _result(run, recipe, dataset, [record], 0, "own-fit", len(data.y_val), OWN_FIT)
+    return _result(run, recipe, dataset, [record], 0, "own-fit", len(data.y_val), OWN_FIT, test)

@@ -1,0 +1,172 @@
+"""Frame-based networks on a stream dataset (issue 60, item 3): each model of ``--models``
+trained on the rotation windows of the train split with each seed of ``--seeds``, scored on
+the test split on the sensor's clock (docs/streams.md, "Frame-based networks"): accuracy 0.5 to
+100 ms after each stream's reference time, the first answer's latency, the area under the
+accuracy-latency curve; a report with the mean and a 95 % Student's t interval over seeds and
+the accuracy-latency picture.
+
+    python benchmark/stream_bench.py DATASET --out DIR [--models cnn,mlp] [--seeds 0,1,2,3,4]
+        [--epochs N] [--validation 0.1] [--no-train]
+
+Cells are appended to DIR/cells.jsonl as they finish, and a run started again skips the
+(model, seed) pairs already there (resumable); ``--no-train`` writes the report from them. A
+recipe's noise augmentation is switched off (a stream carries no noise to draw anew).
+"""
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from simlidar.bench.latency import DELAYS_MS, mean_interval
+from simlidar.bench.stream_task import (
+    frame_answers,
+    latency_record,
+    scored_windows,
+    stream_views,
+    training_windows,
+)
+from simlidar.bench.train import train
+from simlidar.models.registry import load_recipe
+from simlidar.script_args import command_line, integers, run
+
+CELLS = "cells.jsonl"
+
+
+def run_cell(dataset: Path, model: str, seed: int, epochs: int | None, validation: float,
+             views) -> dict:  # fmt: skip
+    recipe = load_recipe(model)
+    recipe["training"]["noise_augment"] = False
+    recipe["training"]["validation"] = validation
+    train_views, test_views = views
+    rows = training_windows(train_views, seed, validation, list(train_views.classes))
+    start = time.perf_counter()
+    result = train(recipe, dataset, seed=seed, epochs=epochs, progress=False, rows=rows,
+                   test=scored_windows(test_views))  # fmt: skip
+    seconds = time.perf_counter() - start
+    answers = frame_answers(result.model, test_views, result.spec, result.silent_from)
+    return {
+        "model": recipe["name"],
+        "seed": seed,
+        "dataset": dataset.name,
+        "streams_trained": len(rows.trained),
+        "windows_trained": len(rows.y_train),
+        "windows_validated": len(rows.y_val),
+        "epochs": result.epochs,
+        "best_epoch": result.best_epoch,
+        "train_seconds": round(seconds, 1),
+        "test_window_accuracy": result.test_accuracy,
+        **latency_record(answers, test_views),
+    }
+
+
+def summary(cells: list[dict]) -> dict:
+    """Per model: each figure's mean and 95 % half-width over its seeds."""
+    out = {}
+    for model in sorted({c["model"] for c in cells}):
+        mine = [c for c in cells if c["model"] == model]
+        figures = {
+            **{f"acc_{d:g}ms": [c["accuracy_after"]["accuracy"][k] for c in mine]
+               for k, d in enumerate(DELAYS_MS)},
+            "acc_end": [c["accuracy_after"]["end_accuracy"] for c in mine],
+            "area": [c["area_under_curve"]["area"] for c in mine],
+            "wait_ms": [c["first_answer_after_reference_ms"]["median"] for c in mine],
+            "test_window_accuracy": [c["test_window_accuracy"] for c in mine],
+        }  # fmt: skip
+        out[model] = {"seeds": len(mine)} | {
+            name: mean_interval(values) if len(values) > 1 else (values[0], float("nan"))
+            for name, values in figures.items()
+        }
+    return out
+
+
+def write_report(out: Path, cells: list[dict], command: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    table = summary(cells)
+    lines = [
+        "# Frame-based networks on pulse streams",
+        "",
+        f"Made by `{command}`; cells in `{CELLS}`. Accuracy on the sensor's clock, ms after each "
+        "test stream's reference time (the object's first return; for `none`, a drawn time), "
+        "mean and 95 % Student's t half-width over seeds. A frame-based network answers when a "
+        "rotation's frame is complete (cut at the rear: half a rotation after the window's "
+        "middle): the answer in force 10 ms after the reference is the one of the frame before, "
+        "made without the object (a guess from the background); 'frame wait' is the median time "
+        "from the reference to the first frame end after it.",
+        "",
+        "| model | seeds | 10 ms | 50 ms | 100 ms | end of span | area 0-100 ms | frame wait, "
+        "ms | window accuracy |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+
+    def cell(pair):
+        mean, half = pair
+        return f"{mean:.3f}" + ("" if np.isnan(half) else f" ± {half:.3f}")
+
+    for model, row in table.items():
+        lines.append(
+            f"| {model} | {row['seeds']} | {cell(row['acc_10ms'])} | {cell(row['acc_50ms'])} | "
+            f"{cell(row['acc_100ms'])} | {cell(row['acc_end'])} | {cell(row['area'])} | "
+            f"{cell(row['wait_ms'])} | {cell(row['test_window_accuracy'])} |"
+        )
+    (out / "report.md").write_text(
+        "\n".join(lines) + "\n\n![accuracy against time](accuracy-latency.png)\n"
+    )
+    (out / "summary.json").write_text(json.dumps(table, indent=1, default=float) + "\n")
+    fig, ax = plt.subplots(figsize=(6, 3.6))
+    for model, row in table.items():
+        mean = [row[f"acc_{d:g}ms"][0] for d in DELAYS_MS]
+        half = np.nan_to_num([row[f"acc_{d:g}ms"][1] for d in DELAYS_MS])
+        ax.plot(DELAYS_MS, mean, marker="o", label=model)
+        ax.fill_between(DELAYS_MS, np.array(mean) - half, np.array(mean) + half, alpha=0.2)
+    ax.set_xscale("log")
+    ax.set_xlabel("ms after the object's first return (sensor time)")
+    ax.set_ylabel("test accuracy")
+    ax.set_ylim(0, 1)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "accuracy-latency.png", dpi=110)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("dataset", type=Path)
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--models", default="cnn,mlp")
+    parser.add_argument("--seeds", type=integers(0, 2**31), default=(0, 1, 2, 3, 4))
+    parser.add_argument("--epochs", type=integers(1, 10_000, one=True), default=None)
+    parser.add_argument("--validation", type=float, default=0.1)
+    parser.add_argument("--no-train", action="store_true")
+    args = parser.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    cells_path = args.out / CELLS
+    cells = [json.loads(line) for line in cells_path.read_text().splitlines()] \
+        if cells_path.exists() else []  # fmt: skip
+    if not args.no_train:
+        views = (stream_views(args.dataset, "train"), stream_views(args.dataset, "test"))
+        done = {(c["model"], c["seed"]) for c in cells}
+        for model in args.models.split(","):
+            for seed in args.seeds:
+                if (Path(model).stem, seed) in done:
+                    continue
+                record = run_cell(args.dataset, model, seed, args.epochs, args.validation, views)
+                with cells_path.open("a") as f:
+                    f.write(json.dumps(record) + "\n")
+                cells.append(record)
+                acc = record["accuracy_after"]["accuracy"]
+                print(f"{record['model']} seed {seed}: 10 ms {acc[4]:.3f}, 50 ms {acc[6]:.3f}, "
+                      f"end {record['accuracy_after']['end_accuracy']:.3f} "
+                      f"({record['train_seconds']} s)", flush=True)  # fmt: skip
+    write_report(args.out, cells, command_line("stream_bench.py", argv))
+    print(f"wrote {args.out / 'report.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    run(main)

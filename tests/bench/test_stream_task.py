@@ -1,0 +1,140 @@
+"""The stream task with frame-based networks (issue 60, item 3): the rotation windows, the frame
+clock by hand, the rows a network learns from, its answers at the frame ends, and the benchmark
+script end to end."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from simlidar.bench.stream_task import (
+    CUT_DEG,
+    frame_answers,
+    scored_windows,
+    stream_views,
+    training_windows,
+)
+from simlidar.bench.train import train
+from simlidar.dataset.loaders import load_split
+from simlidar.dataset.stream_loaders import load_stream
+from simlidar.errors import ConfigError
+from simlidar.generator.stream_files import generate_streams
+from simlidar.models.registry import load_recipe
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory, catalog):
+    out = tmp_path_factory.mktemp("stream-task")
+    return generate_streams(out, train_size=16, test_size=8, scenes=catalog, progress=False,
+                            preview=False)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def views(dataset):
+    return stream_views(dataset, "test")
+
+
+def test_windows_are_the_rotations_side_by_side(dataset, views):
+    delays, labels = load_split(dataset, "test")
+    for r in range(10):
+        assert (views.windows[:, r] == delays[:, :, 32 * r : 32 * (r + 1)]).all()
+    assert (views.labels == labels).all() and views.classes == ("none", "car", "pedestrian",
+                                                                "truck")  # fmt: skip
+
+
+def test_frame_clock_by_hand(dataset, views):
+    """Rotation r's frame ends when the head passes the rear: half a rotation (50 ms at 600
+    RPM) after its window's middle, plus the time of flight at 100 m (0.667 us); the window's
+    middle is halfway between its first firing (cycle k_r0) and its last (cycle k_r31, slot 15),
+    each cycle the one nearest its column's centre (0.19906 deg apart, from the phase)."""
+    phase = load_stream(dataset, "test").samples["phase"]
+    step_deg = 360.0 / (60e6 / 600.0 / 55.296)
+    centre = -18.0 + (np.arange(32) + 0.5) * 36.0 / 32
+    assert CUT_DEG == 180.0
+    for i, p in enumerate(phase):
+        cycles = np.round((centre[None, :] + 360.0 * np.arange(10)[:, None]) / step_deg - p)
+        first_us = (cycles[:, 0] - cycles[0, 0]) * 55.296
+        last_us = (cycles[:, -1] - cycles[0, 0]) * 55.296 + 15 * 2.304
+        expected = (first_us + last_us) / 2 + 50_000.0 + 2 * 100.0 / 299_792_458.0 * 1e6
+        assert np.allclose(views.frame_end_us[i], expected, rtol=0, atol=1e-6)
+
+
+def test_first_rotation_holds_the_reference(views):
+    """Each stream's first window is the one its reference time falls in (an object's first
+    return is an event of that window), or the next one (a drawn time between windows)."""
+    starts = views.frame_end_us - 50_000.0 - 6_000.0  # before every window's first firing
+    for i, r in enumerate(views.first_rotation):
+        assert 1 <= r <= 9
+        assert starts[i, r] - 100_000.0 < views.reference_us[i] < views.frame_end_us[i, r]
+
+
+def test_training_rows_hold_out_whole_streams(views):
+    classes = list(views.classes)
+    rows = training_windows(views, seed=0, validation=0.25, classes=classes)
+    per_stream = 10 - views.first_rotation
+    held = np.setdiff1d(np.arange(len(views.labels)), rows.trained)
+    assert len(rows.y_train) == per_stream[rows.trained].sum()
+    assert len(rows.y_val) == per_stream[held].sum() > 0
+    assert rows.x_train.shape[1:] == (1, 16, 32)
+    x, y = scored_windows(views)
+    assert len(y) == per_stream.sum()
+
+
+class _Fixed(torch.nn.Module):
+    """A window model whose class is its input's first column's count of returns, mod 4."""
+
+    def forward(self, x):
+        returns = (x[:, 0, :, 0] < 1.0).sum(dim=1)
+        return torch.nn.functional.one_hot(returns % 4, 4).float()
+
+
+def test_a_frame_networks_answers_come_at_its_frame_ends(views):
+    """The frame-based baseline's latency is its frame clock by construction: an answer at
+    each rotation's frame end, its class the network's for that rotation's window."""
+    answers = frame_answers(_Fixed(), views)
+    assert (answers.times_us == views.frame_end_us).all()
+    expected = _Fixed()(torch.from_numpy(views.windows[3, 7][None, None])).argmax(1).item()
+    assert answers.classes[3, 7] == expected
+
+
+def test_train_refuses_noise_augmentation_on_given_rows(dataset, views):
+    recipe = load_recipe("mlp")
+    recipe["training"] |= {"noise_augment": True, "epochs": 1}
+    rows = training_windows(views, 0, 0.0, list(views.classes))
+    with pytest.raises(ConfigError, match="noise_augment"):
+        train(recipe, dataset, rows=rows, test=scored_windows(views), progress=False)
+
+
+def test_the_benchmark_script_end_to_end(dataset, tmp_path):
+    """Two cells, then the same command again: nothing trained anew (resumable), the report and
+    the picture written."""
+    out = tmp_path / "bench"
+    command = [sys.executable, str(ROOT / "benchmark/stream_bench.py"), str(dataset), "--out",
+               str(out), "--models", "mlp", "--seeds", "0,1", "--epochs", "1"]  # fmt: skip
+    first = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert first.returncode == 0, first.stderr
+    cells = [json.loads(line) for line in (out / "cells.jsonl").read_text().splitlines()]
+    assert [(c["model"], c["seed"]) for c in cells] == [("mlp", 0), ("mlp", 1)]
+    for c in cells:
+        after = c["accuracy_after"]
+        assert len(after["accuracy"]) == 8 and 0.0 <= after["end_accuracy"] <= 1.0
+        assert c["first_answer_after_reference_ms"]["min"] >= 0.0
+    again = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0 and "seed" not in again.stdout.replace("--seeds", "")
+    assert len((out / "cells.jsonl").read_text().splitlines()) == 2
+    assert "| mlp | 2 |" in (out / "report.md").read_text()
+    assert (out / "accuracy-latency.png").stat().st_size > 0
+
+
+def test_the_benchmark_script_refuses_a_window_dataset(datasets, tmp_path):
+    command = [sys.executable, str(ROOT / "benchmark/stream_bench.py"), str(datasets[0.1]),
+               "--out", str(tmp_path / "b"), "--models", "mlp", "--seeds", "0"]  # fmt: skip
+    done = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 1
+    assert "expected a stream split" in done.stderr and "Traceback" not in done.stderr
