@@ -22,6 +22,7 @@ import numpy as np
 
 from simlidar.bench.latency import DELAYS_MS, mean_interval
 from simlidar.bench.stream_task import (
+    decision_answers,
     frame_answers,
     latency_record,
     scored_windows,
@@ -36,7 +37,10 @@ CELLS = "cells.jsonl"
 
 
 def run_cell(dataset: Path, model: str, seed: int, epochs: int | None, validation: float,
-             views) -> dict:  # fmt: skip
+             views, mode: str) -> dict:  # fmt: skip
+    """One (model, seed) cell: ``mode`` "frame" (answers at the frame ends, time-of-flight
+    windows) or "event" (a spiking network's first output spike in each arrival-coded
+    window); ``views``: the train and test StreamViews of that coding."""
     recipe = load_recipe(model)
     recipe["training"]["noise_augment"] = False
     recipe["training"]["validation"] = validation
@@ -46,9 +50,14 @@ def run_cell(dataset: Path, model: str, seed: int, epochs: int | None, validatio
     result = train(recipe, dataset, seed=seed, epochs=epochs, progress=False, rows=rows,
                    test=scored_windows(test_views))  # fmt: skip
     seconds = time.perf_counter() - start
-    answers = frame_answers(result.model, test_views, result.spec, result.silent_from)
+    if mode == "event":
+        answers = decision_answers(result.model, test_views)
+    else:
+        answers = frame_answers(result.model, test_views, result.spec, result.silent_from)
     return {
-        "model": recipe["name"],
+        "model": recipe["name"] + ("-event" if mode == "event" else ""),
+        "mode": mode,
+        "coding": test_views.coding,
         "seed": seed,
         "dataset": dataset.name,
         "streams_trained": len(rows.trained),
@@ -138,7 +147,9 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("dataset", type=Path)
     parser.add_argument("--out", type=Path, required=True)
-    parser.add_argument("--models", default="cnn,mlp")
+    parser.add_argument("--models", default="cnn,mlp", help="frame-based: answers at frame ends")
+    parser.add_argument("--event-models", default="", help="spiking recipes run event-driven: "
+                        "arrival-coded windows, answers at the first output spike")  # fmt: skip
     parser.add_argument("--seeds", type=integers(0, 2**31), default=(0, 1, 2, 3, 4))
     parser.add_argument("--epochs", type=integers(1, 10_000, one=True), default=None)
     parser.add_argument("--validation", type=float, default=0.1)
@@ -149,13 +160,21 @@ def main(argv=None) -> int:
     cells = [json.loads(line) for line in cells_path.read_text().splitlines()] \
         if cells_path.exists() else []  # fmt: skip
     if not args.no_train:
-        views = (stream_views(args.dataset, "train"), stream_views(args.dataset, "test"))
         done = {(c["model"], c["seed"]) for c in cells}
-        for model in args.models.split(","):
+        plans = [(m, "frame") for m in args.models.split(",") if m]
+        plans += [(m, "event") for m in args.event_models.split(",") if m]
+        views = {}
+        for model, mode in plans:
+            coding = "arrival" if mode == "event" else "tof"
+            if coding not in views:
+                views[coding] = tuple(stream_views(args.dataset, s, coding)
+                                      for s in ("train", "test"))  # fmt: skip
             for seed in args.seeds:
-                if (Path(model).stem, seed) in done:
+                name = Path(model).stem + ("-event" if mode == "event" else "")
+                if (name, seed) in done:
                     continue
-                record = run_cell(args.dataset, model, seed, args.epochs, args.validation, views)
+                record = run_cell(args.dataset, model, seed, args.epochs, args.validation,
+                                  views[coding], mode)  # fmt: skip
                 with cells_path.open("a") as f:
                     f.write(json.dumps(record) + "\n")
                 cells.append(record)

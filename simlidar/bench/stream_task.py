@@ -1,6 +1,8 @@
-"""The stream task with a frame-based network (docs/streams.md, "Frame-based networks"): any
-window model of the registry trained on a stream dataset's rotation windows and scored on the
-sensor's clock with :mod:`simlidar.bench.latency`.
+"""The stream task window by window (docs/streams.md, "Networks on streams"): any window model
+of the registry trained on a stream dataset's rotation windows and scored on the sensor's clock
+with :mod:`simlidar.bench.latency`, as a frame-based network (it answers once a rotation's
+frame is complete) or, a spiking network on arrival-coded windows, as an event-driven one (it
+answers at its first output spike, within the window).
 
 * **Windows.** A stream's ``delays`` (H, R W) are its R rotations' windows side by side
   (:mod:`simlidar.dataset.stream`); rotation r's is columns r W .. (r + 1) W.
@@ -35,22 +37,30 @@ from simlidar.dataset.stream_loaders import load_stream
 from simlidar.errors import ConfigError
 from simlidar.generator.pulse_streams import rotation_middles_s, stream_rays
 from simlidar.generator.stream_config import StreamConfig
+from simlidar.models.decisions import decide_all
 from simlidar.sensor.model import Sensor
+from simlidar.sensor.rays import scan_window_ns
 
 CUT_DEG = 180.0  # where a rotation's frame is cut: the rear, the forward window in its middle
 
 
+CODINGS = ("tof", "arrival")  # what a window's value is (stream_views)
+
+
 @dataclass(frozen=True)
 class StreamViews:
-    """A stream split seen by a frame-based network (N streams of R rotations)."""
+    """A stream split seen window by window (N streams of R rotations)."""
 
-    windows: np.ndarray  # (N, R, H, W) float32, each rotation's window
+    windows: np.ndarray  # (N, R, H, W) float32, each rotation's window, as ``coding`` says
     labels: np.ndarray  # (N,) int64
     reference_us: np.ndarray  # (N,) float64, t_reference_us
     frame_end_us: np.ndarray  # (N, R) float64, when each rotation's frame is complete
     first_rotation: np.ndarray  # (N,) int64, the window that holds the reference (or after)
     span_us: float
     classes: tuple[str, ...]  # the class names, in label order
+    window_start_us: np.ndarray  # (N, R) float64, each window's first firing
+    unit_us: float  # an arrival-coded value of 1.0: the scan window (scan_window_ns)
+    coding: str = "tof"
 
 
 def stream_config(attrs: dict) -> StreamConfig:
@@ -61,8 +71,16 @@ def stream_config(attrs: dict) -> StreamConfig:
     return StreamConfig(**fields)
 
 
-def stream_views(dataset: str | Path, split: str) -> StreamViews:
-    """The windows, labels, reference times and frame clock of one split of a stream dataset."""
+def stream_views(dataset: str | Path, split: str, coding: str = "tof") -> StreamViews:
+    """The windows, labels, reference times and frame clock of one split of a stream dataset.
+
+    coding : what a window's value is: ``tof``, a pulse's time of flight over ``tof_max_ns``
+        (the stream's ``delays``, a window dataset's flash meaning); ``arrival``, its arrival
+        from its window's first firing over the scan window (a scan-timed window's meaning,
+        :func:`simlidar.sensor.rays.scan_window_ns`), from the events; 1.0: no return
+    """
+    if coding not in CODINGS:
+        raise ConfigError(f"coding={coding!r}: expected one of {list(CODINGS)}")
     info = split_info(dataset, split)
     config = stream_config(info.attrs)
     stream = load_stream(dataset, split)
@@ -76,6 +94,10 @@ def stream_views(dataset: str | Path, split: str) -> StreamViews:
     frame_end = middles_us + config.rotation_us * CUT_DEG / 360.0 + tof_max_us
     reference = stream.samples["t_reference_us"]
     first = (last_us + tof_max_us < reference[:, None]).sum(axis=1)  # windows ending before it
+    start_us = times_ns.reshape(n, -1, rotations, width).min(axis=(1, 3)) * 1e-3
+    unit_us = scan_window_ns(config.sensor, width, config.fov_deg) * 1e-3
+    if coding == "arrival":
+        windows = _arrivals(stream.events, start_us, unit_us, windows.shape, config.rotation_us)
     return StreamViews(
         windows=np.ascontiguousarray(windows),
         labels=labels,
@@ -84,7 +106,22 @@ def stream_views(dataset: str | Path, split: str) -> StreamViews:
         first_rotation=first.astype(np.int64),
         span_us=float(info.attrs["span_us"]),
         classes=tuple(str(c) for c in info.attrs["class_names"]),
+        window_start_us=start_us,
+        unit_us=unit_us,
+        coding=coding,
     )
+
+
+def _arrivals(events, start_us: np.ndarray, unit_us: float, shape, rotation_us: float):
+    """Each event's arrival from its window's first firing over ``unit_us``, placed in the
+    (N, R, H, W) windows (1.0 where no event). An event's window is the rotation nearest its
+    time over a rotation: a window lies within a cycle before r rotations and its span after."""
+    windows = np.ones(shape, np.float32)
+    sample = np.repeat(np.arange(shape[0]), events.count)
+    rotation = np.round(events.t_us / rotation_us).astype(np.int64)
+    arrival = (events.t_us - start_us[sample, rotation]) / unit_us
+    windows[sample, rotation, events.y, events.x] = arrival.astype(np.float32)
+    return windows
 
 
 def _rows(views: StreamViews, streams: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
@@ -117,6 +154,33 @@ def frame_answers(model, views: StreamViews, spec=None, silent_from: float = 1.0
     x = torch.from_numpy(views.windows.reshape(n * rotations, 1, *views.windows.shape[2:]))
     classes = predictions(model, x, spec=spec, silent_from=silent_from).numpy()
     return latency.Answers.from_frames(views.frame_end_us, classes.reshape(n, rotations))
+
+
+def decision_answers(model, views: StreamViews, batch: int = 256):
+    """An event-driven network's answers (a ``SpikingNet`` on arrival-coded windows): in every
+    rotation's window, its first output spike, at the window's first firing plus the spike's
+    time in sensor time (:func:`simlidar.models.decisions.decide_all`, the exact event-driven
+    run); a window whose outputs stay silent gives no answer."""
+    if views.coding != "arrival":
+        raise ConfigError(
+            f"coding={views.coding!r}: expected arrival-coded windows for an event-driven "
+            "network (its spike times are then sensor time)"
+        )
+    n, rotations = views.windows.shape[:2]
+    x = torch.from_numpy(views.windows.reshape(n * rotations, 1, *views.windows.shape[2:]))
+    z = model.input_spikes(x.double())
+    runs = []
+    for start in range(0, len(z), batch):
+        runs += decide_all(model, z[start : start + batch])
+    unit_ns = views.unit_us * 1e3
+    times = np.array([d.time_ns(model.scale, unit_ns) * 1e-3 if d.label >= 0 else np.nan
+                      for d in runs]).reshape(n, rotations) + views.window_start_us  # fmt: skip
+    classes = np.array([d.label for d in runs]).reshape(n, rotations)
+    # in time order, silent windows last (an output may spike after its window's last input)
+    order = np.argsort(np.where(np.isnan(times), np.inf, times), axis=1, kind="stable")
+    times = np.take_along_axis(times, order, axis=1)
+    classes = np.where(np.isnan(times), -1, np.take_along_axis(classes, order, axis=1))
+    return latency.Answers(times, classes)
 
 
 def latency_record(answers, views: StreamViews) -> dict:

@@ -138,3 +138,62 @@ def test_the_benchmark_script_refuses_a_window_dataset(datasets, tmp_path):
     done = subprocess.run(command, capture_output=True, text=True, timeout=300)
     assert done.returncode == 1
     assert "expected a stream split" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_arrival_coding_by_hand(dataset):
+    """An arrival-coded window holds each event's arrival from its window's first firing over
+    the scan window (turn of 36 x 31 / 32 deg at 600 RPM plus two cycles plus the time of
+    flight at 100 m: 9,409.4 us)."""
+    views = stream_views(dataset, "test", coding="arrival")
+    stream = load_stream(dataset, "test")
+    unit_us = 36.0 * 31 / 32 / 360.0 * 100_000.0 + 2 * 55.296 + 2 * 100.0 / 299_792_458.0 * 1e6
+    assert views.unit_us == pytest.approx(unit_us, rel=1e-12)
+    events, i = stream.events, 5
+    rows = events.rows(i)
+    t, x, y = events.t_us[rows], events.x[rows], events.y[rows]
+    rotation = np.round(t / 100_000.0).astype(int)
+    got = views.windows[i, rotation, y, x]
+    expected = (t - views.window_start_us[i, rotation]) / unit_us
+    assert np.allclose(got, expected, rtol=1e-6) and (0 < got).all() and (got < 1).all()
+    assert (views.windows[i] < 1.0).sum() == len(t)
+    with pytest.raises(ConfigError, match="coding='flash'"):
+        stream_views(dataset, "test", coding="flash")
+
+
+def test_an_event_driven_network_answers_after_what_it_consumed(dataset):
+    """A spiking network's answer in a window comes at its first output spike, at or after
+    every input spike delivered before it (the event-driven run's rule): each answer's time is
+    at least its window's first firing plus the k-th earliest arrival of the window, k the
+    input spikes it consumed."""
+    from simlidar.bench.stream_task import decision_answers
+    from simlidar.models.decisions import decide_all
+
+    views = stream_views(dataset, "test", coding="arrival")
+    recipe = load_recipe("snn_simlidar_tuned")
+    recipe["training"] |= {"noise_augment": False, "epochs": 2, "validation": 0.0}
+    rows = training_windows(stream_views(dataset, "train", coding="arrival"), 0, 0.0,
+                            list(views.classes))  # fmt: skip
+    model = train(recipe, dataset, rows=rows, test=scored_windows(views), progress=False).model
+    answers = decision_answers(model, views)
+    n = len(views.labels)
+    x = torch.from_numpy(views.windows.reshape(n * 10, 1, 16, 32)).double()
+    runs = decide_all(model, model.input_spikes(x))
+    arrivals = np.sort(views.windows.reshape(n, 10, -1), axis=2)
+    checked = 0
+    for i in range(n):
+        decided = [r for r in range(10) if runs[i * 10 + r].label >= 0]
+        times = answers.times_us[i][: len(decided)]
+        assert np.isnan(answers.times_us[i][len(decided) :]).all()
+        assert (
+            answers.classes[i][: len(decided)] == [runs[i * 10 + r].label for r in decided]
+        ).all()
+        for t, r in zip(times, decided):
+            k = runs[i * 10 + r].input_spikes
+            if k:
+                consumed = views.window_start_us[i, r] + arrivals[i, r, k - 1] * views.unit_us
+                assert t >= consumed - 1e-6
+                checked += 1
+            assert t >= views.window_start_us[i, r]  # no answer before its window fires
+    assert checked > 0
+    with pytest.raises(ConfigError, match="arrival-coded"):
+        decision_answers(model, stream_views(dataset, "test"))
