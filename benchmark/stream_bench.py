@@ -37,7 +37,7 @@ CELLS = "cells.jsonl"
 
 
 def run_cell(dataset: Path, model: str, seed: int, epochs: int | None, validation: float,
-             views, mode: str) -> dict:  # fmt: skip
+             views, mode: str, command: str) -> dict:  # fmt: skip
     """One (model, seed) cell: ``mode`` "frame" (answers at the frame ends, time-of-flight
     windows) or "event" (a spiking network's first output spike in each arrival-coded
     window); ``views``: the train and test StreamViews of that coding."""
@@ -57,6 +57,7 @@ def run_cell(dataset: Path, model: str, seed: int, epochs: int | None, validatio
     return {
         "model": recipe["name"] + ("-event" if mode == "event" else ""),
         "mode": mode,
+        "command": command,
         "coding": test_views.coding,
         "seed": seed,
         "dataset": dataset.name,
@@ -91,26 +92,41 @@ def summary(cells: list[dict]) -> dict:
     return out
 
 
-def write_report(out: Path, cells: list[dict], command: str) -> None:
+def write_report(out: Path, cells: list[dict]) -> None:
+    """report.md, summary.json and accuracy-latency.png of ``out`` from its cells and, where
+    ``benchmark/stream_estimate.py`` wrote one there, the estimate beside them."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     table = summary(cells)
+    estimate = None
+    if (out / "estimate.json").exists():
+        estimate = json.loads((out / "estimate.json").read_text())
+    commands = list(dict.fromkeys(c["command"] for c in cells))
+    if estimate is not None:
+        commands.append(estimate["command"])
     lines = [
-        "# Frame-based networks on pulse streams",
+        "# Networks on pulse streams",
         "",
-        f"Made by `{command}`; cells in `{CELLS}`. Accuracy on the sensor's clock, ms after each "
-        "test stream's reference time (the object's first return; for `none`, a drawn time), "
-        "mean and 95 % Student's t half-width over seeds. A frame-based network answers when a "
-        "rotation's frame is complete (cut at the rear: half a rotation after the window's "
-        "middle): the answer in force 10 ms after the reference is the one of the frame before, "
-        "made without the object (a guess from the background); 'frame wait' is the median time "
-        "from the reference to the first frame end after it.",
+        f"Cells in `{CELLS}`, made by:",
         "",
-        "| model | seeds | 10 ms | 50 ms | 100 ms | end of span | area 0-100 ms | frame wait, "
-        "ms | window accuracy |",
+        *[f"    {c}" for c in commands],
+        "",
+        "Accuracy on the sensor's clock, ms after each test stream's reference time (the "
+        "object's first return; for `none`, one of its returns, drawn), mean and 95 % "
+        "Student's t half-width over seeds. A frame-based network answers when a rotation's "
+        "frame is complete (cut at the rear: half a rotation after the window's middle): the "
+        "answer in force 10 ms after the reference is the one of the frame before, made "
+        "without the object (a guess from the background). An event-driven network (`-event`) "
+        "answers in every window at its first output spike. 'Wait' is the median time from "
+        "the reference to the first answer after it. The estimate: learners trained on what the "
+        "sensor knows at any time around the reference, scored at each delay "
+        "(docs/streams.md, 'What the data allow'); its seed mean, the best family's.",
+        "",
+        "| model | seeds | 10 ms | 50 ms | 100 ms | end of span | area 0-100 ms | wait, ms | "
+        "window accuracy |",
         "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
 
@@ -124,9 +140,16 @@ def write_report(out: Path, cells: list[dict], command: str) -> None:
             f"{cell(row['acc_100ms'])} | {cell(row['acc_end'])} | {cell(row['area'])} | "
             f"{cell(row['wait_ms'])} | {cell(row['test_window_accuracy'])} |"
         )
-    (out / "report.md").write_text(
-        "\n".join(lines) + "\n\n![accuracy against time](accuracy-latency.png)\n"
-    )
+    if estimate is not None:
+        at = estimate["delays"]
+        seeds = max(f["seeds"] for f in at["10"]["families"].values())
+        lines.append(
+            f"| estimate | {seeds} | {at['10']['estimate']:.3f} ({at['10']['best']}) | "
+            f"{at['50']['estimate']:.3f} ({at['50']['best']}) | "
+            f"{at['100']['estimate']:.3f} ({at['100']['best']}) | | | | |"
+        )
+    lines += ["", "![accuracy against time](accuracy-latency.png)"]
+    (out / "report.md").write_text("\n".join(lines) + "\n")
     (out / "summary.json").write_text(json.dumps(table, indent=1, default=float) + "\n")
     fig, ax = plt.subplots(figsize=(6, 3.6))
     for model, row in table.items():
@@ -134,6 +157,9 @@ def write_report(out: Path, cells: list[dict], command: str) -> None:
         half = np.nan_to_num([row[f"acc_{d:g}ms"][1] for d in DELAYS_MS])
         ax.plot(DELAYS_MS, mean, marker="o", label=model)
         ax.fill_between(DELAYS_MS, np.array(mean) - half, np.array(mean) + half, alpha=0.2)
+    if estimate is not None:
+        values = [estimate["delays"][f"{d:g}"]["estimate"] for d in DELAYS_MS]
+        ax.plot(DELAYS_MS, values, "k--", label="estimate")
     ax.set_xscale("log")
     ax.set_xlabel("ms after the object's first return (sensor time)")
     ax.set_ylabel("test accuracy")
@@ -159,6 +185,7 @@ def main(argv=None) -> int:
     cells_path = args.out / CELLS
     cells = [json.loads(line) for line in cells_path.read_text().splitlines()] \
         if cells_path.exists() else []  # fmt: skip
+    command = command_line("stream_bench.py", argv)
     if not args.no_train:
         done = {(c["model"], c["seed"]) for c in cells}
         plans = [(m, "frame") for m in args.models.split(",") if m]
@@ -174,7 +201,7 @@ def main(argv=None) -> int:
                 if (name, seed) in done:
                     continue
                 record = run_cell(args.dataset, model, seed, args.epochs, args.validation,
-                                  views[coding], mode)  # fmt: skip
+                                  views[coding], mode, command)  # fmt: skip
                 with cells_path.open("a") as f:
                     f.write(json.dumps(record) + "\n")
                 cells.append(record)
@@ -182,7 +209,7 @@ def main(argv=None) -> int:
                 print(f"{record['model']} seed {seed}: 10 ms {acc[4]:.3f}, 50 ms {acc[6]:.3f}, "
                       f"end {record['accuracy_after']['end_accuracy']:.3f} "
                       f"({record['train_seconds']} s)", flush=True)  # fmt: skip
-    write_report(args.out, cells, command_line("stream_bench.py", argv))
+    write_report(args.out, cells)
     print(f"wrote {args.out / 'report.md'}")
     return 0
 

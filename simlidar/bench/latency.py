@@ -2,10 +2,10 @@
 
 Clocks: every time is on the sensor's clock in microseconds (``_us``) from the stream's first
 firing; delays and latencies are in milliseconds (``_ms``) after a sample's reference time
-``t_reference_us`` (its first event on the object; for a sample without an object, a time drawn
-from the same range). An answer at time t is in force from t itself (an answer at exactly the
-time asked counts) until the sample's next answer; before its first answer a sample has no
-prediction, which counts as wrong.
+``t_reference_us`` (its first event on the object; for a sample without an object, one of its
+returns drawn from the same range). An answer at time t is in force from t itself (an answer
+at exactly the time asked counts) until the sample's next answer; before its first answer a
+sample has no prediction, which counts as wrong.
 
 Span rule: a figure at delay d counts only the samples whose ``t_reference_us + d`` is at or
 before the stream's end ``span_us``, and says how many it counted. A sample whose delay runs past

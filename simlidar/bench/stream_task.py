@@ -7,9 +7,9 @@ answers at its first output spike, within the window).
 * **Windows.** A stream's ``delays`` (H, R W) are its R rotations' windows side by side
   (:mod:`simlidar.dataset.stream`); rotation r's is columns r W .. (r + 1) W.
 * **What a network learns from.** Each stream's windows from the one that holds its reference
-  time on (its ``t_reference_us``: the object's first return, or for a stream without object a
-  time drawn from the same range), labelled with the stream's class: before it, a window of an
-  object's stream shows no object. The validation streams are held out whole
+  time on (its ``t_reference_us``: the object's first return, or for a stream without object
+  one of its returns drawn from the same range), labelled with the stream's class: before it,
+  a window of an object's stream shows no object. The validation streams are held out whole
   (:func:`~simlidar.bench.selection.validation_split` over the streams), so no stream's
   windows are on both sides.
 * **When it answers.** A frame-based network sees a rotation once the rotation is complete: a

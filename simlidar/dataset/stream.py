@@ -131,7 +131,7 @@ SOURCE = Source(
         "t_visible_us": "arrival of the first event on the object, us from the first firing "
         "(NaN: no object)",
         "t_reference_us": "the time latencies count from: `t_visible_us`, or for a stream "
-        "without object a time drawn from the same range",
+        "without object the arrival of one of its returns, drawn from the same range",
         "object_track": "the object's x, y (m) and yaw (deg) in the scene frame at each "
         "rotation's window middle (NaN: no object)",
         "object_motion": "the object's speed over the road (m/s), heading and yaw rate as drawn",

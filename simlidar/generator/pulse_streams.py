@@ -52,7 +52,7 @@ class StreamBatch:
     object: np.ndarray  # (n,) uint8
     scenario: np.ndarray  # (n,) uint8, index into the scenario names (0: none)
     t_visible_us: np.ndarray  # (n,) float64, the first event on the object; NaN without
-    t_reference_us: np.ndarray  # (n,) float64, t_visible_us, or a drawn time without object
+    t_reference_us: np.ndarray  # (n,) float64, t_visible_us, or without object a drawn return's
     object_track: np.ndarray  # (n, R, 3) float32: x, y, yaw at each rotation's middle; NaN
     object_motion: np.ndarray  # (n, 3) float32: speed over the road, heading, yaw rate
     ego_motion: np.ndarray  # (n, 2) float32: speed, yaw rate
@@ -224,8 +224,8 @@ def simulate_streams(config: StreamConfig, catalog: Catalog, split: str, start: 
     track = np.concatenate([at[..., :2], yaw[..., None]], axis=-1)
     track[obj == 0] = np.nan
     t_visible = kept.pop("t_visible_us")
-    low_us, high_us = rotation_ns * 1e-3, (span_ns - tail_ns) * 1e-3
-    reference = np.where(obj != 0, t_visible, low_us + reference_u * (high_us - low_us))
+    reference = _references(kept, t_visible, reference_u, rotation_ns * 1e-3,
+                            (span_ns - tail_ns) * 1e-3)  # fmt: skip
     motion = np.stack([drawn_all["speed_mps"], drawn_all["heading_deg"],
                        drawn_all["yaw_rate_deg_s"]], axis=-1)  # fmt: skip
     return StreamBatch(
@@ -242,6 +242,22 @@ def simulate_streams(config: StreamConfig, catalog: Catalog, split: str, start: 
         phase=phase,
         **kept,
     )
+
+
+def _references(events: dict, t_visible, u, low_us: float, high_us: float) -> np.ndarray:
+    """Each stream's reference time: its object's first return, or for a stream without object
+    the arrival of one of its returns between ``low_us`` and ``high_us`` (the range an object's
+    first return is kept in), picked by its variate ``u``: a return, as an object's first is,
+    so that the time a figure is read at does not tell the classes apart (a time drawn
+    uniformly fell between windows as often as not, where no object's first return can)."""
+    reference = t_visible.copy()
+    times = np.split(events["event_t_us"], np.cumsum(events["event_count"])[:-1])
+    for i in np.nonzero(np.isnan(t_visible))[0]:
+        inside = times[i][(times[i] >= low_us) & (times[i] <= high_us)]
+        pick = min(int(u[i] * len(inside)), len(inside) - 1)
+        # a stream always returns from its road; without a return in range, a time in it
+        reference[i] = inside[pick] if len(inside) else low_us + u[i] * (high_us - low_us)
+    return reference
 
 
 def _events(out: dict, config: StreamConfig, n: int) -> dict:

@@ -66,12 +66,12 @@ def test_frame_clock_by_hand(dataset, views):
 
 
 def test_first_rotation_holds_the_reference(views):
-    """Each stream's first window is the one its reference time falls in (an object's first
-    return is an event of that window), or the next one (a drawn time between windows)."""
-    starts = views.frame_end_us - 50_000.0 - 6_000.0  # before every window's first firing
+    """Each stream's first window is the one its reference time falls in: the reference is a
+    return (the object's first, or one drawn for none), an event of that window."""
+    ends = views.window_start_us + views.unit_us  # a bound on every arrival of a window
     for i, r in enumerate(views.first_rotation):
         assert 1 <= r <= 9
-        assert starts[i, r] - 100_000.0 < views.reference_us[i] < views.frame_end_us[i, r]
+        assert views.window_start_us[i, r] <= views.reference_us[i] < ends[i, r]
 
 
 def test_training_rows_hold_out_whole_streams(views):

@@ -58,7 +58,7 @@ def test_pulse_times_by_hand():
 def test_visible_time_is_the_first_event_on_the_object(batch):
     """t_visible_us is the arrival of the first event on the object (every stream), after the
     window's first rotation and before the span's last 100 ms; NaN without object; the
-    reference time is t_visible_us, or for none a time in the same range."""
+    reference time is t_visible_us, or for none one of its returns in the same range."""
     times, on = _by_sample(batch, "event_t_us"), _by_sample(batch, "event_object")
     span_us = CONFIG.rotations * CONFIG.rotation_us
     assert (batch.object == batch.labels).all()  # 4 classes: the object alone
@@ -71,6 +71,7 @@ def test_visible_time_is_the_first_event_on_the_object(batch):
             assert batch.object_events[i] == on[i].sum() >= CONFIG.min_object_hits
             assert batch.t_reference_us[i] == batch.t_visible_us[i]
         assert CONFIG.rotation_us <= batch.t_reference_us[i] <= span_us - 100e3
+        assert batch.t_reference_us[i] in times[i]  # a return: the object's first, or drawn
 
 
 def test_track_follows_the_drawn_motion(batch):

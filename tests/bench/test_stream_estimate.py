@@ -1,0 +1,71 @@
+"""The early-information estimate in the stream (issue 60, item 4): what the sensor knows at a
+time, by hand, the training times drawn independently of the class, and the script end to
+end (resumable, its summary)."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simlidar.bench.stream_estimate import OFFSETS_MS, any_time, known, view_at
+from simlidar.dataset.stream_loaders import load_stream
+from simlidar.generator.stream_files import generate_streams
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory, catalog):
+    out = tmp_path_factory.mktemp("stream-estimate")
+    return generate_streams(out, train_size=16, test_size=8, scenes=catalog, progress=False,
+                            preview=False)  # fmt: skip
+
+
+def test_the_view_is_what_has_arrived(dataset):
+    """At T = reference + d a pulse shows its time of flight once emission plus flight is at or
+    before T, and has fired once its emission is; an object's first return has arrived at its
+    reference (d = 0) and no later event has."""
+    data = known(dataset, "test")
+    stream = load_stream(dataset, "test")
+    view = view_at(data, 0.0).reshape(len(data.labels), 2, 16, -1)
+    for i in range(len(data.labels)):
+        rows = stream.events.rows(i)
+        t = stream.events.t_us[rows]
+        arrived = (view[i, 0] < 1.0).sum()
+        assert arrived == (t <= data.reference_us[i]).sum() >= 1
+        fired = view[i, 1].astype(bool)
+        assert (data.emission_us[i][fired] <= data.reference_us[i]).all()
+        assert (data.emission_us[i][~fired] > data.reference_us[i]).all()
+    later = view_at(data, 20.0)
+    assert (later[:, 0] <= view_at(data, 0.0)[:, 0]).all()  # nothing un-arrives
+    assert (later[:, 1] >= view_at(data, 0.0)[:, 1]).all()
+
+
+def test_training_times_do_not_depend_on_the_class(dataset):
+    """Each epoch's view sees every stream at its reference plus an offset uniform in
+    OFFSETS_MS, drawn alike for every class (one generator, one draw a stream)."""
+    data = known(dataset, "train")
+    draw = any_time(data, np.random.default_rng(0))
+    rng = np.random.default_rng(0)
+    offsets = rng.uniform(*OFFSETS_MS, size=len(data.labels))
+    assert (draw() == view_at(data, offsets)).all()
+    assert OFFSETS_MS[0] <= -100.0 and OFFSETS_MS[1] >= 100.0
+
+
+def test_the_script_end_to_end(dataset, tmp_path):
+    out = tmp_path / "est"
+    command = [sys.executable, str(ROOT / "benchmark/stream_estimate.py"), str(dataset),
+               "--out", str(out), "--families", "mlp", "--seeds", "0"]  # fmt: skip
+    done = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    (fit,) = [json.loads(line) for line in (out / "estimate-fits.jsonl").read_text().splitlines()]
+    assert fit["family"] == "mlp" and len(fit["accuracy"]) == 8
+    summary = json.loads((out / "estimate.json").read_text())
+    assert summary["delays"]["10"]["estimate"] == fit["accuracy"][4]
+    again = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0 and "seed 0:" not in again.stdout
+    bad = subprocess.run(command[:-4] + ["--families", "svm"], capture_output=True, text=True)
+    assert bad.returncode == 2 and "'svm': expected" in bad.stderr
