@@ -10,11 +10,13 @@ the parent from a thread.
 """
 
 import ctypes
+import multiprocessing
 import os
 import signal
 import threading
 import time
 import warnings
+from concurrent.futures import ProcessPoolExecutor
 
 _PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 WATCH_SECONDS = 0.5  # how often a worker without PR_SET_PDEATHSIG looks for its parent
@@ -74,3 +76,21 @@ def _watch(parent: int) -> None:
     while os.getppid() == parent:  # an orphan is adopted by another process
         time.sleep(WATCH_SECONDS)
     os.kill(os.getpid(), signal.SIGKILL)
+
+
+def _start_worker(parent: int) -> None:
+    """A forked worker's initializer: it ends with its parent ``parent``, whatever kills that,
+    and runs BLAS on one thread."""
+    die_with_parent(parent)
+    one_blas_thread()
+
+
+def forked_pool(workers: int) -> ProcessPoolExecutor:
+    """``workers`` forked processes that die with this one and run BLAS on one thread (they
+    see what this process held when each was forked)."""
+    return ProcessPoolExecutor(
+        workers,
+        mp_context=multiprocessing.get_context("fork"),
+        initializer=_start_worker,
+        initargs=(os.getpid(),),
+    )

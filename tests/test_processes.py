@@ -60,7 +60,7 @@ def _wait_for(condition, what: str):
 
 
 def test_workers_are_capped_at_the_batches_and_the_cores(tmp_path, monkeypatch, cli):
-    import simlidar.generator.generate as gen
+    import simlidar.processes as gen
 
     sizes = []
     real = gen.ProcessPoolExecutor

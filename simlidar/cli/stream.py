@@ -6,7 +6,7 @@ import time
 import click
 
 from simlidar.cli.generate import catalog_for, chosen_sensor_of, out_option, sensor_option
-from simlidar.cli.options import IntegerRange, scenes_option, setting_option
+from simlidar.cli.options import IntegerRange, Workers, scenes_option, setting_option
 from simlidar.generator.stream_config import StreamConfig
 from simlidar.generator.stream_files import BATCH, generate_streams
 from simlidar.sensor.moving import OBJECT_CELLS
@@ -29,12 +29,20 @@ from simlidar.sensor.moving import OBJECT_CELLS
     show_default=True,
     help="Streams ray-cast together (does not change the data).",
 )
+@click.option(
+    "--workers",
+    type=Workers(),
+    default="1",
+    show_default=True,
+    help="Processes that simulate (auto: every core this process may use); the files are the "
+    "same for every count.",
+)
 @out_option("the dataset directory")
 @click.option("--force", is_flag=True, help="Overwrite an existing dataset directory.")
 @click.option("--no-preview", is_flag=True, help="Do not draw preview.png.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def stream(classes, rotations, train_size, test_size, seed, width, variation, sensor, scenes,
-           batch_size, out, force, no_preview, as_json):  # fmt: skip
+           batch_size, workers, out, force, no_preview, as_json):  # fmt: skip
     """Generate a pulse-stream dataset of moving scenes: several rotations of the sensor's
     window while the ego drives and an object comes into view (oncoming, overtaking,
     crossing), every pulse cast at its own time, as ragged events and dense times of flight,
@@ -44,7 +52,7 @@ def stream(classes, rotations, train_size, test_size, seed, width, variation, se
         out, classes=classes, train_size=train_size, test_size=test_size, seed=seed,
         width=width, rotations=rotations, variation=variation, sensor=chosen_sensor_of(sensor),
         scenes=catalog_for(scenes, classes), batch_size=batch_size, force=force,
-        progress=not as_json, preview=not no_preview,
+        progress=not as_json, preview=not no_preview, workers=workers,
     )  # fmt: skip
     seconds = time.perf_counter() - start
     if as_json:

@@ -8,9 +8,7 @@ on any failure the temporary folders are removed and nothing appears under a fin
 """
 
 import multiprocessing
-import os
 from collections import deque
-from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import ExitStack, closing
 from dataclasses import dataclass
@@ -30,7 +28,7 @@ from simlidar.generator.reuse import differs
 from simlidar.generator.sequences import check_window_motion
 from simlidar.generator.shard import compressed_rows, remove_partials, split_shards, write_shard
 from simlidar.generator.simulate import class_plan, simulate
-from simlidar.processes import capped_workers, die_with_parent, one_blas_thread
+from simlidar.processes import capped_workers, forked_pool
 from simlidar.release.card import write_card
 from simlidar.release.checksums import write_sums
 from simlidar.release.croissant import write_croissant
@@ -50,23 +48,6 @@ WAVEFORM_BATCH_BYTES = 256 * 2**20  # stored waveforms a batch holds in memory, 
 WAVEFORM_DISK_BYTES_PER_PULSE = 64
 # (config, catalog, packing) of the batches the worker processes simulate
 _SHARED: tuple | None = None
-
-
-def _start_worker(parent: int) -> None:
-    """A forked worker's initializer: it ends with its parent ``parent``, whatever kills that
-    (:mod:`simlidar.processes`), and runs BLAS on one thread."""
-    die_with_parent(parent)
-    one_blas_thread()
-
-
-def _forked_pool(workers: int) -> ProcessPoolExecutor:
-    """``workers`` forked processes that die with this one and run BLAS on one thread."""
-    return ProcessPoolExecutor(
-        workers,
-        mp_context=multiprocessing.get_context("fork"),
-        initializer=_start_worker,
-        initargs=(os.getpid(),),
-    )
 
 
 def _simulate_job(job: tuple[str, int, int]):
@@ -89,7 +70,7 @@ class Previews:
     DatasetError where the process died; ``close`` stops it."""
 
     def __init__(self, temps: list[Path], titles: list[str]):
-        self.pool = _forked_pool(1)
+        self.pool = forked_pool(1)
         self.futures = [
             self.pool.submit(_draw_preview, temp, title) for temp, title in zip(temps, titles)
         ]
@@ -138,7 +119,7 @@ class Batches:
         workers = capped_workers(workers, len(jobs), "batches") if workers > 1 else 1
         if workers > 1:
             _SHARED = (config, catalog, packing)
-            self.pool = _forked_pool(workers)
+            self.pool = forked_pool(workers)
             for job in islice(self.todo, 2 * workers):  # forks every worker now
                 self.pending.append((job, self.pool.submit(_simulate_job, job)))
 

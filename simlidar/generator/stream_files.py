@@ -4,6 +4,7 @@ metadata and checksums, written under a temporary name and renamed into place wh
 
 import hashlib
 import json
+from contextlib import ExitStack
 from pathlib import Path
 
 import h5py
@@ -17,6 +18,7 @@ from simlidar.generator.declared_card import converted_split_attrs, write_releas
 from simlidar.generator.pulse_streams import StreamBatch, simulate_streams
 from simlidar.generator.simulate import class_plan
 from simlidar.generator.stream_config import StreamConfig
+from simlidar.processes import capped_workers, forked_pool
 from simlidar.scene.recipe import Catalog, load_catalog
 from simlidar.sensor.model import Sensor, load_sensor, row_order, tof_ns
 from simlidar.sensor.moving import OBJECT_CELLS
@@ -101,13 +103,24 @@ def _per_sample(batch: StreamBatch, config: StreamConfig, first_event: int) -> d
     return rows
 
 
+# (config, catalog) of the batches forked workers simulate (set before the pool forks)
+_SHARED: tuple | None = None
+
+
+def _simulate_job(job: tuple[str, int, int]) -> StreamBatch:
+    config, catalog = _SHARED
+    return simulate_streams(config, catalog, *job)
+
+
 def write_stream_split(path: Path, config: StreamConfig, catalog: Catalog, split: str,
-                       batch_size: int, on_rows) -> None:  # fmt: skip
+                       batch_size: int, on_rows, pool=None) -> None:  # fmt: skip
     """One split file of ``config``: its streams ``batch_size`` at a time (``on_rows`` told the
     streams done after each batch), the per-sample rows as they come, the events at the end.
 
     path : the split file to write; catalog : the scene recipes with their scenarios, the
     sensor's part; split : ``train`` or ``test``
+    pool : worker processes that simulate the batches (:func:`simlidar.processes.forked_pool`,
+        forked after :data:`_SHARED` was set), their batches written in order; None: here
     """
     size = config.split_sizes[split]
     schema = SOURCE.schema
@@ -122,9 +135,12 @@ def write_stream_split(path: Path, config: StreamConfig, catalog: Catalog, split
     writer = SplitWriter(path, size, shapes, attrs, frozenset({"delays", "t_visible_us"}))
     events: dict[str, list[np.ndarray]] = {name: [] for name in EVENT_FIELDS}
     written = 0
+    jobs = [(split, start, min(start + batch_size, size)) for start in range(0, size, batch_size)]
+    batches = (simulate_streams(config, catalog, *job) for job in jobs)
+    if pool is not None:
+        batches = pool.map(_simulate_job, jobs)  # in order
     try:
-        for start in range(0, size, batch_size):
-            batch = simulate_streams(config, catalog, split, start, min(start + batch_size, size))
+        for batch in batches:
             writer.append(_per_sample(batch, config, written))
             written += int(batch.event_count.sum())
             for name, field in EVENT_FIELDS.items():
@@ -156,6 +172,7 @@ def generate_streams(
     force: bool = False,
     progress: bool = True,
     preview: bool = True,
+    workers: int = 1,
 ) -> Path:
     """Write a stream dataset directory under ``out`` and return its path. The card's
     "Regenerate" calls this with the stored configuration.
@@ -169,6 +186,8 @@ def generate_streams(
     batch_size : streams cast together, 1 .. MAX_BATCH / 2 (no effect on the bytes)
     force : replace an existing dataset directory of the same name (else refused)
     progress : a progress bar on stderr; preview : draw ``preview.png``
+    workers : processes that simulate batches (the calling one writes them, in order); the
+        bytes are the same for every count, as every stream draws from its own random streams
     """
     from tqdm import tqdm
 
@@ -190,16 +209,27 @@ def generate_streams(
             "objects come into view (docs/streams.md)"
         )
     class_plan(catalog, config.classes)
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ConfigError(f"workers={workers!r}: expected a number of processes >= 1")
+    batches = sum(-(-size // batch_size) for size in config.split_sizes.values())
+    workers = capped_workers(workers, batches, "batches")
+    name = stream_name(config)
     bar = tqdm(total=train_size + test_size, unit="stream", disable=not progress,
                desc="stream", dynamic_ncols=True)  # fmt: skip
-    name = stream_name(config)
-    try:
-        with building(out, name, force) as temp:
-            for split in ("test", "train"):
-                write_stream_split(temp / f"{split}.h5", config, catalog, split, batch_size,
-                                   bar.update)  # fmt: skip
+    global _SHARED
+    _SHARED = (config, catalog)
+    with ExitStack() as stack:
+        pool = stack.enter_context(forked_pool(workers)) if workers > 1 else None
+        if pool is not None:  # fork now, before any file or lock is open (as generate does)
+            pool.submit(int).result()
+        try:
+            with building(out, name, force) as temp:
+                for split in ("test", "train"):
+                    write_stream_split(temp / f"{split}.h5", config, catalog, split, batch_size,
+                                       bar.update, pool)  # fmt: skip
+                bar.close()
+                write_release_files(temp, name, preview)
+        finally:
             bar.close()
-            write_release_files(temp, name, preview)
-    finally:
-        bar.close()
+            _SHARED = None
     return Path(out) / name

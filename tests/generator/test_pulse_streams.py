@@ -126,6 +126,14 @@ def test_same_bytes_for_any_batch_size(tmp_path, written, catalog):
         assert (again / name).read_bytes() == (written / name).read_bytes()
 
 
+def test_same_bytes_for_two_workers(tmp_path, written, catalog):
+    """Worker processes simulate the batches, the calling one writes them in order."""
+    again = generate_streams(tmp_path, train_size=8, test_size=4, progress=False,
+                             preview=False, scenes=catalog, batch_size=2, workers=2)  # fmt: skip
+    for name in ("train.h5", "test.h5"):
+        assert (again / name).read_bytes() == (written / name).read_bytes()
+
+
 def test_card_regenerates_the_same_bytes(tmp_path, written):
     """The card's "Regenerate" call, run as written, makes the same split files."""
     card = (written / "README.md").read_text()
