@@ -4,7 +4,8 @@ at each delay after each test stream's reference time (:mod:`simlidar.bench.stre
 written beside the networks' cells so that ``benchmark/stream_bench.py``'s report reads every
 network against it.
 
-    python benchmark/stream_estimate.py DATASET --out DIR [--families mlp,cnn] [--seeds 0,1,2]
+    python benchmark/stream_estimate.py DATASET --out DIR [--families mlp,cnn,mlp-last2,cnn-last2]
+        [--seeds 0,1,2]
 
 Each (family, seed) learner is appended to DIR/estimate-fits.jsonl with its accuracy at every
 delay of the latency grid as it finishes, and skipped when run again (resumable);
@@ -20,7 +21,7 @@ import numpy as np
 
 from simlidar.bench.bound import BoundConfig, train_learner
 from simlidar.bench.latency import DELAYS_MS
-from simlidar.bench.stream_estimate import FAMILIES, any_time, known, view_at
+from simlidar.bench.stream_estimate import FAMILIES, any_time, family_parts, known, view_at
 from simlidar.script_args import choices, command_line, integers, run
 
 FITS = "estimate-fits.jsonl"
@@ -52,14 +53,15 @@ def main(argv=None) -> int:
     fits = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
     done = {(f["family"], f["seed"]) for f in fits}
     train, test = known(args.dataset, "train"), known(args.dataset, "test")
-    tests = [view_at(test, d) for d in DELAYS_MS]
     for family in args.families:
+        model, last = family_parts(family)
+        tests = [view_at(test, d, last) for d in DELAYS_MS]
         for seed in args.seeds:
             if (family, seed) in done:
                 continue
-            draw = any_time(train, np.random.default_rng(seed))
+            draw = any_time(train, np.random.default_rng(seed), last)
             scores, record = train_learner(draw(), train.labels, train.classes, seed,
-                                           BoundConfig(model=family), draw,
+                                           BoundConfig(model=model), draw,
                                            height=train.delays.shape[1])  # fmt: skip
             accuracy = [float((scores(x).argmax(1) == test.labels).mean()) for x in tests]
             cell = {"family": family, "seed": seed, "delays_ms": list(DELAYS_MS),

@@ -35,7 +35,10 @@ from simlidar.dataset.loaders import load_split, split_info
 from simlidar.dataset.stream_loaders import load_stream
 from simlidar.generator.pulse_streams import stream_rays
 
-FAMILIES = ("mlp", "cnn")  # bound.BoundConfig.model
+# a learner family: its model (bound.BoundConfig.model) and its view, every window so far or,
+# "-lastK", the K latest windows begun by T (the one still firing last), aligned so that the
+# learner finds the current window in the same place in every view
+FAMILIES = ("mlp", "cnn", "mlp-last2", "cnn-last2")
 # the offsets from the reference a learner is trained at, ms: from a window before the object
 # (a rotation: 100 ms at 600 RPM) to past the latency grid's last delay
 OFFSETS_MS = (-100.0, 110.0)
@@ -52,6 +55,7 @@ class Known:
     labels: np.ndarray  # (N,)
     reference_us: np.ndarray  # (N,)
     classes: int
+    width: int  # W, a window's columns
 
 
 def known(dataset: str | Path, split: str) -> Known:
@@ -67,23 +71,39 @@ def known(dataset: str | Path, split: str) -> Known:
     column = np.round(events.t_us / config.rotation_us).astype(np.int64) * config.width + events.x
     arrival[sample, events.y, column] = events.t_us
     return Known(delays, emission_ns * 1e-3, arrival, labels, stream.samples["t_reference_us"],
-                 len(attrs["class_names"]))  # fmt: skip
+                 len(attrs["class_names"]), config.width)  # fmt: skip
 
 
-def view_at(data: Known, delay_ms) -> np.ndarray:
+def view_at(data: Known, delay_ms, last: int | None = None) -> np.ndarray:
     """The (N, 2, P) view of what each stream's sensor knows ``delay_ms`` (a number, or (N,)
-    one a stream) after its reference time (module docstring)."""
+    one a stream) after its reference time (module docstring); with ``last``, of its ``last``
+    latest windows begun by then alone, the current one last (P = H x last W; a window before
+    the first is nothing: no return, not fired)."""
     at = (data.reference_us + np.asarray(delay_ms) * US_PER_MS)[:, None, None]
     arrived = data.arrival_us <= at
     view = np.stack([np.where(arrived, data.delays, 1.0), data.emission_us <= at], axis=1)
+    if last is not None:
+        n, _, height, columns = view.shape
+        width = data.width
+        begun = view[:, 1].reshape(n, height, -1, width).any(axis=(1, 3)).sum(axis=1)  # (N,)
+        padded = np.concatenate([np.zeros((n, 2, height, last * width)), view], axis=3)
+        padded[:, 0, :, : last * width] = 1.0
+        first = begun[:, None] * width + np.arange(last * width)[None, :]  # in padded columns
+        view = np.take_along_axis(padded, first[:, None, None, :].repeat(2, 1).repeat(height, 2), 3)
     return view.reshape(len(view), 2, -1).astype(np.float32)
 
 
-def any_time(data: Known, rng: np.random.Generator):
+def family_parts(family: str) -> tuple[str, int | None]:
+    """A family's model and the windows its view keeps (None: all): "cnn-last2" -> ("cnn", 2)."""
+    model, _, last = family.partition("-last")
+    return model, int(last) if last else None
+
+
+def any_time(data: Known, rng: np.random.Generator, last: int | None = None):
     """A function drawing the training view anew (one call an epoch): each stream at its
-    reference plus an offset uniform in :data:`OFFSETS_MS`."""
+    reference plus an offset uniform in :data:`OFFSETS_MS` (``last``: :func:`view_at`'s)."""
 
     def draw() -> np.ndarray:
-        return view_at(data, rng.uniform(*OFFSETS_MS, size=len(data.labels)))
+        return view_at(data, rng.uniform(*OFFSETS_MS, size=len(data.labels)), last)
 
     return draw

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simlidar.bench.stream_estimate import OFFSETS_MS, any_time, known, view_at
+from simlidar.bench.stream_estimate import OFFSETS_MS, any_time, family_parts, known, view_at
 from simlidar.dataset.stream_loaders import load_stream
 from simlidar.generator.stream_files import generate_streams
 
@@ -42,6 +42,24 @@ def test_the_view_is_what_has_arrived(dataset):
     later = view_at(data, 20.0)
     assert (later[:, 0] <= view_at(data, 0.0)[:, 0]).all()  # nothing un-arrives
     assert (later[:, 1] >= view_at(data, 0.0)[:, 1]).all()
+
+
+def test_the_latest_windows_view(dataset):
+    """A -lastK view holds the K latest windows begun by T, the current one last, a window
+    before the first being nothing (no return, not fired)."""
+    data = known(dataset, "test")
+    n = len(data.labels)
+    for delay in (-95.0, 0.0, 5.0, 60.0):
+        full = view_at(data, delay).reshape(n, 2, 16, 10, 32)
+        last = view_at(data, delay, last=2).reshape(n, 2, 16, 2, 32)
+        begun = full[:, 1].any(axis=(1, 3)).sum(axis=1)
+        for i in range(n):
+            for k, window in ((1, begun[i] - 1), (0, begun[i] - 2)):
+                if window >= 0:
+                    assert (last[i, :, :, k] == full[i, :, :, window]).all()
+                else:
+                    assert (last[i, 0, :, k] == 1.0).all() and (last[i, 1, :, k] == 0).all()
+    assert family_parts("cnn-last2") == ("cnn", 2) and family_parts("mlp") == ("mlp", None)
 
 
 def test_training_times_do_not_depend_on_the_class(dataset):
