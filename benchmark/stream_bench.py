@@ -30,8 +30,9 @@ from simlidar.bench.stream_task import (
     training_windows,
 )
 from simlidar.bench.train import train
+from simlidar.errors import ConfigError
 from simlidar.models.registry import load_recipe
-from simlidar.script_args import command_line, integers, run
+from simlidar.script_args import command_line, integers, numbers, run
 
 CELLS = "cells.jsonl"
 
@@ -178,37 +179,42 @@ def main(argv=None) -> int:
                         "arrival-coded windows, answers at the first output spike")  # fmt: skip
     parser.add_argument("--seeds", type=integers(0, 2**31), default=(0, 1, 2, 3, 4))
     parser.add_argument("--epochs", type=integers(1, 10_000, one=True), default=None)
-    parser.add_argument("--validation", type=float, default=0.1)
+    parser.add_argument("--validation", type=numbers(0, 0.5, one=True), default=0.1)
     parser.add_argument("--no-train", action="store_true")
     args = parser.parse_args(argv)
-    args.out.mkdir(parents=True, exist_ok=True)
     cells_path = args.out / CELLS
     cells = [json.loads(line) for line in cells_path.read_text().splitlines()] \
         if cells_path.exists() else []  # fmt: skip
     command = command_line("stream_bench.py", argv)
-    if not args.no_train:
-        done = {(c["model"], c["seed"]) for c in cells}
-        plans = [(m, "frame") for m in args.models.split(",") if m]
-        plans += [(m, "event") for m in args.event_models.split(",") if m]
-        views = {}
-        for model, mode in plans:
+    plans = [(m, "frame") for m in args.models.split(",") if m]
+    plans += [(m, "event") for m in args.event_models.split(",") if m]
+    views = {}
+    if not args.no_train:  # every split and recipe read before anything is written
+        recipes = {model: load_recipe(model) for model, _ in plans}
+        for _, mode in plans:
             coding = "arrival" if mode == "event" else "tof"
             if coding not in views:
                 views[coding] = tuple(stream_views(args.dataset, s, coding)
                                       for s in ("train", "test"))  # fmt: skip
-            for seed in args.seeds:
-                name = Path(model).stem + ("-event" if mode == "event" else "")
-                if (name, seed) in done:
-                    continue
-                record = run_cell(args.dataset, model, seed, args.epochs, args.validation,
-                                  views[coding], mode, command)  # fmt: skip
-                with cells_path.open("a") as f:
-                    f.write(json.dumps(record) + "\n")
-                cells.append(record)
-                acc = record["accuracy_after"]["accuracy"]
-                print(f"{record['model']} seed {seed}: 10 ms {acc[4]:.3f}, 50 ms {acc[6]:.3f}, "
-                      f"end {record['accuracy_after']['end_accuracy']:.3f} "
-                      f"({record['train_seconds']} s)", flush=True)  # fmt: skip
+    elif not cells:
+        raise ConfigError(f"--no-train: {cells_path}: no cells to report; expected a run's")
+    args.out.mkdir(parents=True, exist_ok=True)
+    done = {(c["model"], c["seed"]) for c in cells}
+    for model, mode in plans if not args.no_train else []:
+        coding = "arrival" if mode == "event" else "tof"
+        for seed in args.seeds:
+            name = recipes[model]["name"] + ("-event" if mode == "event" else "")
+            if (name, seed) in done:
+                continue
+            record = run_cell(args.dataset, model, seed, args.epochs, args.validation,
+                              views[coding], mode, command)  # fmt: skip
+            with cells_path.open("a") as f:
+                f.write(json.dumps(record) + "\n")
+            cells.append(record)
+            acc = record["accuracy_after"]["accuracy"]
+            print(f"{record['model']} seed {seed}: 10 ms {acc[4]:.3f}, 50 ms {acc[6]:.3f}, "
+                  f"end {record['accuracy_after']['end_accuracy']:.3f} "
+                  f"({record['train_seconds']} s)", flush=True)  # fmt: skip
     write_report(args.out, cells)
     print(f"wrote {args.out / 'report.md'}")
     return 0

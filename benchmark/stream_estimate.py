@@ -48,11 +48,11 @@ def main(argv=None) -> int:
     parser.add_argument("--families", type=choices(FAMILIES), default=FAMILIES)
     parser.add_argument("--seeds", type=integers(0, 2**31), default=(0, 1, 2))
     args = parser.parse_args(argv)
+    train, test = known(args.dataset, "train"), known(args.dataset, "test")  # before writing
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / FITS
     fits = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
     done = {(f["family"], f["seed"]) for f in fits}
-    train, test = known(args.dataset, "train"), known(args.dataset, "test")
     for family in args.families:
         model, last = family_parts(family)
         tests = [view_at(test, d, last) for d in DELAYS_MS]

@@ -768,6 +768,16 @@ BAD_ARGUMENTS = [
     ("motion_speed.py", ["--json", "no/x.json"], "--json: 'no/x.json': expected a file in"),
     ("motion_speed.py", ["--frames", "0"], "argument --frames: '0': expected an integer in"),
     ("sweep_speed.py", ["--frames", "0"], "argument --frames: '0': expected an integer in"),
+    ("stream_speed.py", ["--streams", "2"], "argument --streams: '2': expected an integer in"),
+    ("stream_speed.py", ["--json", "no/x.json"], "--json: 'no/x.json': expected a file in"),
+    ("stream_bench.py", ["/nonexistent/s"], "/nonexistent/s"),
+    ("stream_bench.py", ["/x", "--seeds", "x"], "argument --seeds: 'x': expected comma-separ"),
+    ("stream_bench.py", ["/x", "--validation", "0.9"], "argument --validation: '0.9': expect"),
+    ("stream_bench.py", ["/x", "--models", "nosuch"], "model recipe 'nosuch'"),
+    ("stream_bench.py", ["/x", "--no-train"], "no cells to report"),
+    ("stream_estimate.py", ["/nonexistent/s"], "/nonexistent/s"),
+    ("stream_estimate.py", ["/x", "--families", "svm"], "argument --families: 'svm': expected"),
+    ("stream_figure.py", ["/nonexistent/s", "--out", "no/x.png"], "'no/x.png': expected a fi"),
     ("sweep_speed.py", ["--sensor", "nosuch"], "sensor 'nosuch': expected one of"),
     ("ttfs_speed.py", ["--steps", "0"], "argument --steps: '0': expected an integer in"),
     ("ttfs_speed.py", ["--threads", "-2"], "argument --threads: '-2': expected an integer in"),
@@ -820,6 +830,8 @@ WRITES = {
     "scan_timing.py",
     "scene_variation.py",
     "sweep_decisions.py",
+    "stream_bench.py",
+    "stream_estimate.py",
 }
 
 
