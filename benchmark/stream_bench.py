@@ -25,6 +25,7 @@ from simlidar.bench.stream_task import (
     decision_answers,
     frame_answers,
     latency_record,
+    read_cells,
     scored_windows,
     stream_views,
     training_windows,
@@ -73,6 +74,15 @@ def run_cell(dataset: Path, model: str, seed: int, epochs: int | None, validatio
     }
 
 
+def _interval(values: list) -> tuple[float, float]:
+    """Mean and 95 % half-width of the figures that exist (None: a network that never answered
+    after the reference); NaN where none does, a NaN half-width for one."""
+    given = [float(v) for v in values if v is not None and np.isfinite(v)]
+    if len(given) > 1:
+        return mean_interval(given)
+    return (given[0] if given else float("nan")), float("nan")
+
+
 def summary(cells: list[dict]) -> dict:
     """Per model: each figure's mean and 95 % half-width over its seeds."""
     out = {}
@@ -86,10 +96,7 @@ def summary(cells: list[dict]) -> dict:
             "wait_ms": [c["first_answer_after_reference_ms"]["median"] for c in mine],
             "test_window_accuracy": [c["test_window_accuracy"] for c in mine],
         }  # fmt: skip
-        out[model] = {"seeds": len(mine)} | {
-            name: mean_interval(values) if len(values) > 1 else (values[0], float("nan"))
-            for name, values in figures.items()
-        }
+        out[model] = {"seeds": len(mine)} | {name: _interval(v) for name, v in figures.items()}
     return out
 
 
@@ -133,6 +140,8 @@ def write_report(out: Path, cells: list[dict]) -> None:
 
     def cell(pair):
         mean, half = pair
+        if np.isnan(mean):
+            return "n/a"
         return f"{mean:.3f}" + ("" if np.isnan(half) else f" ± {half:.3f}")
 
     for model, row in table.items():
@@ -183,8 +192,9 @@ def main(argv=None) -> int:
     parser.add_argument("--no-train", action="store_true")
     args = parser.parse_args(argv)
     cells_path = args.out / CELLS
-    cells = [json.loads(line) for line in cells_path.read_text().splitlines()] \
-        if cells_path.exists() else []  # fmt: skip
+    if args.out.exists() and not args.out.is_dir():
+        raise ConfigError(f"--out {args.out}: expected a folder")
+    cells = read_cells(cells_path, args.dataset.name)
     command = command_line("stream_bench.py", argv)
     plans = [(m, "frame") for m in args.models.split(",") if m]
     plans += [(m, "event") for m in args.event_models.split(",") if m]
@@ -211,8 +221,8 @@ def main(argv=None) -> int:
             with cells_path.open("a") as f:
                 f.write(json.dumps(record) + "\n")
             cells.append(record)
-            acc = record["accuracy_after"]["accuracy"]
-            print(f"{record['model']} seed {seed}: 10 ms {acc[4]:.3f}, 50 ms {acc[6]:.3f}, "
+            acc = dict(zip(DELAYS_MS, record["accuracy_after"]["accuracy"]))
+            print(f"{record['model']} seed {seed}: 10 ms {acc[10]:.3f}, 50 ms {acc[50]:.3f}, "
                   f"end {record['accuracy_after']['end_accuracy']:.3f} "
                   f"({record['train_seconds']} s)", flush=True)  # fmt: skip
     write_report(args.out, cells)

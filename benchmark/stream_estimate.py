@@ -4,7 +4,7 @@ at each delay after each test stream's reference time (:mod:`simlidar.bench.stre
 written beside the networks' cells so that ``benchmark/stream_bench.py``'s report reads every
 network against it.
 
-    python benchmark/stream_estimate.py DATASET --out DIR [--families mlp,cnn,mlp-last2,cnn-last2]
+    python benchmark/stream_estimate.py DATASET --out DIR [--families mlp-last2,cnn-last2]
         [--seeds 0,1,2]
 
 Each (family, seed) learner is appended to DIR/estimate-fits.jsonl with its accuracy at every
@@ -22,6 +22,8 @@ import numpy as np
 from simlidar.bench.bound import BoundConfig, train_learner
 from simlidar.bench.latency import DELAYS_MS
 from simlidar.bench.stream_estimate import FAMILIES, any_time, family_parts, known, view_at
+from simlidar.bench.stream_task import read_cells
+from simlidar.errors import ConfigError
 from simlidar.script_args import choices, command_line, integers, run
 
 FITS = "estimate-fits.jsonl"
@@ -49,9 +51,11 @@ def main(argv=None) -> int:
     parser.add_argument("--seeds", type=integers(0, 2**31), default=(0, 1, 2))
     args = parser.parse_args(argv)
     train, test = known(args.dataset, "train"), known(args.dataset, "test")  # before writing
-    args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / FITS
-    fits = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
+    fits = read_cells(path, args.dataset.name)
+    if args.out.exists() and not args.out.is_dir():
+        raise ConfigError(f"--out {args.out}: expected a folder")
+    args.out.mkdir(parents=True, exist_ok=True)
     done = {(f["family"], f["seed"]) for f in fits}
     for family in args.families:
         model, last = family_parts(family)
@@ -64,7 +68,8 @@ def main(argv=None) -> int:
                                            BoundConfig(model=model), draw,
                                            height=train.delays.shape[1])  # fmt: skip
             accuracy = [float((scores(x).argmax(1) == test.labels).mean()) for x in tests]
-            cell = {"family": family, "seed": seed, "delays_ms": list(DELAYS_MS),
+            cell = {"dataset": args.dataset.name, "family": family, "seed": seed,
+                    "delays_ms": list(DELAYS_MS),
                     "accuracy": accuracy, **record}  # fmt: skip
             with path.open("a") as f:
                 f.write(json.dumps(cell) + "\n")

@@ -2,26 +2,31 @@
 right a decision can be some time after an object's first return, from what the sensor knows
 by then, before any network.
 
-At a time T of a stream, the sensor knows, for every pulse of every rotation's window: whether
-it has fired (its emission at or before T) and, for a return that has arrived by T (emission
-plus time of flight), its time of flight. A learner is given that as a (2, H, R W) view
-(:func:`view_at`): channel 0 the time of flight over ``tof_max_ns`` of each arrived return
-(1.0 elsewhere: no return, or not yet), channel 1 whether the pulse has fired (a pulse fired
-without a return by T has none: its return would have come within 667 ns).
+At a time T of a stream, the sensor knows, for every pulse: whether it has fired (its emission
+at or before T) and, for a return that has arrived by T (emission plus time of flight), its
+time of flight. A learner is given that for the K latest windows begun by T, the current one
+last (:func:`view_at`), as a (2, H, K W) view: channel 0 the time of flight over
+``tof_max_ns`` of each arrived return (1.0 elsewhere), channel 1 whether the pulse has fired
+(a pulse fired more than 667 ns before T without a return has none; one fired in those last
+667 ns may still return, and shows as fired without one).
 
-**Not told when the object came.** A learner trained on views at T = ``t_reference_us`` + d
-learns where the view ends: right after the object's first return, whose place (the edge of
-the window for a crossing pedestrian, its middle for an oncoming car) gives the class away
-(on 200 training streams an MLP scored more 0.5 ms after the reference than 10 ms after). A
-network answering as the pulses come is never told that time. So the learner is trained as a
-network answers, at any time: each epoch, each training stream is seen at T = its reference
-plus an offset drawn uniformly from :data:`OFFSETS_MS` (before the object and up to the latency
-grid's end), and the one learner is scored on the test split's views at every delay d of the
-grid. Its families and training are the static estimate's (:mod:`simlidar.bench.bound`: an MLP
-and the paper's CNN, Adam, the epoch of the best validation accuracy on one draw of the offsets,
-then every training stream for that many epochs, the last kept). Per d the estimate is the best
-family's mean over seeds: an estimate from the learners tried, not a bound (a stronger learner
-can beat it). ``benchmark/stream_estimate.py`` runs it.
+**Not told when.** Two times would give the class away without the object's returns. The time
+since the object's first return: a learner trained on views at T = ``t_reference_us`` + d
+learns where the view ends, right after that return, whose place (the edge of the window for a
+crossing pedestrian, its middle for an oncoming car) tells the class (on 200 training streams an
+MLP scored more 0.5 ms after the reference than 10 ms after). And the time since the stream
+began: which of all the windows have fired tells T, and T is tied to the class (a truck, tall
+and long, comes into view sooner than a car: median reference 300 ms against 604 ms on the
+committed benchmark's training streams). A network answering as pulses come is told neither.
+So the view holds the latest windows alone, and the learner is trained as a network answers, at
+any time: each epoch, each training stream is seen at T = its reference plus an offset drawn
+uniformly from :data:`OFFSETS_MS` (from a rotation before the object at 600 RPM to past the
+latency grid's end), and the one learner is scored on the test split's views at every delay d
+of the grid. Its models and training are the static estimate's (:mod:`simlidar.bench.bound`:
+an MLP and the paper's CNN, Adam, the epoch of the best validation accuracy on one draw of the
+offsets, then every training stream for that many epochs, the last kept). Per d the estimate
+is the best family's mean over seeds: an estimate from the learners tried, not a bound (a
+stronger learner can beat it). ``benchmark/stream_estimate.py`` runs it.
 """
 
 from dataclasses import dataclass
@@ -33,14 +38,14 @@ from simlidar.bench.latency import US_PER_MS
 from simlidar.bench.stream_task import stream_config
 from simlidar.dataset.loaders import load_split, split_info
 from simlidar.dataset.stream_loaders import load_stream
+from simlidar.errors import ConfigError
 from simlidar.generator.pulse_streams import stream_rays
 
-# a learner family: its model (bound.BoundConfig.model) and its view, every window so far or,
-# "-lastK", the K latest windows begun by T (the one still firing last), aligned so that the
-# learner finds the current window in the same place in every view
-FAMILIES = ("mlp", "cnn", "mlp-last2", "cnn-last2")
-# the offsets from the reference a learner is trained at, ms: from a window before the object
-# (a rotation: 100 ms at 600 RPM) to past the latency grid's last delay
+# a learner family: its model (bound.BoundConfig.model) and its view, the K latest windows
+# begun by T ("-lastK"; the current one last, in the same place in every view)
+FAMILIES = ("mlp-last2", "cnn-last2")
+# the offsets from the reference a learner is trained at, ms: from a rotation before the object
+# at 600 RPM (the shipped sensors' default) to past the latency grid's last delay
 OFFSETS_MS = (-100.0, 110.0)
 
 
@@ -74,32 +79,35 @@ def known(dataset: str | Path, split: str) -> Known:
                  len(attrs["class_names"]), config.width)  # fmt: skip
 
 
-def view_at(data: Known, delay_ms, last: int | None = None) -> np.ndarray:
-    """The (N, 2, P) view of what each stream's sensor knows ``delay_ms`` (a number, or (N,)
-    one a stream) after its reference time (module docstring); with ``last``, of its ``last``
-    latest windows begun by then alone, the current one last (P = H x last W; a window before
-    the first is nothing: no return, not fired)."""
+def view_at(data: Known, delay_ms, last: int) -> np.ndarray:
+    """The (N, 2, H x last W) view of what each stream's sensor knows ``delay_ms`` (a number,
+    or (N,) one a stream) after its reference time in its ``last`` latest windows begun by
+    then, the current one last (module docstring; a window before the first is nothing: no
+    return, not fired)."""
+    if isinstance(last, bool) or not isinstance(last, int) or last < 1:
+        raise ConfigError(f"last={last!r}: expected a number of windows >= 1")
     at = (data.reference_us + np.asarray(delay_ms) * US_PER_MS)[:, None, None]
     arrived = data.arrival_us <= at
     view = np.stack([np.where(arrived, data.delays, 1.0), data.emission_us <= at], axis=1)
-    if last is not None:
-        n, _, height, columns = view.shape
-        width = data.width
-        begun = view[:, 1].reshape(n, height, -1, width).any(axis=(1, 3)).sum(axis=1)  # (N,)
-        padded = np.concatenate([np.zeros((n, 2, height, last * width)), view], axis=3)
-        padded[:, 0, :, : last * width] = 1.0
-        first = begun[:, None] * width + np.arange(last * width)[None, :]  # in padded columns
-        view = np.take_along_axis(padded, first[:, None, None, :].repeat(2, 1).repeat(height, 2), 3)
-    return view.reshape(len(view), 2, -1).astype(np.float32)
+    n, _, height, _ = view.shape
+    width = data.width
+    begun = view[:, 1].reshape(n, height, -1, width).any(axis=(1, 3)).sum(axis=1)  # (N,)
+    padded = np.concatenate([np.zeros((n, 2, height, last * width)), view], axis=3)
+    padded[:, 0, :, : last * width] = 1.0
+    first = begun[:, None] * width + np.arange(last * width)[None, :]  # in padded columns
+    view = np.take_along_axis(padded, first[:, None, None, :].repeat(2, 1).repeat(height, 2), 3)
+    return view.reshape(n, 2, -1).astype(np.float32)
 
 
-def family_parts(family: str) -> tuple[str, int | None]:
-    """A family's model and the windows its view keeps (None: all): "cnn-last2" -> ("cnn", 2)."""
+def family_parts(family: str) -> tuple[str, int]:
+    """A family's model and the windows its view keeps: "cnn-last2" -> ("cnn", 2)."""
     model, _, last = family.partition("-last")
-    return model, int(last) if last else None
+    if model not in ("mlp", "cnn") or not last.isdigit() or int(last) < 1:
+        raise ConfigError(f"family {family!r}: expected mlp-lastK or cnn-lastK, K >= 1")
+    return model, int(last)
 
 
-def any_time(data: Known, rng: np.random.Generator, last: int | None = None):
+def any_time(data: Known, rng: np.random.Generator, last: int):
     """A function drawing the training view anew (one call an epoch): each stream at its
     reference plus an offset uniform in :data:`OFFSETS_MS` (``last``: :func:`view_at`'s)."""
 

@@ -21,6 +21,7 @@ answers at its first output spike, within the window).
   by construction).
 """
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,6 +39,7 @@ from simlidar.errors import ConfigError
 from simlidar.generator.pulse_streams import rotation_middles_s, stream_rays
 from simlidar.generator.stream_config import StreamConfig
 from simlidar.models.decisions import decide_all
+from simlidar.models.ttfs import NEAR_FIRST
 from simlidar.sensor.model import Sensor
 from simlidar.sensor.rays import scan_window_ns
 
@@ -161,6 +163,12 @@ def decision_answers(model, views: StreamViews, batch: int = 256):
     rotation's window, its first output spike, at the window's first firing plus the spike's
     time in sensor time (:func:`simlidar.models.decisions.decide_all`, the exact event-driven
     run); a window whose outputs stay silent gives no answer."""
+    if getattr(model, "direction", NEAR_FIRST) != NEAR_FIRST:
+        raise ConfigError(
+            f"direction={model.direction!r}: expected a network whose near (early) inputs "
+            f"spike first ({NEAR_FIRST!r}): a {model.direction!r} network's spike times are "
+            "not sensor time, and it would see later pulses first"
+        )
     if views.coding != "arrival":
         raise ConfigError(
             f"coding={views.coding!r}: expected arrival-coded windows for an event-driven "
@@ -209,3 +217,29 @@ def latency_record(answers, views: StreamViews) -> dict:
         "first_answer": first.to_dict(),
         "area_under_curve": area.to_dict(),
     }
+
+
+def read_cells(path: Path, dataset: str) -> list[dict]:
+    """The cells of a resumable run (one JSON object a line, each naming its ``dataset``), all
+    of ``dataset``'s: a line that is not a JSON object (a run killed while writing it) or a cell
+    of another dataset is refused in one line (a ConfigError), so that no report mixes runs."""
+    if not path.exists():
+        return []
+    cells = []
+    for number, line in enumerate(path.read_text().splitlines(), 1):
+        try:
+            cell = json.loads(line)
+        except ValueError:
+            cell = None
+        if not isinstance(cell, dict) or "dataset" not in cell:
+            raise ConfigError(
+                f"{path} line {number}: not a cell (a run killed while writing it?); expected "
+                "one JSON object a line: remove the line to go on"
+            )
+        if cell["dataset"] != dataset:
+            raise ConfigError(
+                f"{path} line {number}: a cell of dataset {cell['dataset']!r}; expected "
+                f"{dataset!r}'s alone: give each dataset its own --out"
+            )
+        cells.append(cell)
+    return cells

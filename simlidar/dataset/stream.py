@@ -120,6 +120,7 @@ SOURCE = Source(
         "row_laser_ids",
         "row_elevation_deg",
         "column_azimuth_deg",
+        "min_object_hits",
     ),
     fields={
         "delays": "each pulse's time of flight over `tof_max_ns` (1.0 = no return), the "

@@ -36,7 +36,7 @@ from simlidar.motion.poses import PlanarMotion
 from simlidar.scene.build import build_batch
 from simlidar.scene.recipe import Catalog
 from simlidar.scene.scenarios import COLUMNS as SCENARIO_COLUMNS
-from simlidar.scene.scenarios import PARAMS as SCENARIO_PARAMS
+from simlidar.scene.scenarios import REFERENCE_COLUMN
 from simlidar.sensor.model import tof_ns
 from simlidar.sensor.moving import OBJECT_CELLS, cast_moving
 from simlidar.sensor.raycast import MAX_BATCH
@@ -193,6 +193,11 @@ def simulate_streams(config: StreamConfig, catalog: Catalog, split: str, start: 
             & (first_ns <= span_ns - tail_ns)
         )
         ok &= layouts_seen(catalog, layout[pending], hits.surface, returned, azimuth)
+        if plan.mode != "object":  # the layout is in the label: seen in every window
+            for r in range(config.rotations):
+                part = slice(r * config.width, (r + 1) * config.width)
+                ok &= layouts_seen(catalog, layout[pending], hits.surface[..., part],
+                                   returned[..., part], azimuth[part])  # fmt: skip
         for k in np.nonzero(ok)[0]:
             i = pending[k]
             out["range_m"][i], out["surface"][i] = r[k], hits.surface[k]
@@ -201,7 +206,7 @@ def simulate_streams(config: StreamConfig, catalog: Catalog, split: str, start: 
         phase[done] = u[ok, 0]
         for key, values in drawn.items():
             drawn_all[key][done] = values[ok]
-        reference_u[done] = u[ok, static + 2 + len(SCENARIO_PARAMS) + 1]
+        reference_u[done] = u[ok, static + REFERENCE_COLUMN]
         pending = pending[~ok]
         if len(pending) and attempts[pending].max() >= config.max_attempts:
             k = pending[0]
@@ -248,8 +253,9 @@ def _references(events: dict, t_visible, u, low_us: float, high_us: float) -> np
     """Each stream's reference time: its object's first return, or for a stream without object
     the arrival of one of its returns between ``low_us`` and ``high_us`` (the range an object's
     first return is kept in), picked by its variate ``u``: a return, as an object's first is,
-    so that the time a figure is read at does not tell the classes apart (a time drawn
-    uniformly fell between windows as often as not, where no object's first return can)."""
+    so that the place in the window a figure is read at does not tell the classes apart (a
+    time drawn uniformly fell between windows nine times in ten, where no object's first
+    return can)."""
     reference = t_visible.copy()
     times = np.split(events["event_t_us"], np.cumsum(events["event_count"])[:-1])
     for i in np.nonzero(np.isnan(t_visible))[0]:

@@ -54,8 +54,9 @@ class StreamConfig:
     )
     variation: float = setting(
         1.0,
-        "Scene variation: every parameter range of the scene catalog's recipes shrunk around "
-        "its centre by this factor (1: the recipes as written).",
+        "Scene variation: every parameter range of the scene catalog's layout and object "
+        "recipes shrunk around its centre by this factor (1: the recipes as written; the "
+        "scenarios and the ego's speed keep theirs).",
         Range(0, 1, "a factor", low_open=True),
     )
     sensor: Sensor = setting(

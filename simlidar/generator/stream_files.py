@@ -19,6 +19,7 @@ from simlidar.generator.pulse_streams import StreamBatch, simulate_streams
 from simlidar.generator.simulate import class_plan
 from simlidar.generator.stream_config import StreamConfig
 from simlidar.processes import capped_workers, forked_pool
+from simlidar.resources import check_memory
 from simlidar.scene.recipe import Catalog, load_catalog
 from simlidar.sensor.model import Sensor, load_sensor, row_order, tof_ns
 from simlidar.sensor.moving import OBJECT_CELLS
@@ -36,12 +37,20 @@ EVENT_FIELDS = {
 
 
 def stream_name(config: StreamConfig) -> str:
-    """``simlidar-stream-<classes>c-<rotations>rot-w<width>[-<sensor>][-var<v>]-v<version>``."""
-    sensor = f"-{config.sensor.name}" if config.sensor.name != "vlp16" else ""
-    variation = f"-var{float(config.variation)!r}" if config.variation != 1.0 else ""
+    """``simlidar-stream-<classes>c-<rotations>rot-w<width>[-fov<deg>][-<sensor>][-var<v>]
+    [-hits<k>]-v<version>``: the field of view, sensor, variation and object hits where they
+    are not the defaults (36 degrees, the VLP-16, 1, 4); the seed, as in generate's names, is
+    not named."""
+    default = StreamConfig(classes=config.classes, train_size=config.train_size,
+                           test_size=config.test_size)  # fmt: skip
+    hits = config.min_object_hits
+    tag = f"-fov{float(config.fov_deg)!r}" if config.fov_deg != default.fov_deg else ""
+    tag += f"-{config.sensor.name}" if config.sensor.name != "vlp16" else ""
+    tag += f"-var{float(config.variation)!r}" if config.variation != 1.0 else ""
+    tag += f"-hits{hits}" if hits != default.min_object_hits else ""
     return (
-        f"simlidar-stream-{config.classes}c-{config.rotations}rot-w{config.width}{sensor}"
-        f"{variation}-v{SOURCE.version}"
+        f"simlidar-stream-{config.classes}c-{config.rotations}rot-w{config.width}{tag}"
+        f"-v{SOURCE.version}"
     )
 
 
@@ -209,6 +218,11 @@ def generate_streams(
             "objects come into view (docs/streams.md)"
         )
     class_plan(catalog, config.classes)
+    # the events of the largest split are held until it is written (at most one a pulse, 24
+    # bytes each in memory, the concatenation's copy included)
+    largest = max(config.split_sizes.values())
+    pulses = config.sensor.beams * config.width * config.rotations
+    check_memory(largest * pulses * 24, f"the events of {largest} streams of {pulses} pulses")
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ConfigError(f"workers={workers!r}: expected a number of processes >= 1")
     batches = sum(-(-size // batch_size) for size in config.split_sizes.values())

@@ -35,6 +35,8 @@ LIMITS = {
 # the uniform variates a stream draws after its static scene's, in this order: the scenario,
 # the side, the PARAMS, the ego's speed, and the reference time of a stream without an object
 COLUMNS = 2 + len(PARAMS) + 2
+EGO_COLUMN = 2 + len(PARAMS)  # the ego's speed
+REFERENCE_COLUMN = EGO_COLUMN + 1  # the reference time of a stream without object
 
 
 @dataclass(frozen=True)
@@ -66,26 +68,26 @@ class Scenarios:
         """The scenario names, in file order after "none" (index 0: a stream without object)."""
         return ("none",) + tuple(s.name for s in self.scenarios)
 
-    def draw(self, objects: list[str], object_names: np.ndarray, u: np.ndarray, edge_slope: float):
+    def draw(self, objects: list[str], object_ids: np.ndarray, u: np.ndarray, edge_slope: float):
         """Each stream's scenario, start and motion.
 
         objects : the catalog's object names, "none" first
-        object_names : (n,) int, each stream's object (an index into ``objects``; 0: none)
+        object_ids : (n,) int, each stream's object (an index into ``objects``; 0: none)
         u : (n, >= COLUMNS) uniform variates, in the order of :data:`COLUMNS`
         edge_slope : tan of half the window's field of view (the window's edge: |y| = slope x)
         returns : dict of (n,) float64 arrays: scenario (index into :attr:`names`; 0 for none),
             x_m, y_m, heading_deg (the start pose), speed_mps, yaw_rate_deg_s (over the road),
             ego_speed_mps; for a stream without object the object's entries are 0
         """
-        n = len(object_names)
-        ego = self.ego_speed_mps.sample(u[:, 2 + len(PARAMS)])
+        n = len(object_ids)
+        ego = self.ego_speed_mps.sample(u[:, EGO_COLUMN])
         out = {key: np.zeros(n) for key in ("scenario", "x_m", "y_m", "heading_deg",
                                             "speed_mps", "yaw_rate_deg_s")}  # fmt: skip
         out["ego_speed_mps"] = ego
-        for oid in np.unique(object_names):
+        for oid in np.unique(object_ids):
             if oid == 0:
                 continue
-            rows = np.nonzero(object_names == oid)[0]
+            rows = np.nonzero(object_ids == oid)[0]
             mine = [k for k, s in enumerate(self.scenarios) if objects[oid] in s.objects]
             pick = np.minimum((u[rows, 0] * len(mine)).astype(np.int64), len(mine) - 1)
             for choice, k in enumerate(mine):
