@@ -4,6 +4,7 @@ while a script runs is one line and exit code 1, never a traceback."""
 
 import argparse
 import math
+import shlex
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -79,7 +80,10 @@ def command_line(script: str, argv: list[str] | None) -> str:
     benchmark/<script>`` and its arguments (``argv``, or the process's), less ``--no-train``,
     which writes what training would."""
     given = argv if argv is not None else sys.argv[1:]
-    return f"python benchmark/{script}" + "".join(f" {a}" for a in given if a != "--no-train")
+    # quoted where the shell needs it (an empty argument, a space), else as given
+    return f"python benchmark/{script}" + "".join(
+        f" {shlex.quote(a)}" for a in given if a != "--no-train"
+    )
 
 
 def run(main: Callable[[], int | None]) -> None:

@@ -156,13 +156,14 @@ PARSED = {
     "min_object_hits", "profile", "noise_on", "input_spikes", "timing", "shard", "shards",
     "input_sha256", "simulated_from", "frames_without_objects", "receiver", "receiver_sha256",
     "materials", "materials_sha256", "return_mode", "beam_samples", "waveform_bin_ns",
-    "waveform_bins", "motion", "motion_sha256",
+    "waveform_bins", "motion", "motion_sha256", "rotations", "rotation_us", "span_us",
+    "scenario_names", "scenarios",
 }  # fmt: skip
 TEXT = {"simlidar_version", "class_mode", "catalog_sha256", "profile", "input_sha256",
         "receiver_sha256", "materials_sha256", "motion_sha256"}  # fmt: skip
 NUMBERS = {"seed", "noise", "classes", "tof_max_ns", "delay_unit_ns", "time_window_us",
            "no_return_delay", "min_object_hits", "shard", "shards", "beam_samples",
-           "waveform_bin_ns", "waveform_bins"}  # fmt: skip
+           "waveform_bin_ns", "waveform_bins", "rotations", "rotation_us", "span_us"}  # fmt: skip
 HOSTILE = {
     "wrong type": lambda name: "seven" if name in NUMBERS else 7,
     "2-D": lambda name: np.zeros((2, 3)),
