@@ -11,7 +11,7 @@ from simlidar.cli.options import (
     IntegerRange,
     NoiseLevels,
     OutFolder,
-    Workers,
+    batch_options,
     load_scene_catalog,
     scenes_option,
     scheduler_option,
@@ -139,21 +139,7 @@ def catalog_for(scenes, classes: int):
 )
 @motion_options
 @scenes_option
-@click.option(
-    "--batch-size",
-    type=IntegerRange(1, MAX_BATCH),
-    default=BATCH,
-    show_default=True,
-    help="Samples ray-cast together (does not change the data).",
-)
-@click.option(
-    "--workers",
-    type=Workers(),
-    default="1",
-    show_default=True,
-    help="Processes that simulate (auto: every core this process may use); the files are the "
-    "same for every count.",
-)
+@batch_options(MAX_BATCH, BATCH, "Samples")
 @click.option(
     "--shard-size",
     type=IntegerRange(1),

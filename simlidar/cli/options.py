@@ -254,6 +254,30 @@ class OutFolder(click.Path):
         return super().convert(value, param, ctx)
 
 
+def batch_options(largest: int, default: int, what: str):
+    """``--batch-size`` (1 .. ``largest`` ``what`` ray-cast together) and ``--workers`` (N or
+    auto), generate's and stream's: neither changes the files."""
+
+    def decorate(command):
+        command = click.option(
+            "--workers",
+            type=Workers(),
+            default="1",
+            show_default=True,
+            help="Processes that simulate (auto: every core this process may use); the files "
+            "are the same for every count.",
+        )(command)
+        return click.option(
+            "--batch-size",
+            type=IntegerRange(1, largest),
+            default=default,
+            show_default=True,
+            help=f"{what} ray-cast together (does not change the data).",
+        )(command)
+
+    return decorate
+
+
 scenes_option = click.option(
     "--scenes",
     type=click.Path(path_type=Path),

@@ -6,7 +6,7 @@ import time
 import click
 
 from simlidar.cli.generate import catalog_for, chosen_sensor_of, out_option, sensor_option
-from simlidar.cli.options import IntegerRange, Workers, scenes_option, setting_option
+from simlidar.cli.options import batch_options, scenes_option, setting_option
 from simlidar.generator.stream_config import StreamConfig
 from simlidar.generator.stream_files import BATCH, generate_streams
 from simlidar.sensor.moving import OBJECT_CELLS
@@ -22,21 +22,7 @@ from simlidar.sensor.moving import OBJECT_CELLS
 @setting_option(StreamConfig, "variation")
 @sensor_option
 @scenes_option
-@click.option(
-    "--batch-size",
-    type=IntegerRange(1, OBJECT_CELLS),
-    default=BATCH,
-    show_default=True,
-    help="Streams ray-cast together (does not change the data).",
-)
-@click.option(
-    "--workers",
-    type=Workers(),
-    default="1",
-    show_default=True,
-    help="Processes that simulate (auto: every core this process may use); the files are the "
-    "same for every count.",
-)
+@batch_options(OBJECT_CELLS, BATCH, "Streams")
 @out_option("the dataset directory")
 @click.option("--force", is_flag=True, help="Overwrite an existing dataset directory.")
 @click.option("--no-preview", is_flag=True, help="Do not draw preview.png.")

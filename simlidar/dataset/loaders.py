@@ -290,6 +290,22 @@ def sensor_size(width: int, height: int) -> tuple[int, int, int]:
 MAX_WINDOW_TICKS = 2**53
 
 
+def check_tick(tick, span: float, unit: str, what: str, hint: str) -> None:
+    """Refuse a tick (``tick``, in ``unit``: "ns" or "us") that is not a positive number, is
+    longer than ``span`` (what a sample spans: a delay of 1.0, a stream; ``what`` names it in
+    the message, ``hint`` adds its size and the usual ticks), or so short that the span holds
+    more than :data:`MAX_WINDOW_TICKS` ticks."""
+    name = f"tick_{unit}"
+    rule = Range(0, span, "nanoseconds" if unit == "ns" else "microseconds", low_open=True)
+    if not rule.accepts(tick):
+        raise ConfigError(f"{name}={shown(tick)}: expected {rule.expected()} ({hint})")
+    if span / tick > MAX_WINDOW_TICKS:
+        raise ConfigError(
+            f"{name}={tick!r}: {what} would span {span / tick:.3g} ticks; expected at most "
+            f"2**53 ({name} >= {span / MAX_WINDOW_TICKS:.3g})"
+        )
+
+
 def _check_tick(unit_ns: float, tick_ns: float) -> None:
     """Refuse a tick that is not a positive number, is longer than a delay of 1.0 (every event
     of the window would then fall in its first tick or two), or so short that the window spans
@@ -297,17 +313,8 @@ def _check_tick(unit_ns: float, tick_ns: float) -> None:
     unit = Range(0, None, "nanoseconds", low_open=True, finite=True)
     if not unit.accepts(unit_ns):
         raise ConfigError(f"unit_ns={unit_ns!r}: expected {unit.expected()}")
-    tick = Range(0, unit_ns, "nanoseconds", low_open=True)
-    if not tick.accepts(tick_ns):
-        raise ConfigError(
-            f"tick_ns={tick_ns!r}: expected {tick.expected()} (a delay of 1.0 is "
-            f"{unit_ns:g} ns; tick_ns=1 gives nanoseconds, 1000 microseconds)"
-        )
-    if unit_ns / tick_ns > MAX_WINDOW_TICKS:
-        raise ConfigError(
-            f"tick_ns={tick_ns!r}: the {unit_ns:g} ns window would span {unit_ns / tick_ns:.3g} "
-            f"ticks; expected at most 2**53 (tick_ns >= {unit_ns / MAX_WINDOW_TICKS:.3g})"
-        )
+    hint = f"a delay of 1.0 is {unit_ns:g} ns; tick_ns=1 gives nanoseconds, 1000 microseconds"
+    check_tick(tick_ns, unit_ns, "ns", f"the {unit_ns:g} ns window", hint)
 
 
 def window_ticks(unit_ns: float, tick_ns: float = TICK_NS) -> int:

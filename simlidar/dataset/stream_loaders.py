@@ -18,8 +18,8 @@ import numpy as np
 
 from simlidar.dataset.loaders import (
     EVENT_DTYPE,
-    MAX_WINDOW_TICKS,
     MEMORY_BUDGET,
+    check_tick,
     sensor_size,
     split_info,
 )
@@ -27,7 +27,6 @@ from simlidar.dataset.reader import SplitInfo, load_arrays, value_problems
 from simlidar.dataset.stream import NAME, SOURCE
 from simlidar.errors import ConfigError, DatasetError, first_line, shown
 from simlidar.resources import available_memory
-from simlidar.settings import Range
 
 # the per-event datasets, by name without their prefix ("t_us": event_t_us)
 EVENT_NAMES = tuple(n[6:] for n, (_, shape) in SOURCE.schema.items() if shape[0] == "E")
@@ -271,19 +270,9 @@ def _checked_fields(fields) -> tuple[str, ...]:
 
 def _checked_tick(tick_us, span_us: float) -> float:
     """``tick_us``, once a positive number of microseconds, at most the span and not so short
-    that the span holds more than :data:`MAX_WINDOW_TICKS` ticks."""
-    tick = Range(0, span_us, "microseconds", low_open=True)
-    if not tick.accepts(tick_us):
-        raise ConfigError(
-            f"tick_us={shown(tick_us)}: expected {tick.expected()} (the stream spans "
-            f"{span_us:.10g} us; tick_us=1 gives microseconds, 0.001 nanoseconds)"
-        )
-    if span_us / tick_us > MAX_WINDOW_TICKS:
-        raise ConfigError(
-            f"tick_us={tick_us!r}: the {span_us:.10g} us stream would span "
-            f"{span_us / tick_us:.3g} ticks; expected at most 2**53 "
-            f"(tick_us >= {span_us / MAX_WINDOW_TICKS:.3g})"
-        )
+    that the span holds more than :data:`MAX_WINDOW_TICKS` ticks (:func:`check_tick`)."""
+    hint = f"the stream spans {span_us:.10g} us; tick_us=1 gives microseconds, 0.001 nanoseconds"
+    check_tick(tick_us, span_us, "us", f"the {span_us:.10g} us stream", hint)
     return float(tick_us)
 
 

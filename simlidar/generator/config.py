@@ -30,6 +30,31 @@ TIMINGS = ("flash", "scan")
 SIZE = Range(1, MAX_SPLIT_SIZE, "an integer")
 
 
+def check_window(config, noun: str) -> None:
+    """What a window's configuration (a GeneratorConfig, a StreamConfig) must satisfy besides
+    its fields' rules, which this checks too: splits of at least one ``noun`` a class (before the
+    rules: a better message), and columns no closer than the sensor's firing cycles."""
+    for name in ("train_size", "test_size"):
+        value = getattr(config, name)
+        classes = config.classes if SIZE.accepts(config.classes) else SIZE.low
+        if not SIZE.accepts(value) or value < classes:
+            raise ConfigError(
+                f"{name}={value!r}: expected an integer in [{classes}, {MAX_SPLIT_SIZE}] (at "
+                f"least one {noun} of every class: classes are balanced)"
+            )
+    check(config)
+    sensor, width, fov = config.sensor, config.width, config.fov_deg
+    step = sensor.azimuth_step_deg
+    if fov / width < step * (1.0 - 1e-9):
+        # a column takes the cycle nearest its centre: closer columns would share firings
+        raise ConfigError(
+            f"width={width}: columns {fov / width:.4g} deg apart, closer than the {step:.4g} "
+            f"deg between the firing cycles of sensor {sensor.name} at {sensor.rpm:g} RPM; "
+            f"expected at most {int(fov / step + 1e-9)} columns over {fov:g} deg (each column "
+            "its own firing)"
+        )
+
+
 @dataclass(frozen=True)
 class GeneratorConfig:
     """Everything that decides a dataset's bytes (with the scene catalog and the version)."""
@@ -181,26 +206,7 @@ class GeneratorConfig:
                 f"{self.ego_yaw_rate_deg_s!r} with a trajectory: expected one way of moving "
                 "the ego (--trajectory, or --ego-speed and --ego-yaw-rate)"
             )
-        for name in ("train_size", "test_size"):  # before the rules: a better message
-            value = getattr(self, name)
-            classes = self.classes if SIZE.accepts(self.classes) else SIZE.low
-            if not SIZE.accepts(value) or value < classes:
-                raise ConfigError(
-                    f"{name}={value!r}: expected an integer in [{classes}, "
-                    f"{MAX_SPLIT_SIZE}] (at least one sample of every class: classes are "
-                    "balanced)"
-                )
-        check(self)
-        step = self.sensor.azimuth_step_deg
-        if self.fov_deg / self.width < step * (1.0 - 1e-9):
-            # a column takes the cycle nearest its centre: closer columns would share firings
-            raise ConfigError(
-                f"width={self.width}: columns {self.fov_deg / self.width:.4g} deg apart, closer "
-                f"than the {step:.4g} deg between the firing cycles of sensor {self.sensor.name} "
-                f"at {self.sensor.rpm:g} RPM; expected at most "
-                f"{int(self.fov_deg / step + 1e-9)} columns over {self.fov_deg:g} deg (each "
-                "column its own firing)"
-            )
+        check_window(self, "sample")
         if self.profile is not None and not isinstance(self.profile, Profile):
             raise ConfigError(f"profile={self.profile!r}: expected a Profile or None")
         if math.isfinite(self.fog_visibility_m) and self.receiver is None:

@@ -5,9 +5,9 @@ import json
 from dataclasses import asdict, dataclass
 
 from simlidar.errors import ConfigError
-from simlidar.generator.config import MAX_SPLIT_SIZE, SIZE
+from simlidar.generator.config import SIZE, check_window
 from simlidar.sensor.model import Sensor, default_sensor
-from simlidar.settings import Range, check, setting
+from simlidar.settings import Range, setting
 
 # the longest span a stream may have: every ray stays in the ray caster's cell (an object at
 # 108 m closing at 28 m/s for 2 s with the ego's 24 m) and a sample's events in one chunk
@@ -65,23 +65,7 @@ class StreamConfig:
     )
 
     def __post_init__(self) -> None:
-        for name in ("train_size", "test_size"):
-            value = getattr(self, name)
-            classes = self.classes if SIZE.accepts(self.classes) else SIZE.low
-            if not SIZE.accepts(value) or value < classes:
-                raise ConfigError(
-                    f"{name}={value!r}: expected an integer in [{classes}, {MAX_SPLIT_SIZE}] "
-                    "(at least one stream of every class: classes are balanced)"
-                )
-        check(self)
-        step = self.sensor.azimuth_step_deg
-        if self.fov_deg / self.width < step * (1.0 - 1e-9):
-            raise ConfigError(
-                f"width={self.width}: columns {self.fov_deg / self.width:.4g} deg apart, closer "
-                f"than the {step:.4g} deg between the firing cycles of sensor {self.sensor.name} "
-                f"at {self.sensor.rpm:g} RPM; expected at most "
-                f"{int(self.fov_deg / step + 1e-9)} columns over {self.fov_deg:g} deg"
-            )
+        check_window(self, "stream")
         if self.span_s > MAX_SPAN_S:
             raise ConfigError(
                 f"rotations={self.rotations}: {self.span_s:g} s at {self.sensor.rpm:g} RPM; "
