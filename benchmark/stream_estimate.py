@@ -4,8 +4,8 @@ at each delay after each test stream's reference time (:mod:`simlidar.bench.stre
 written beside the networks' cells so that ``benchmark/stream_bench.py``'s report reads every
 network against it.
 
-    python benchmark/stream_estimate.py DATASET --out DIR [--families mlp-last2,cnn-last2]
-        [--seeds 0,1,2]
+    python benchmark/stream_estimate.py DATASET --out DIR
+        [--families mlp-latest,cnn-latest,mlp-last2,cnn-last2] [--seeds 0,1,2]
 
 Each (family, seed) learner is appended to DIR/estimate-fits.jsonl with its accuracy at every
 delay of the latency grid as it finishes, and skipped when run again (resumable);
@@ -58,12 +58,12 @@ def main(argv=None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     done = {(f["family"], f["seed"]) for f in fits}
     for family in args.families:
-        model, last = family_parts(family)
-        tests = [view_at(test, d, last) for d in DELAYS_MS]
+        model, view = family_parts(family)
+        tests = [view_at(test, d, view) for d in DELAYS_MS]
         for seed in args.seeds:
             if (family, seed) in done:
                 continue
-            draw = any_time(train, np.random.default_rng(seed), last)
+            draw = any_time(train, np.random.default_rng(seed), view)
             scores, record = train_learner(draw(), train.labels, train.classes, seed,
                                            BoundConfig(model=model), draw,
                                            height=train.delays.shape[1])  # fmt: skip

@@ -41,9 +41,9 @@ from simlidar.dataset.stream_loaders import load_stream
 from simlidar.errors import ConfigError
 from simlidar.generator.pulse_streams import stream_rays
 
-# a learner family: its model (bound.BoundConfig.model) and its view, the K latest windows
-# begun by T ("-lastK"; the current one last, in the same place in every view)
-FAMILIES = ("mlp-last2", "cnn-last2")
+# a learner family: its model (bound.BoundConfig.model) and its view (view_at): the latest
+# complete window and the one firing ("-latest"), or the K latest windows begun by T ("-lastK")
+FAMILIES = ("mlp-latest", "cnn-latest", "mlp-last2", "cnn-last2")
 # the offsets from the reference a learner is trained at, ms: from a rotation before the object
 # at 600 RPM (the shipped sensors' default) to past the latency grid's last delay
 OFFSETS_MS = (-100.0, 110.0)
@@ -79,39 +79,59 @@ def known(dataset: str | Path, split: str) -> Known:
                  len(attrs["class_names"]), config.width)  # fmt: skip
 
 
-def view_at(data: Known, delay_ms, last: int) -> np.ndarray:
-    """The (N, 2, H x last W) view of what each stream's sensor knows ``delay_ms`` (a number,
-    or (N,) one a stream) after its reference time in its ``last`` latest windows begun by
-    then, the current one last (module docstring; a window before the first is nothing: no
-    return, not fired)."""
-    if isinstance(last, bool) or not isinstance(last, int) or last < 1:
-        raise ConfigError(f"last={last!r}: expected a number of windows >= 1")
+def view_at(data: Known, delay_ms, view) -> np.ndarray:
+    """The (N, 2, H x K W) view of what each stream's sensor knows ``delay_ms`` (a number, or
+    (N,) one a stream) after its reference time, in K windows (module docstring; a window
+    that is not there is nothing: no return, not fired):
+
+    view : an int K, the K latest windows begun by then, the current one last; or "latest",
+        K = 2: the latest complete window (every pulse fired) first and the one firing, if
+        any, second, so that the latest complete window has one place at every time
+    """
+    if view != "latest" and (isinstance(view, bool) or not isinstance(view, int) or view < 1):
+        raise ConfigError(f"view={view!r}: expected a number of windows >= 1 or 'latest'")
     at = (data.reference_us + np.asarray(delay_ms) * US_PER_MS)[:, None, None]
     arrived = data.arrival_us <= at
-    view = np.stack([np.where(arrived, data.delays, 1.0), data.emission_us <= at], axis=1)
-    n, _, height, _ = view.shape
-    width = data.width
-    begun = view[:, 1].reshape(n, height, -1, width).any(axis=(1, 3)).sum(axis=1)  # (N,)
-    padded = np.concatenate([np.zeros((n, 2, height, last * width)), view], axis=3)
-    padded[:, 0, :, : last * width] = 1.0
-    first = begun[:, None] * width + np.arange(last * width)[None, :]  # in padded columns
-    view = np.take_along_axis(padded, first[:, None, None, :].repeat(2, 1).repeat(height, 2), 3)
-    return view.reshape(n, 2, -1).astype(np.float32)
+    seen = np.stack([np.where(arrived, data.delays, 1.0), data.emission_us <= at], axis=1)
+    n, _, height, _ = seen.shape
+    windows = seen.reshape(n, 2, height, -1, data.width)
+    nothing = np.zeros((n, 2, height, 1, data.width))
+    nothing[:, 0] = 1.0
+    padded = np.concatenate([nothing, windows], axis=3)  # window w at w + 1, nothing at 0
+    fired = windows[:, 1]
+    begun = fired.any(axis=(1, 3)).sum(axis=1)  # (N,)
+    if view == "latest":
+        complete = fired.all(axis=(1, 3)).sum(axis=1)
+        places = np.stack([complete, np.where(begun > complete, complete + 1, 0)], axis=1)
+    else:
+        places = np.maximum(begun[:, None] - np.arange(view)[::-1][None, :], 0)
+    index = np.broadcast_to(places[:, None, None, :, None], (n, 2, height, places.shape[1],
+                                                             data.width))  # fmt: skip
+    kept = np.take_along_axis(padded, index, axis=3)
+    return kept.reshape(n, 2, -1).astype(np.float32)
 
 
-def family_parts(family: str) -> tuple[str, int]:
-    """A family's model and the windows its view keeps: "cnn-last2" -> ("cnn", 2)."""
-    model, _, last = family.partition("-last")
-    if model not in ("mlp", "cnn") or not last.isdigit() or int(last) < 1:
-        raise ConfigError(f"family {family!r}: expected mlp-lastK or cnn-lastK, K >= 1")
+def family_parts(family: str) -> tuple[str, int | str]:
+    """A family's model and its view (:func:`view_at`): "cnn-last2" -> ("cnn", 2),
+    "mlp-latest" -> ("mlp", "latest")."""
+    model, _, view = family.partition("-")
+    if model in ("mlp", "cnn") and view == "latest":
+        return model, view
+    last = view.removeprefix("last")
+    if model not in ("mlp", "cnn") or not view.startswith("last") or not last.isdigit():
+        raise ConfigError(
+            f"family {family!r}: expected mlp-latest, cnn-latest, mlp-lastK or cnn-lastK"
+        )
+    if int(last) < 1:
+        raise ConfigError(f"family {family!r}: expected K >= 1 windows")
     return model, int(last)
 
 
-def any_time(data: Known, rng: np.random.Generator, last: int):
+def any_time(data: Known, rng: np.random.Generator, view):
     """A function drawing the training view anew (one call an epoch): each stream at its
-    reference plus an offset uniform in :data:`OFFSETS_MS` (``last``: :func:`view_at`'s)."""
+    reference plus an offset uniform in :data:`OFFSETS_MS` (``view``: :func:`view_at`'s)."""
 
     def draw() -> np.ndarray:
-        return view_at(data, rng.uniform(*OFFSETS_MS, size=len(data.labels)), last)
+        return view_at(data, rng.uniform(*OFFSETS_MS, size=len(data.labels)), view)
 
     return draw

@@ -31,7 +31,7 @@ def test_the_view_is_what_has_arrived(dataset):
     first return has arrived at its reference (d = 0); the two views hold every window begun."""
     data = known(dataset, "test")
     stream = load_stream(dataset, "test")
-    view = view_at(data, 0.0, last=10).reshape(len(data.labels), 2, 16, -1)
+    view = view_at(data, 0.0, 10).reshape(len(data.labels), 2, 16, -1)
     for i in range(len(data.labels)):
         t = stream.events.t_us[stream.events.rows(i)]
         begun = int((data.emission_us[i].reshape(16, 10, 32) <= data.reference_us[i]).any(
@@ -42,7 +42,7 @@ def test_the_view_is_what_has_arrived(dataset):
         emitted = data.emission_us[i][:, : begun * 32]
         assert (emitted[fired] <= data.reference_us[i]).all()
         assert (emitted[~fired] > data.reference_us[i]).all()
-    early, later = view_at(data, 0.0, last=1), view_at(data, 5.0, last=1)
+    early, later = view_at(data, 0.0, 1), view_at(data, 5.0, 1)
     assert (later[:, 0] <= early[:, 0]).all() and (later[:, 1] >= early[:, 1]).all()
 
 
@@ -53,7 +53,7 @@ def test_the_latest_windows_view(dataset):
     data = known(dataset, "test")
     n = len(data.labels)
     for delay in (-95.0, 0.0, 5.0, 60.0):
-        last = view_at(data, delay, last=2).reshape(n, 2, 16, 2, 32)
+        last = view_at(data, delay, 2).reshape(n, 2, 16, 2, 32)
         for i in range(n):
             at = data.reference_us[i] + delay * 1000.0
             emitted = data.emission_us[i].reshape(16, 10, 32) <= at
@@ -66,8 +66,33 @@ def test_the_latest_windows_view(dataset):
                 else:
                     assert (last[i, 0, :, k] == 1.0).all() and (last[i, 1, :, k] == 0).all()
     assert family_parts("cnn-last2") == ("cnn", 2)
-    with pytest.raises(ConfigError, match="expected mlp-lastK or cnn-lastK"):
+    assert family_parts("mlp-latest") == ("mlp", "latest")
+    with pytest.raises(ConfigError, match="expected mlp-latest, cnn-latest, mlp-lastK or cnn"):
         family_parts("mlp")  # every window so far tells the time since the stream began
+
+
+def test_the_latest_complete_window_has_one_place(dataset):
+    """A -latest view holds the latest complete window (every pulse fired) first and the one
+    firing, if any, second (nothing where none): by hand from the pulses' emissions."""
+    data = known(dataset, "test")
+    n = len(data.labels)
+    for delay in (-95.0, 0.0, 5.0, 60.0, 100.0):
+        got = view_at(data, delay, "latest").reshape(n, 2, 16, 2, 32)
+        for i in range(n):
+            at = data.reference_us[i] + delay * 1000.0
+            emitted = data.emission_us[i].reshape(16, 10, 32) <= at
+            tof = np.where(data.arrival_us[i] <= at, data.delays[i], 1.0).reshape(16, 10, 32)
+            complete = [w for w in range(10) if emitted[:, w].all()]
+            firing = [w for w in range(10) if emitted[:, w].any() and not emitted[:, w].all()]
+            assert len(firing) <= 1 and complete == list(range(len(complete)))
+            for k, chosen in ((0, complete[-1:]), (1, firing)):
+                if chosen:
+                    assert (got[i, 0, :, k] == tof[:, chosen[0]]).all()
+                    assert (got[i, 1, :, k] == emitted[:, chosen[0]]).all()
+                else:
+                    assert (got[i, 0, :, k] == 1.0).all() and (got[i, 1, :, k] == 0).all()
+    with pytest.raises(ConfigError, match="view='last': expected a number of windows"):
+        view_at(data, 0.0, "last")
 
 
 def test_training_times_do_not_depend_on_the_class(dataset):
