@@ -194,8 +194,8 @@ def simulate_streams(config: StreamConfig, catalog: Catalog, split: str, start: 
         )
         ok &= layouts_seen(catalog, layout[pending], hits.surface, returned, azimuth)
         if plan.mode != "object":  # the layout is in the label: seen in every window
-            for r in range(config.rotations):
-                part = slice(r * config.width, (r + 1) * config.width)
+            for rotation in range(config.rotations):
+                part = slice(rotation * config.width, (rotation + 1) * config.width)
                 ok &= layouts_seen(catalog, layout[pending], hits.surface[..., part],
                                    returned[..., part], azimuth[part])  # fmt: skip
         for k in np.nonzero(ok)[0]:

@@ -225,3 +225,23 @@ def test_cli_writes_a_dataset_verify_accepts(cli, tmp_path):
     assert result.exit_code == 0, result.output
     path = next(tmp_path.iterdir())
     assert cli("verify", path).exit_code == 0
+
+
+def test_a_labelled_layout_is_seen_in_every_window(catalog):
+    """With the layout in the label (32 classes), every rotation's window sees the layout's
+    defining structure (its recipe's `visible` rule), as a window dataset's sample does."""
+    config = StreamConfig(classes=32, train_size=32, test_size=32)
+    batch = simulate_streams(config, catalog, "test", 0, 32)
+    columns = -18.0 + (np.arange(32) + 0.5) * 36.0 / 32
+    surfaces, x, rotation = (_by_sample(batch, name) for name in
+                             ("event_surface", "event_x", "event_rotation"))  # fmt: skip
+    checked = 0
+    for i in range(32):
+        for label, min_hits, side in catalog.layouts[batch.layout[i]].visible:
+            seen = surfaces[i] == label
+            if side != "any":
+                seen &= (columns[x[i]] < 0) if side == "left" else (columns[x[i]] > 0)
+            per_window = np.bincount(rotation[i][seen], minlength=10)
+            assert (per_window >= min_hits).all(), (i, label, per_window)
+            checked += 1
+    assert checked > 0
