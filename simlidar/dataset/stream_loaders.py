@@ -113,16 +113,41 @@ def _checked_labels(file: Path, attrs: dict, labels: np.ndarray) -> np.ndarray:
 
 
 def _event_limits(info: SplitInfo) -> dict[str, float]:
-    """The largest value each checked event field may take: a column of the window, a row, the
-    one polarity, a surface of ``surface_names``, and an arrival within the span plus the
-    longest time of flight."""
+    """:func:`event_limits` of a split's SplitInfo."""
+    return event_limits(info.attrs, info.height, info.width)
+
+
+def event_limits(attrs: dict, height: int, width: int) -> dict[str, float]:
+    """The largest value each checked event field may take, by a stream split's attributes and
+    its delays' ``height`` x ``width`` (R W): a column of the window, a row, the one polarity,
+    a surface of ``surface_names``, and an arrival within the span plus the longest time of
+    flight."""
     return {
-        "x": info.width // int(info.attrs["rotations"]) - 1,
-        "y": info.height - 1,
+        "x": width // int(attrs["rotations"]) - 1,
+        "y": height - 1,
         "p": 0,
-        "surface": len(info.attrs["surface_names"]) - 1,
-        "t_us": float(info.attrs["span_us"]) + float(info.attrs["tof_max_ns"]) / 1000.0,
+        "surface": len(attrs["surface_names"]) - 1,
+        "t_us": float(attrs["span_us"]) + float(attrs["tof_max_ns"]) / 1000.0,
     }
+
+
+EVENT_BLOCK = 2**22  # events checked at a time by event_value_problems
+
+
+def event_value_problems(path, f, limits: dict[str, float]) -> list[str]:
+    """The first event of an open stream split ``f`` (of tiled offsets) whose field lies outside
+    :func:`event_limits` or is NaN, named as the loaders name it (``simlidar verify``'s check of
+    the values the loaders check as they read); the events read ``EVENT_BLOCK`` at a time."""
+    start, count = f["event_start"][:], f["event_count"][:]
+    total = f["event_t_us"].shape[0]
+    for first in range(0, total, EVENT_BLOCK):
+        rows = slice(first, min(first + EVENT_BLOCK, total))
+        found = _outside({n: f[f"event_{n}"][rows] for n in limits}, limits)
+        if found is not None:
+            row, problem = found[0] + first, found[1]
+            sample = int(np.searchsorted(start + count, row, side="right"))
+            return [f"{path} (sample {sample}, its event {row - start[sample]}): {problem}"]
+    return []
 
 
 _MEANING = {

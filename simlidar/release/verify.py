@@ -13,7 +13,8 @@ from simlidar.dataset.reader import (
 )
 from simlidar.dataset.schema import SPLITS, split_source
 from simlidar.dataset.shards import find_split_files, shard_of, split_of
-from simlidar.dataset.stream_loaders import event_problems
+from simlidar.dataset.stream import NAME as STREAM
+from simlidar.dataset.stream_loaders import event_limits, event_problems, event_value_problems
 from simlidar.errors import DatasetError, first_line
 from simlidar.release.card import read_front_matter
 from simlidar.release.checksums import check_sums
@@ -65,7 +66,11 @@ def _check_split(
                 problems += value_problems(path, attrs, {n: datasets[n][rows] for n in names})
             if "event_count" in shapes:
                 offsets = f["event_start"][:], f["event_count"][:]
-                problems += event_problems(path, *offsets, f["event_t_us"].shape[0])
+                tiled = event_problems(path, *offsets, f["event_t_us"].shape[0])
+                problems += tiled
+                if not tiled and split_source(attrs) == STREAM:  # its events' values too
+                    limits = event_limits(attrs, found.height, found.width)
+                    problems += event_value_problems(path, f, limits)
         except OSError as exc:  # a chunk that does not decompress
             problems.append(f"{path}: unreadable data ({first_line(exc)})")
     return sorted(set(problems), key=problems.index), size

@@ -263,11 +263,13 @@ def _event(name, sample, event, value):
          "a time before the first firing", "a second polarity"],
 )  # fmt: skip
 def test_events_outside_the_window_are_refused_naming_the_sample(
-    tampered, name, sample, event, value, message
+    tampered, cli, name, sample, event, value, message
 ):
     copy = tampered(_event(name, sample, event, value))
     where = f"train.h5 (sample {sample}, its event {event}): {message}"
     _refused(lambda: load_stream(copy), where)
+    verified = cli("verify", copy)  # verify names it as the loaders do
+    assert verified.exit_code == 1 and where in verified.output, verified.output
     for budget in (2**30, 0):  # the events held whole, or read from the file
         dataset = StreamEventDataset(copy, "train")
         dataset.memory_budget = budget
