@@ -73,8 +73,7 @@ def known(dataset: str | Path, split: str) -> Known:
     events = stream.events  # the arrivals as stored (the delays are float32 of them)
     arrival = np.full(delays.shape, np.inf)
     sample = np.repeat(np.arange(len(labels)), events.count)
-    column = np.round(events.t_us / config.rotation_us).astype(np.int64) * config.width + events.x
-    arrival[sample, events.y, column] = events.t_us
+    arrival[sample, events.y, events.columns(config.rotation_us, config.width)] = events.t_us
     return Known(delays, emission_ns * 1e-3, arrival, labels, stream.samples["t_reference_us"],
                  len(attrs["class_names"]), config.width)  # fmt: skip
 

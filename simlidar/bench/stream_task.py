@@ -116,11 +116,11 @@ def stream_views(dataset: str | Path, split: str, coding: str = "tof") -> Stream
 
 def _arrivals(events, start_us: np.ndarray, unit_us: float, shape, rotation_us: float):
     """Each event's arrival from its window's first firing over ``unit_us``, placed in the
-    (N, R, H, W) windows (1.0 where no event). An event's window is the rotation nearest its
-    time over a rotation: a window lies within a cycle before r rotations and its span after."""
+    (N, R, H, W) windows (1.0 where no event), each in its window
+    (:meth:`~simlidar.dataset.stream_loaders.StreamEvents.rotations`)."""
     windows = np.ones(shape, np.float32)
     sample = np.repeat(np.arange(shape[0]), events.count)
-    rotation = np.round(events.t_us / rotation_us).astype(np.int64)
+    rotation = events.rotations(rotation_us)
     arrival = (events.t_us - start_us[sample, rotation]) / unit_us
     windows[sample, rotation, events.y, events.x] = arrival.astype(np.float32)
     return windows

@@ -197,6 +197,16 @@ class StreamEvents:
         first = int(self.start[index])
         return slice(first, first + int(self.count[index]))
 
+    def rotations(self, rotation_us: float) -> np.ndarray:
+        """Each event's rotation, (E,) int64: the one nearest its time over ``rotation_us`` (a
+        window fires within a cycle of r rotations and over its ~10 ms after)."""
+        return np.round(self.t_us / rotation_us).astype(np.int64)
+
+    def columns(self, rotation_us: float, width: int) -> np.ndarray:
+        """Each event's column in its split's ``delays`` (rotations side by side), (E,) int64:
+        its window's column plus ``width`` times its rotation (:meth:`rotations`)."""
+        return self.rotations(rotation_us) * width + self.x
+
 
 @dataclass(frozen=True)
 class StreamSplit:
