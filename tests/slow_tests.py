@@ -7,6 +7,8 @@ became slow makes the quick run slower, never wrong."""
 
 SLOW = frozenset(
     {
+        "tests/bench/test_stream_sequences.py::test_the_benchmark_script_with_stream_networks",
+        "tests/bench/test_stream_suite.py::test_a_stream_suite_runs_keeps_and_refuses",
         "tests/bench/test_bench.py::test_a_cell_from_other_inputs_is_refused_not_reused",
         "tests/bench/test_bench.py::test_a_full_disk_while_a_cell_is_written_gets_a_line_of_its_own",
         "tests/bench/test_bench.py::test_a_suite_larger_than_the_machine_is_refused_before_anything_is_allocated",

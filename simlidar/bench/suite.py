@@ -40,6 +40,7 @@ from simlidar.settings import Range
 
 SUITE_NAME = re.compile(r"^[A-Za-z0-9_-][A-Za-z0-9_.-]{0,99}$")
 KEYS = {"name", "description", "models", "seeds", "board_power_w", "generate", "datasets", "budget"}
+KEYS |= {"task"}  # "window" (the default); a stream suite's is read by simlidar.bench.stream_suite
 # A board's power, watts: 100 kW is a rack of accelerators. Beyond it (inf, 1e308) the energy
 # estimate, power x latency, overflowed to a bare Infinity in results.json.
 MAX_BOARD_POWER_W = 100_000
@@ -97,6 +98,11 @@ def load_suite(name_or_path: str | Path) -> Suite:
     path = shipped_or_path(name_or_path, "benchmark", "suite")
     data = read_toml(path, MAX_SUITE_BYTES, ConfigError, f"suite {path}")
     raw = path.read_bytes()  # its digest names the suite's settings
+    if data.get("task", "window") != "window":
+        raise _fail(
+            path, "task", "'window' here (a stream suite runs with simlidar bench --suite)",
+            data["task"],
+        )  # fmt: skip
     for key in data:
         if key not in KEYS:
             raise ConfigError(f"suite {path}: unknown key '{key}': expected one of {sorted(KEYS)}")

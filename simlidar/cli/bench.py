@@ -223,6 +223,38 @@ def train(
     click.echo(json.dumps(record) if as_json else f"wrote {path}")
 
 
+def _stream_suite(suite, models, dataset, out, epochs, threads, as_json):
+    """``simlidar bench`` of a stream suite (:mod:`simlidar.bench.stream_suite`)."""
+    import shlex
+
+    import torch
+
+    from simlidar.bench.stream_suite import load_stream_suite, run_stream_suite
+
+    try:
+        chosen = load_stream_suite(suite)
+    except ConfigError as exc:
+        raise click.BadParameter(str(exc), param_hint="'--suite'") from None
+    names = None if models is None else [m.strip() for m in models.split(",") if m.strip()]
+    given = [("--suite", suite), ("--models", models), ("--dataset", dataset), ("--out", out),
+             ("--epochs", epochs), ("--threads", threads)]  # fmt: skip
+    default = chosen.name if dataset is None else f"{chosen.name}-{dataset.name}"
+    out = out if out is not None else (Path("bench") / default).absolute()
+    command = "simlidar bench" + "".join(
+        f" {name} {shlex.quote(str(value))}" for name, value in given if value is not None
+    )
+    torch.set_num_threads(threads)
+    with _stdout_kept_for(as_json):
+        table = run_stream_suite(
+            chosen, out, command, dataset=dataset, models=names, epochs=epochs,
+            progress=not as_json, note=lambda line: click.echo(line, err=as_json),
+        )  # fmt: skip
+    if as_json:
+        click.echo(json.dumps({"suite": chosen.name, "out": str(out), "models": table}))
+        return
+    click.echo(f"{len(table)} models in {out}: cells.jsonl, report.md, accuracy-latency.png")
+
+
 def _absolute(_ctx, _param, path: Path | None) -> Path | None:
     """A path option made absolute as it is parsed: a model's code, run later in this process,
     may change the working directory (``os.chdir``), which must not move ``--out``."""
@@ -306,7 +338,22 @@ def bench(
     the same directory skips the cells already finished."""
     need_torch("bench")
     from simlidar.bench.run import anchored, anchored_model, run_suite
+    from simlidar.bench.stream_suite import is_stream_suite
 
+    if is_stream_suite(suite):
+        refused = {
+            "--max-seconds": max_seconds, "--validation": validation, "--patience": patience,
+            "--remeasure": remeasure or None, "--scheduler": scheduler, "--workers": workers,
+            "--device": None if device == "cpu" else device,
+        }  # fmt: skip
+        given = [name for name, value in refused.items() if value is not None]
+        if given:
+            raise click.UsageError(
+                f"{given[0]}: not an option of a stream suite ({suite}); expected --models, "
+                "--dataset, --out, --epochs, --threads or --json"
+            )
+        _stream_suite(suite, models, dataset, out, epochs, threads, as_json)
+        return
     try:
         chosen = anchored(load_suite(suite))
     except ConfigError as exc:

@@ -54,7 +54,7 @@ def stream_name(config: StreamConfig) -> str:
     )
 
 
-def _scenes_digest(catalog: Catalog) -> str:
+def scenes_digest(catalog: Catalog) -> str:
     """sha256 of what the streams are made of besides the config: the scene catalog as used
     (the sensor's part) and its scenarios, as stored."""
     both = {"catalog": catalog.to_dict(), "scenarios": catalog.scenarios.source}
@@ -68,7 +68,7 @@ def stream_split_attrs(config: StreamConfig, catalog: Catalog, split: str) -> di
     rows = row_order(sensor)
     strings = h5py.string_dtype()
     attrs = converted_split_attrs(NAME, split, config, plan.names, plan.mode, sensor.to_dict(),
-                                  _scenes_digest(catalog))  # fmt: skip
+                                  scenes_digest(catalog))  # fmt: skip
     columns = column_centres_deg(config.width, config.fov_deg)
     return attrs | {
         "layout_names": np.array(catalog.layout_names, dtype=strings),

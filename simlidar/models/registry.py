@@ -38,6 +38,9 @@ BUILDERS = {
     "mlp": ("conventional", "mlp"),
     "vgg": ("conventional", "vgg"),
     "resnet": ("conventional", "resnet"),
+    # stream networks (a recipe's [stream] table; simlidar.models.stream_nets)
+    "gru_rotations": ("stream_nets", "rotation_gru"),
+    "lif_stream": ("stream_nets", "lif_stream"),
 }
 
 MAX_MODEL_RECIPE_BYTES = 64 * 1024  # a model recipe is a few dozen lines
@@ -176,6 +179,10 @@ def load_recipe(name_or_path: str | Path) -> dict:
         if not isinstance(recipe["spec"], dict):
             raise ConfigError(f"{path}: key 'spec': expected a table, got {recipe['spec']!r}")
         spec_of(None, recipe["spec"], str(path))  # checked over the defaults
+    if "stream" in recipe:  # a stream network's input (checked without torch)
+        from simlidar.models.stream_spec import stream_spec_of
+
+        stream_spec_of(recipe, str(path))
     return recipe
 
 

@@ -4,8 +4,12 @@ import torch
 from simlidar.content import content_dir
 from simlidar.errors import ConfigError, ResourceError
 from simlidar.models.registry import BUILDERS, build_model, load_recipe
+from simlidar.models.stream_nets import scores_of
+from simlidar.models.stream_spec import stream_spec_of
 
 SHIPPED = sorted(p.stem for p in content_dir("baselines").glob("*.toml"))
+STREAM = [name for name in SHIPPED if "stream" in load_recipe(name)]  # a [stream] table
+WINDOW = [name for name in SHIPPED if name not in STREAM]
 
 
 def _data_of(name: str) -> tuple[tuple[int, ...], int]:
@@ -17,7 +21,7 @@ def _data_of(name: str) -> tuple[tuple[int, ...], int]:
     return (1, 16, 16), 32
 
 
-@pytest.mark.parametrize("name", SHIPPED)
+@pytest.mark.parametrize("name", WINDOW)
 def test_every_shipped_recipe_builds_and_runs(name):
     recipe = load_recipe(name)
     shape, classes = _data_of(name)
@@ -25,6 +29,16 @@ def test_every_shipped_recipe_builds_and_runs(name):
     out = model(torch.rand(2, *shape))
     assert out.shape == (2, classes)
     assert torch.isfinite(out).any()  # the initial weights let spiking neurons fire
+
+
+@pytest.mark.parametrize("name", STREAM)
+def test_every_shipped_stream_recipe_builds_and_runs(name):
+    """A stream network gives scores at every step of a stream, (T, B, classes)."""
+    recipe = load_recipe(name)
+    spec = stream_spec_of(recipe)
+    model = build_model(recipe, (spec.channels, 16, 32), 4, torch.Generator().manual_seed(0))
+    out = scores_of(model(torch.rand(7, 2, spec.channels, 16, 32)))
+    assert out.shape == (7, 2, 4) and torch.isfinite(out).all()
 
 
 def test_the_shipped_folder_is_what_the_registry_serves():
