@@ -48,8 +48,8 @@ def test_the_shipped_stream_suite_reads():
         (("validation = 0.25", "validation = 0.9"), "key 'validation': expected a fraction"),
         (("train_size = 12", "train_size = 0"), "[generate] train_size=0"),
         (("train_size = 12", "trains = 12"), "key 'generate.trains': expected one of"),
-        (("[budget]\nepochs = 1", "[budget.cnn]\nepochs = 1"), "budget.cnn.: expected a model"),
-        (("[budget]\nepochs = 1", "[budget]\nepochs = 0"), "budget.epochs.: expected a"),
+        (("[budget]\nepochs = 1", "[budget.cnn]\nepochs = 1"), "budget.cnn': expected a model"),
+        (("[budget]\nepochs = 1", "[budget]\nepochs = 0"), "budget.epochs': expected a"),
         (('task = "stream"\n', 'task = "stream"\nboard_power_w = 5\n'), "key 'board_power_w'"),
     ],
 )
