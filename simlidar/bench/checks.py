@@ -41,6 +41,11 @@ def prepared_model(
         a ``silent_from`` attribute) and used to encode the checked samples
     """
     where = f"recipe {recipe.get('name', '?')}"
+    if "stream" in recipe:
+        raise ConfigError(
+            f"{where}: a stream network (its [stream] table); expected a window model here: run "
+            "it on a stream dataset (simlidar bench --suite stream, benchmark/stream_bench.py)"
+        )
     model = build_model(recipe, tuple(x.shape[1:]), classes, generator)
     spec = spec_of(model, recipe.get("spec"), where)
     if hasattr(model, "silent_from") or spec.spiking:

@@ -258,6 +258,15 @@ def test_train_errors_are_one_line(tmp_path, cli):
     assert missing.exit_code == 1 and "expected a dataset directory" in missing.stderr
 
 
+def test_a_stream_network_is_refused_on_windows(datasets, tmp_path, cli):
+    done = cli("train", "--model", "lif_stream", "--dataset", datasets[0.1], "--out", tmp_path)
+    assert done.exit_code == 2 and "Traceback" not in done.output
+    assert "recipe lif_stream: a stream network (its [stream] table); expected a window" in (
+        done.stderr
+    )
+    assert not list(tmp_path.iterdir())  # nothing written
+
+
 def test_noise_augment_draws_the_noise_anew_each_epoch(datasets):
     """Fresh U(0, a) on the clean delays under the split's rule, seeded, different per epoch."""
     import numpy as np
