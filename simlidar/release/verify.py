@@ -14,7 +14,7 @@ from simlidar.dataset.reader import (
 from simlidar.dataset.schema import SPLITS, split_source
 from simlidar.dataset.shards import find_split_files, shard_of, split_of
 from simlidar.dataset.stream import NAME as STREAM
-from simlidar.dataset.stream_loaders import event_limits, event_problems, event_value_problems
+from simlidar.dataset.stream_checks import event_limits, event_problems, event_value_problems
 from simlidar.errors import DatasetError, first_line
 from simlidar.release.card import read_front_matter
 from simlidar.release.checksums import check_sums

@@ -15,7 +15,8 @@ import tonic.transforms as T
 import torch.utils.data
 
 from simlidar.data import StreamEventDataset, load_stream
-from simlidar.dataset.stream_loaders import EXTRA_FIELDS, event_problems, stream_events
+from simlidar.dataset.stream_checks import event_problems
+from simlidar.dataset.stream_loaders import EXTRA_FIELDS, stream_events
 from simlidar.dataset.version import GENERATOR
 from simlidar.errors import ConfigError, DatasetError
 from simlidar.generator.stream_files import generate_streams
