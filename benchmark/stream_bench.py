@@ -5,14 +5,16 @@ time, the first answer's latency, the area under the accuracy-latency curve; a r
 mean and a 95 % Student's t interval over seeds and the accuracy-latency picture.
 
     python benchmark/stream_bench.py DATASET --out DIR [--models cnn,mlp,gru_rotations]
-        [--event-models snn_simlidar_tuned] [--seeds 0,1,2,3,4] [--epochs N]
+        [--event-models snn_simlidar_tuned] [--window-models cnn] [--seeds 0,1,2,3,4] [--epochs N]
         [--validation 0.1] [--no-train]
 
 A window model of ``--models`` (the registry's MLP, CNN, ...) is frame-based: trained on the
 rotation windows, it answers at each frame's end. A stream network's recipe (a ``[stream]``
 table: ``gru_rotations``, ``lif_stream``, or an outside one) reads whole streams, rotations or
 binned events (:mod:`simlidar.bench.stream_sequences`). A spiking recipe of
-``--event-models`` runs event-driven on arrival-coded windows.
+``--event-models`` runs event-driven on arrival-coded windows. A window model of
+``--window-models`` is frame-based but answers when its window is complete (the forward sector
+published as soon as it is scanned), a cell of its own (``<model>-window``).
 
 Cells are appended to DIR/cells.jsonl as they finish, and a run started again skips the
 (model, seed) pairs already there (resumable); ``--no-train`` writes the report from them. A
@@ -40,6 +42,12 @@ def main(argv=None) -> int:
     )
     parser.add_argument("--event-models", default="", help="spiking recipes run event-driven: "
                         "arrival-coded windows, answers at the first output spike")  # fmt: skip
+    parser.add_argument(
+        "--window-models",
+        default="",
+        help="window models answering when their window is complete (a sector clock), not at "
+        "the frame's end",
+    )
     parser.add_argument("--seeds", type=integers(0, 2**31), default=(0, 1, 2, 3, 4))
     parser.add_argument("--epochs", type=integers(1, 10_000, one=True), default=None)
     parser.add_argument("--validation", type=numbers(0, 0.5, one=True), default=0.1)
@@ -54,7 +62,8 @@ def main(argv=None) -> int:
                               "run's")  # fmt: skip
     else:
         planned = plans([m for m in args.models.split(",") if m],
-                        [m for m in args.event_models.split(",") if m])  # fmt: skip
+                        [m for m in args.event_models.split(",") if m],
+                        [m for m in args.window_models.split(",") if m])  # fmt: skip
         cells = run_cells(args.dataset, args.out, planned, args.seeds,
                           command_line("stream_bench.py", argv),
                           epochs=lambda _: args.epochs, validation=args.validation,

@@ -42,24 +42,29 @@ from simlidar.models.registry import load_recipe
 CELLS = "cells.jsonl"
 FITS = "estimate-fits.jsonl"
 ESTIMATE = "estimate.json"
-FRAME, EVENT, SEQUENCE = "frame", "event", "sequence"
+FRAME, WINDOW, EVENT, SEQUENCE = "frame", "window", "event", "sequence"
+SUFFIX = {FRAME: "", SEQUENCE: "", WINDOW: "-window", EVENT: "-event"}  # of a cell's model
 
 
-def plans(models: Sequence[str], event_models: Sequence[str] = ()) -> list[tuple[str, str, dict]]:
+def plans(models: Sequence[str], event_models: Sequence[str] = (),
+          window_models: Sequence[str] = ()) -> list[tuple[str, str, dict]]:  # fmt: skip
     """(model, mode, recipe) of each model to run, every recipe read (an unknown one refused)
     before anything runs: a stream network's recipe is a ``sequence``, another of ``models``
-    a ``frame`` model, one of ``event_models`` an ``event`` model (a stream network's recipe
-    there is refused)."""
+    a ``frame`` model; one of ``window_models`` a ``window`` model (frame-based, answering at
+    its window's end), one of ``event_models`` an ``event`` model (a stream network's recipe
+    in either is refused)."""
     out = []
     for model in models:
         recipe = load_recipe(model)
         out.append((model, SEQUENCE if "stream" in recipe else FRAME, recipe))
-    for model in event_models:
-        recipe = load_recipe(model)
-        if "stream" in recipe:
-            raise ConfigError(f"--event-models {recipe['name']}: a stream network's recipe; "
-                              "expected a spiking window model: give it to --models")  # fmt: skip
-        out.append((model, EVENT, recipe))
+    for option, names, mode in (("--window-models", window_models, WINDOW),
+                                ("--event-models", event_models, EVENT)):  # fmt: skip
+        for model in names:
+            recipe = load_recipe(model)
+            if "stream" in recipe:
+                raise ConfigError(f"{option} {recipe['name']}: a stream network's recipe; "
+                                  "expected a window model: give it to --models")  # fmt: skip
+            out.append((model, mode, recipe))
     return out
 
 
@@ -86,7 +91,7 @@ def read_inputs(dataset: Path, planned: list) -> dict:
 
 
 def cell_name(recipe: dict, mode: str) -> str:
-    return recipe["name"] + ("-event" if mode == EVENT else "")
+    return recipe["name"] + SUFFIX[mode]
 
 
 def sequence_cell(dataset: Path, recipe: dict, seed: int, epochs: int | None,
@@ -138,8 +143,9 @@ def window_cell(dataset: Path, recipe: dict, seed: int, epochs: int | None, vali
     seed, epochs, validation : the training seed, epochs (None: the recipe's) and fraction of
         the training streams held out whole
     views : the train and test StreamViews of the mode's coding
-    mode : "frame" (answers at the frame ends, time-of-flight windows) or "event" (a spiking
-        network's first output spike in each arrival-coded window)
+    mode : "frame" (answers at the frame ends, time-of-flight windows), "window" (the same, at
+        the windows' ends) or "event" (a spiking network's first output spike in each
+        arrival-coded window)
     command : what made the cell, recorded in it
     """
     from simlidar.bench.train import train
@@ -156,7 +162,8 @@ def window_cell(dataset: Path, recipe: dict, seed: int, epochs: int | None, vali
     if mode == EVENT:
         answers = decision_answers(result.model, test_views)
     else:
-        answers = frame_answers(result.model, test_views, result.spec, result.silent_from)
+        answers = frame_answers(result.model, test_views, result.spec, result.silent_from,
+                                clock=mode)  # fmt: skip
     return {
         "model": cell_name(recipe, mode),
         "mode": mode,
@@ -309,7 +316,9 @@ REPORT_TEXT = (
     "half-width over seeds. A frame-based network answers when a rotation's frame is complete "
     "(cut at the rear: half a rotation after the window's middle): the answer in force 10 ms "
     "after the reference is the one of the frame before, made without the object (a guess from "
-    "the background); so does a network over rotations (`gru_rotations`). An event-driven "
+    "the background); so does a network over rotations (`gru_rotations`). `-window`: the same "
+    "frame-based network answering when its window is complete (its last pulse plus the longest "
+    "time of flight: the forward sector published as soon as it is scanned). An event-driven "
     "network (`-event`) answers in every window at its first output spike; a network over "
     "binned events (`lif_stream`) at the end of every bin. 'Wait' is the median time from the "
     "reference to the first answer after it. 'Window accuracy': a window model's on the test "

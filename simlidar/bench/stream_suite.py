@@ -8,6 +8,7 @@ A stream suite is a suite file (``benchmark/<name>.toml`` or any path) with ``ta
     description = "..."
     models = ["cnn", "mlp", "gru_rotations", "lif_stream"]   # window models and stream networks
     event_models = ["snn_simlidar_tuned"]    # spiking window models, run event-driven
+    window_models = ["cnn"]                  # window models answering at their window's end
     estimate = ["mlp-latest", "cnn-latest"]  # the estimate's learner families ([] none)
     seeds = [0, 1, 2, 3, 4]
     estimate_seeds = [0, 1, 2]
@@ -37,8 +38,8 @@ from simlidar.content import check_keys, key_error, read_toml, shipped_or_path
 from simlidar.errors import ConfigError, DatasetError
 
 TASK = "stream"
-KEYS = ("name", "task", "description", "models", "event_models", "estimate", "seeds",
-        "estimate_seeds", "validation", "generate", "budget")  # fmt: skip
+KEYS = ("name", "task", "description", "models", "event_models", "window_models", "estimate",
+        "seeds", "estimate_seeds", "validation", "generate", "budget")  # fmt: skip
 GENERATE = ("classes", "train_size", "test_size", "seed", "width", "fov_deg", "rotations",
             "min_object_hits", "max_attempts", "variation", "sensor")  # fmt: skip
 MAX_SUITE_BYTES = 1024 * 1024
@@ -51,6 +52,7 @@ class StreamSuite:
     description: str
     models: tuple[str, ...]
     event_models: tuple[str, ...]
+    window_models: tuple[str, ...]
     estimate: tuple[str, ...]
     seeds: tuple[int, ...]
     estimate_seeds: tuple[int, ...]
@@ -113,7 +115,8 @@ def load_stream_suite(name_or_path) -> StreamSuite:
         raise key_error(where, "name", "letters, digits, '_', '-' or '.'", name)
     models = _names(where, data, "models", None, str, load_recipe)
     event_models = _names(where, data, "event_models", [], str, load_recipe)
-    if not models and not event_models:
+    window_models = _names(where, data, "window_models", [], str, load_recipe)
+    if not models and not event_models and not window_models:
         raise key_error(where, "models", "at least one model", models)
     estimate = _names(where, data, "estimate", [], str, family_parts)
     seeds = _names(where, data, "seeds", [0], int, _seed(where, "seeds"))
@@ -145,12 +148,13 @@ def load_stream_suite(name_or_path) -> StreamSuite:
         description=str(data.get("description", "")),
         models=models,
         event_models=event_models,
+        window_models=window_models,
         estimate=estimate,
         seeds=seeds,
         estimate_seeds=estimate_seeds,
         validation=float(validation),
         generate=dict(generate),
-        epochs=_epochs(where, data.get("budget", {}), set(models) | set(event_models)),
+        epochs=_epochs(where, data.get("budget", {}), {*models, *event_models, *window_models}),
     )
 
 
@@ -234,7 +238,7 @@ def run_stream_suite(suite: StreamSuite, out: Path, command: str, dataset: Path 
 
     out : the output folder (the dataset in ``out/data`` unless ``dataset`` is given)
     command : what made the cells, recorded in each
-    models : in place of the suite's ``models`` (its event models kept)
+    models : in place of the suite's ``models`` (its event and window models kept)
     epochs : every model's, over the suite's
     progress, note : a progress bar while the dataset is made; called with a line as each
         cell finishes
@@ -242,7 +246,7 @@ def run_stream_suite(suite: StreamSuite, out: Path, command: str, dataset: Path 
     from simlidar.bench import stream_bench
 
     planned = stream_bench.plans(models if models is not None else suite.models,
-                                 suite.event_models)  # fmt: skip
+                                 suite.event_models, suite.window_models)  # fmt: skip
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {out}: expected a folder")
     if dataset is None:

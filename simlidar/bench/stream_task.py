@@ -61,6 +61,9 @@ class StreamViews:
     span_us: float
     classes: tuple[str, ...]  # the class names, in label order
     window_start_us: np.ndarray  # (N, R) float64, each window's first firing
+    # (N, R) float64, when each window is complete: its last firing plus the longest time of
+    # flight (a sector published as soon as it is scanned)
+    window_end_us: np.ndarray
     unit_us: float  # an arrival-coded value of 1.0: the scan window (scan_window_ns)
     coding: str = "tof"
 
@@ -109,6 +112,7 @@ def stream_views(dataset: str | Path, split: str, coding: str = "tof") -> Stream
         span_us=float(info.attrs["span_us"]),
         classes=tuple(str(c) for c in info.attrs["class_names"]),
         window_start_us=start_us,
+        window_end_us=last_us + tof_max_us,
         unit_us=unit_us,
         coding=coding,
     )
@@ -149,13 +153,22 @@ def scored_windows(views: StreamViews) -> tuple[torch.Tensor, torch.Tensor]:
     return _rows(views, np.arange(len(views.labels)))
 
 
-def frame_answers(model, views: StreamViews, spec=None, silent_from: float = 1.0):
+CLOCKS = ("frame", "window")  # when a frame-based network answers (frame_answers)
+
+
+def frame_answers(model, views: StreamViews, spec=None, silent_from: float = 1.0,
+                  clock: str = "frame"):  # fmt: skip
     """A frame-based network's answers: its class for every rotation's window, at the
-    rotation's frame end (:class:`~simlidar.bench.latency.Answers`, -1 where it gave none)."""
+    rotation's frame end (``clock`` "frame": the frame cut at the rear) or at the window's end
+    ("window": the forward sector published once scanned, its last pulse's time of flight
+    past) (:class:`~simlidar.bench.latency.Answers`, -1 where it gave none)."""
+    if clock not in CLOCKS:
+        raise ConfigError(f"clock={clock!r}: expected one of {list(CLOCKS)}")
     n, rotations = views.windows.shape[:2]
     x = torch.from_numpy(views.windows.reshape(n * rotations, 1, *views.windows.shape[2:]))
     classes = predictions(model, x, spec=spec, silent_from=silent_from).numpy()
-    return latency.Answers.from_frames(views.frame_end_us, classes.reshape(n, rotations))
+    ends = views.frame_end_us if clock == "frame" else views.window_end_us
+    return latency.Answers.from_frames(ends, classes.reshape(n, rotations))
 
 
 def decision_answers(model, views: StreamViews, batch: int = 256):

@@ -14,6 +14,7 @@ from simlidar.errors import ConfigError
 TINY = """name = "tiny-stream"
 task = "stream"
 models = ["mlp", "gru_rotations"]
+window_models = ["mlp"]
 estimate = ["mlp-latest"]
 seeds = [0]
 estimate_seeds = [0]
@@ -33,6 +34,7 @@ def test_the_shipped_stream_suite_reads():
     assert is_stream_suite("stream") and not is_stream_suite("quick")
     assert suite.models == ("cnn", "mlp", "gru_rotations", "lif_stream")
     assert suite.event_models == ("snn_simlidar_tuned",) and len(suite.seeds) == 5
+    assert suite.window_models == ("cnn",)
     assert suite.generate == {"train_size": 1500, "test_size": 600}
     assert suite.epochs_of("cnn") == 30 and suite.epochs_of("lif_stream") is None
     with pytest.raises(ConfigError, match="key 'task': expected 'window' here"):
@@ -66,12 +68,18 @@ def test_a_stream_suite_runs_keeps_and_refuses(tmp_path, cli):
     out = tmp_path / "bench"
     first = cli("bench", "--suite", suite, "--out", out)
     assert first.exit_code == 0, first.output
-    assert "2 models in" in first.output
+    assert "3 models in" in first.output
     cells = [json.loads(line) for line in (out / "cells.jsonl").read_text().splitlines()]
     assert [(c["model"], c["mode"], c["epochs"]) for c in cells] == [
         ("mlp", "frame", 1),
         ("gru_rotations", "sequence", 1),
+        ("mlp-window", "window", 1),
     ]
+    # the same network and seed, answering at its windows' ends: the same answers, sooner
+    frame, window = cells[0], cells[2]
+    assert frame["test_window_accuracy"] == window["test_window_accuracy"]
+    assert window["first_answer_after_reference_ms"]["max"] < 15.0
+    assert frame["first_answer_after_reference_ms"]["min"] > 40.0
     assert cells[0]["command"] == f"simlidar bench --suite {suite} --out {out} --threads 1"
     assert json.loads((out / "estimate.json").read_text())["delays"]["10"]["best"] == "mlp-latest"
     report = (out / "report.md").read_text()
@@ -81,7 +89,7 @@ def test_a_stream_suite_runs_keeps_and_refuses(tmp_path, cli):
     again = cli("bench", "--suite", suite, "--out", out, "--json")
     assert again.exit_code == 0, again.output
     assert f"kept {data}" in again.output  # nothing made or trained anew
-    assert len((out / "cells.jsonl").read_text().splitlines()) == 2
+    assert len((out / "cells.jsonl").read_text().splitlines()) == 3
     other = tmp_path / "other.toml"
     other.write_text(TINY.replace("train_size = 12", "train_size = 14"))
     refused = cli("bench", "--suite", other, "--out", out)

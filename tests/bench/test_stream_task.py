@@ -63,6 +63,9 @@ def test_frame_clock_by_hand(dataset, views):
         last_us = (cycles[:, -1] - cycles[0, 0]) * 55.296 + 15 * 2.304
         expected = (first_us + last_us) / 2 + 50_000.0 + 2 * 100.0 / 299_792_458.0 * 1e6
         assert np.allclose(views.frame_end_us[i], expected, rtol=0, atol=1e-6)
+        # the window clock: its last firing plus the time of flight at 100 m
+        window_end = last_us + 2 * 100.0 / 299_792_458.0 * 1e6
+        assert np.allclose(views.window_end_us[i], window_end, rtol=0, atol=1e-6)
 
 
 def test_first_rotation_holds_the_reference(views):
@@ -101,6 +104,12 @@ def test_a_frame_networks_answers_come_at_its_frame_ends(views):
     assert (answers.times_us == views.frame_end_us).all()
     expected = _Fixed()(torch.from_numpy(views.windows[3, 7][None, None])).argmax(1).item()
     assert answers.classes[3, 7] == expected
+    sector = frame_answers(_Fixed(), views, clock="window")  # the same answers, sooner
+    assert (sector.times_us == views.window_end_us).all()
+    assert np.array_equal(sector.classes, answers.classes)
+    assert (views.window_end_us < views.frame_end_us - 40_000.0).all()
+    with pytest.raises(ConfigError, match="clock='rear': expected one of"):
+        frame_answers(_Fixed(), views, clock="rear")
 
 
 def test_train_refuses_noise_augmentation_on_given_rows(dataset, views):
