@@ -6,7 +6,7 @@ mean and a 95 % Student's t interval over seeds and the accuracy-latency picture
 
     python benchmark/stream_bench.py DATASET --out DIR [--models cnn,mlp,gru_rotations]
         [--event-models snn_simlidar_tuned] [--window-models cnn] [--seeds 0,1,2,3,4] [--epochs N]
-        [--validation 0.1] [--no-train]
+        [--validation 0.1] [--no-train] [--doc docs/streams.md]
 
 A window model of ``--models`` (the registry's MLP, CNN, ...) is frame-based: trained on the
 rotation windows, it answers at each frame's end. A stream network's recipe (a ``[stream]``
@@ -22,12 +22,39 @@ recipe's noise augmentation is switched off (a stream carries no noise to draw a
 """
 
 import argparse
+import json
+import sys
 from pathlib import Path
 
-from simlidar.bench.stream_bench import CELLS, plans, run_cells, write_report
+from simlidar.bench.stream_bench import (
+    CELLS,
+    ESTIMATE,
+    plans,
+    report_table,
+    run_cells,
+    summary,
+    write_report,
+)
 from simlidar.bench.stream_task import read_cells
 from simlidar.errors import ConfigError
 from simlidar.script_args import command_line, integers, numbers, run
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import reproduction_table  # the split of a page around a generated block
+
+DOC_START = "<!-- stream-results:start -->"
+DOC_END = "<!-- stream-results:end -->"
+
+
+def write_doc(path: Path, out: Path, cells: list[dict]) -> None:
+    """Put the report's table into ``path`` between its lines DOC_START and DOC_END."""
+    from simlidar.atomic import write_file
+
+    before, _, after = reproduction_table.split(path.read_text(), path, DOC_START, DOC_END)
+    estimate = json.loads((out / ESTIMATE).read_text()) if (out / ESTIMATE).exists() else None
+    block = "\n".join(report_table(summary(cells), estimate))
+    write_file(path, lambda temporary: temporary.write_text(before + block + after))
+    print(f"{path}: wrote the results table")
 
 
 def main(argv=None) -> int:
@@ -52,7 +79,16 @@ def main(argv=None) -> int:
     parser.add_argument("--epochs", type=integers(1, 10_000, one=True), default=None)
     parser.add_argument("--validation", type=numbers(0, 0.5, one=True), default=0.1)
     parser.add_argument("--no-train", action="store_true")
+    parser.add_argument(
+        "--doc",
+        type=reproduction_table.markdown_file,
+        default=None,
+        help=f"also put the report's table into FILE, between its lines {DOC_START} and "
+        f"{DOC_END} (docs/streams.md)",
+    )
     args = parser.parse_args(argv)
+    if args.doc is not None:  # its markers, before anything is written
+        reproduction_table.split(args.doc.read_text(), args.doc, DOC_START, DOC_END)
     if args.out.exists() and not args.out.is_dir():
         raise ConfigError(f"--out {args.out}: expected a folder")
     if args.no_train:
@@ -72,6 +108,8 @@ def main(argv=None) -> int:
             raise ConfigError("--models and --event-models: nothing to run; expected a model")
     write_report(args.out, cells)
     print(f"wrote {args.out / 'report.md'}")
+    if args.doc is not None:
+        write_doc(args.doc, args.out, cells)
     return 0
 
 

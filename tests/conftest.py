@@ -30,6 +30,17 @@ def catalog():
 
 
 @pytest.fixture(scope="session")
+def small_streams(tmp_path_factory, catalog):
+    """A stream dataset of 16 / 8 streams, the default configuration otherwise, made once a
+    session for the tests that read it (none may write it)."""
+    from simlidar.generator.stream_files import generate_streams
+
+    out = tmp_path_factory.mktemp("small-streams")
+    return generate_streams(out, train_size=16, test_size=8, scenes=catalog, progress=False,
+                            preview=False)  # fmt: skip
+
+
+@pytest.fixture(scope="session")
 def scene_batch(catalog):
     """``scene_batch(layout, obj, rng)``: the shipped catalog's scenes of these layout and object
     indices (each (n,)), their parameters drawn from ``rng`` (the layouts', then the objects')."""

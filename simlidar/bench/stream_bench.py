@@ -329,30 +329,11 @@ REPORT_TEXT = (
 )
 
 
-def write_report(out: Path, cells: list[dict]) -> None:
-    """report.md, summary.json and accuracy-latency.png of ``out`` from its cells and, where
-    there is one, the estimate (estimate.json) beside them."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    table = summary(cells)
-    estimate = None
-    if (out / ESTIMATE).exists():
-        estimate = json.loads((out / ESTIMATE).read_text())
-    commands = list(dict.fromkeys(c["command"] for c in cells))
-    if estimate is not None:
-        commands.append(estimate["command"])
+def report_table(table: dict, estimate: dict | None) -> list[str]:
+    """The report's table (markdown lines) of a :func:`summary` and the estimate (None: no row
+    of it): per model, accuracy 10, 50 and 100 ms after the reference and at the span's end,
+    the area, the wait and the window accuracy, mean ± 95 % half-width."""
     lines = [
-        "# Networks on pulse streams",
-        "",
-        f"Cells in `{CELLS}`, made by:",
-        "",
-        *[f"    {c}" for c in commands],
-        "",
-        REPORT_TEXT,
-        "",
         "| model | seeds | 10 ms | 50 ms | 100 ms | end of span | area 0-100 ms | wait, ms | "
         "window accuracy |",
         "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
@@ -378,6 +359,35 @@ def write_report(out: Path, cells: list[dict]) -> None:
             f"{at['50']['estimate']:.3f} ({at['50']['best']}) | "
             f"{at['100']['estimate']:.3f} ({at['100']['best']}) | | | | |"
         )
+    return lines
+
+
+def write_report(out: Path, cells: list[dict]) -> None:
+    """report.md, summary.json and accuracy-latency.png of ``out`` from its cells and, where
+    there is one, the estimate (estimate.json) beside them."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    table = summary(cells)
+    estimate = None
+    if (out / ESTIMATE).exists():
+        estimate = json.loads((out / ESTIMATE).read_text())
+    commands = list(dict.fromkeys(c["command"] for c in cells))
+    if estimate is not None:
+        commands.append(estimate["command"])
+    lines = [
+        "# Networks on pulse streams",
+        "",
+        f"Cells in `{CELLS}`, made by:",
+        "",
+        *[f"    {c}" for c in commands],
+        "",
+        REPORT_TEXT,
+        "",
+        *report_table(table, estimate),
+    ]
     lines += ["", "![accuracy against time](accuracy-latency.png)"]
     (out / "report.md").write_text("\n".join(lines) + "\n")
     (out / "summary.json").write_text(json.dumps(table, indent=1, default=float) + "\n")

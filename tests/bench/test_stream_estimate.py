@@ -13,16 +13,13 @@ import pytest
 from simlidar.bench.stream_estimate import OFFSETS_MS, any_time, family_parts, known, view_at
 from simlidar.dataset.stream_loaders import load_stream
 from simlidar.errors import ConfigError
-from simlidar.generator.stream_files import generate_streams
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
-def dataset(tmp_path_factory, catalog):
-    out = tmp_path_factory.mktemp("stream-estimate")
-    return generate_streams(out, train_size=16, test_size=8, scenes=catalog, progress=False,
-                            preview=False)  # fmt: skip
+def dataset(small_streams):
+    return small_streams
 
 
 def test_the_view_is_what_has_arrived(dataset):

@@ -18,7 +18,6 @@ from simlidar.bench.stream_task import stream_views
 from simlidar.dataset.loaders import load_split
 from simlidar.dataset.stream_loaders import load_stream
 from simlidar.errors import ConfigError
-from simlidar.generator.stream_files import generate_streams
 from simlidar.models.registry import build_model, load_recipe
 from simlidar.models.stream_nets import scores_of
 from simlidar.models.stream_spec import StreamSpec, stream_spec_of
@@ -28,10 +27,8 @@ BINS = StreamSpec("bins", 1.0)
 
 
 @pytest.fixture(scope="module")
-def dataset(tmp_path_factory, catalog):
-    out = tmp_path_factory.mktemp("stream-sequences")
-    return generate_streams(out, train_size=16, test_size=8, scenes=catalog, progress=False,
-                            preview=False)  # fmt: skip
+def dataset(small_streams):
+    return small_streams
 
 
 @pytest.fixture(scope="module")

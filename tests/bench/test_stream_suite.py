@@ -4,13 +4,17 @@ done; its file and options are checked."""
 
 import json
 import re
+from pathlib import Path
 
 import pytest
 
+from simlidar.bench.stream_bench import report_table, summary
 from simlidar.bench.stream_suite import is_stream_suite, load_stream_suite
+from simlidar.bench.stream_task import read_cells
 from simlidar.bench.suite import load_suite
 from simlidar.errors import ConfigError
 
+ROOT = Path(__file__).resolve().parents[2]
 TINY = """name = "tiny-stream"
 task = "stream"
 models = ["mlp", "gru_rotations"]
@@ -98,3 +102,16 @@ def test_a_stream_suite_runs_keeps_and_refuses(tmp_path, cli):
     option = cli("bench", "--suite", suite, "--out", out, "--remeasure")
     assert option.exit_code == 2
     assert "--remeasure: not an option of a stream suite" in option.output
+
+
+def test_the_docs_results_table_is_the_committed_one():
+    """docs/streams.md's table is what the committed cells and estimate give (written by
+    ``benchmark/stream_bench.py --no-train --doc``), not retyped."""
+    results = ROOT / "benchmark/results/stream"
+    cells = read_cells(results / "cells.jsonl", "simlidar-stream-4c-10rot-w32-v1.0.0")
+    estimate = json.loads((results / "estimate.json").read_text())
+    text = (ROOT / "docs/streams.md").read_text()
+    block = text.split("<!-- stream-results:start -->\n")[1].split("<!-- stream-results:end -->")[0]
+    assert block.strip("\n") == "\n".join(report_table(summary(cells), estimate))
+    # the report too: its header, its rule, a row a model and the estimate's
+    assert (results / "report.md").read_text().count("\n| ") == len(summary(cells)) + 3

@@ -22,17 +22,14 @@ from simlidar.bench.train import train
 from simlidar.dataset.loaders import load_split
 from simlidar.dataset.stream_loaders import load_stream
 from simlidar.errors import ConfigError
-from simlidar.generator.stream_files import generate_streams
 from simlidar.models.registry import load_recipe
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
-def dataset(tmp_path_factory, catalog):
-    out = tmp_path_factory.mktemp("stream-task")
-    return generate_streams(out, train_size=16, test_size=8, scenes=catalog, progress=False,
-                            preview=False)  # fmt: skip
+def dataset(small_streams):
+    return small_streams
 
 
 @pytest.fixture(scope="module")
