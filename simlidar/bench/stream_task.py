@@ -158,10 +158,16 @@ CLOCKS = ("frame", "window")  # when a frame-based network answers (frame_answer
 
 def frame_answers(model, views: StreamViews, spec=None, silent_from: float = 1.0,
                   clock: str = "frame"):  # fmt: skip
-    """A frame-based network's answers: its class for every rotation's window, at the
-    rotation's frame end (``clock`` "frame": the frame cut at the rear) or at the window's end
-    ("window": the forward sector published once scanned, its last pulse's time of flight
-    past) (:class:`~simlidar.bench.latency.Answers`, -1 where it gave none)."""
+    """A frame-based network's answers (:class:`~simlidar.bench.latency.Answers`, -1 where it
+    gave none): its class for every rotation's window, at a time of ``clock``.
+
+    model, spec, silent_from : the network, what it declares and the data's no-return
+        threshold (:func:`~simlidar.bench.scoring.predictions`)
+    views : the stream split's StreamViews (time-of-flight coded)
+    clock : "frame", at the rotation's frame end (the frame cut at the rear), or "window", at
+        the window's end (the forward sector published once scanned, its last pulse's time of
+        flight past)
+    """
     if clock not in CLOCKS:
         raise ConfigError(f"clock={clock!r}: expected one of {list(CLOCKS)}")
     n, rotations = views.windows.shape[:2]

@@ -172,4 +172,6 @@ def test_the_benchmark_script_with_stream_networks(dataset, tmp_path):
 def test_a_stream_network_is_not_an_event_model(dataset, tmp_path):
     done = _bench(dataset, tmp_path / "b", "", extra=("--event-models", "lif_stream"))
     assert done.returncode == 1 and "Traceback" not in done.stderr
-    assert "a stream network's recipe; expected a spiking window model" in done.stderr
+    assert "--event-models lif_stream: a stream network's recipe; expected a window model" in (
+        done.stderr
+    )
