@@ -26,15 +26,8 @@ import json
 import sys
 from pathlib import Path
 
-from simlidar.bench.stream_bench import (
-    CELLS,
-    ESTIMATE,
-    plans,
-    report_table,
-    run_cells,
-    summary,
-    write_report,
-)
+from simlidar.bench.stream_bench import CELLS, ESTIMATE, plans, run_cells
+from simlidar.bench.stream_report import report_table, summary, write_report
 from simlidar.bench.stream_task import read_cells
 from simlidar.errors import ConfigError
 from simlidar.script_args import command_line, integers, numbers, run
@@ -67,8 +60,12 @@ def main(argv=None) -> int:
         help="window models (frame-based: answers at frame ends) and stream networks (a recipe "
         "with a [stream] table)",
     )
-    parser.add_argument("--event-models", default="", help="spiking recipes run event-driven: "
-                        "arrival-coded windows, answers at the first output spike")  # fmt: skip
+    parser.add_argument(
+        "--event-models",
+        default="",
+        help="spiking recipes run event-driven: "
+        "arrival-coded windows, answers at the first output spike",
+    )
     parser.add_argument(
         "--window-models",
         default="",
@@ -94,16 +91,25 @@ def main(argv=None) -> int:
     if args.no_train:
         cells = read_cells(args.out / CELLS, args.dataset.name)
         if not cells:
-            raise ConfigError(f"--no-train: {args.out / CELLS}: no cells to report; expected a "
-                              "run's")  # fmt: skip
+            raise ConfigError(
+                f"--no-train: {args.out / CELLS}: no cells to report; expected a run's"
+            )
     else:
-        planned = plans([m for m in args.models.split(",") if m],
-                        [m for m in args.event_models.split(",") if m],
-                        [m for m in args.window_models.split(",") if m])  # fmt: skip
-        cells = run_cells(args.dataset, args.out, planned, args.seeds,
-                          command_line("stream_bench.py", argv),
-                          epochs=lambda _: args.epochs, validation=args.validation,
-                          note=lambda line: print(line, flush=True))  # fmt: skip
+        planned = plans(
+            [m for m in args.models.split(",") if m],
+            [m for m in args.event_models.split(",") if m],
+            [m for m in args.window_models.split(",") if m],
+        )
+        cells = run_cells(
+            args.dataset,
+            args.out,
+            planned,
+            args.seeds,
+            command_line("stream_bench.py", argv),
+            epochs=lambda _: args.epochs,
+            validation=args.validation,
+            note=lambda line: print(line, flush=True),
+        )
         if not cells:
             raise ConfigError("--models and --event-models: nothing to run; expected a model")
     write_report(args.out, cells)

@@ -31,9 +31,14 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.out.exists() and not args.out.is_dir():
         raise ConfigError(f"--out {args.out}: expected a folder")
-    run_estimate(args.dataset, args.out, args.families, args.seeds,
-                 command_line("stream_estimate.py", argv),
-                 note=lambda line: print(line, flush=True))  # fmt: skip
+    run_estimate(
+        args.dataset,
+        args.out,
+        args.families,
+        args.seeds,
+        command_line("stream_estimate.py", argv),
+        note=lambda line: print(line, flush=True),
+    )
     print(f"wrote {args.out / ESTIMATE}")
     return 0
 

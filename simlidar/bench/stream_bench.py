@@ -13,8 +13,8 @@ a stream dataset, cell by cell, resumable, and their report. ``simlidar bench --
 * **The estimate.** One (family, seed) learner a line of ``estimate-fits.jsonl``
   (:mod:`simlidar.bench.stream_estimate`), and ``estimate.json``: per delay, each family's seed
   mean and the best.
-* **The report.** ``report.md``, ``summary.json`` and ``accuracy-latency.png``: per model the
-  mean and a 95 % Student's t half-width over its seeds, the estimate beside them.
+
+The report of a run's files is :mod:`simlidar.bench.stream_report`.
 """
 
 import json
@@ -26,7 +26,7 @@ import numpy as np
 import torch
 
 from simlidar.bench import stream_sequences
-from simlidar.bench.latency import DELAYS_MS, mean_interval
+from simlidar.bench.latency import DELAYS_MS
 from simlidar.bench.stream_task import (
     decision_answers,
     frame_answers,
@@ -46,8 +46,9 @@ FRAME, WINDOW, EVENT, SEQUENCE = "frame", "window", "event", "sequence"
 SUFFIX = {FRAME: "", SEQUENCE: "", WINDOW: "-window", EVENT: "-event"}  # of a cell's model
 
 
-def plans(models: Sequence[str], event_models: Sequence[str] = (),
-          window_models: Sequence[str] = ()) -> list[tuple[str, str, dict]]:  # fmt: skip
+def plans(
+    models: Sequence[str], event_models: Sequence[str] = (), window_models: Sequence[str] = ()
+) -> list[tuple[str, str, dict]]:
     """(model, mode, recipe) of each model to run, every recipe read (an unknown one refused)
     before anything runs: a stream network's recipe is a ``sequence``, another of ``models``
     a ``frame`` model; one of ``window_models`` a ``window`` model (frame-based, answering at
@@ -57,13 +58,17 @@ def plans(models: Sequence[str], event_models: Sequence[str] = (),
     for model in models:
         recipe = load_recipe(model)
         out.append((model, SEQUENCE if "stream" in recipe else FRAME, recipe))
-    for option, names, mode in (("--window-models", window_models, WINDOW),
-                                ("--event-models", event_models, EVENT)):  # fmt: skip
+    for option, names, mode in (
+        ("--window-models", window_models, WINDOW),
+        ("--event-models", event_models, EVENT),
+    ):
         for model in names:
             recipe = load_recipe(model)
             if "stream" in recipe:
-                raise ConfigError(f"{option} {recipe['name']}: a stream network's recipe; "
-                                  "expected a window model: give it to --models")  # fmt: skip
+                raise ConfigError(
+                    f"{option} {recipe['name']}: a stream network's recipe; "
+                    "expected a window model: give it to --models"
+                )
             out.append((model, mode, recipe))
     return out
 
@@ -83,8 +88,9 @@ def read_inputs(dataset: Path, planned: list) -> dict:
         if what in inputs:
             continue
         if mode == SEQUENCE:
-            inputs[what] = tuple(stream_sequences.sequences(dataset, s, what)
-                                 for s in ("train", "test"))  # fmt: skip
+            inputs[what] = tuple(
+                stream_sequences.sequences(dataset, s, what) for s in ("train", "test")
+            )
         else:
             inputs[what] = tuple(stream_views(dataset, s, what) for s in ("train", "test"))
     return inputs
@@ -94,8 +100,15 @@ def cell_name(recipe: dict, mode: str) -> str:
     return recipe["name"] + SUFFIX[mode]
 
 
-def sequence_cell(dataset: Path, recipe: dict, seed: int, epochs: int | None,
-                  validation: float, data, command: str) -> dict:  # fmt: skip
+def sequence_cell(
+    dataset: Path,
+    recipe: dict,
+    seed: int,
+    epochs: int | None,
+    validation: float,
+    data,
+    command: str,
+) -> dict:
     """One (model, seed) cell of a stream network.
 
     dataset : the stream dataset's directory; recipe : the network's loaded recipe
@@ -109,8 +122,9 @@ def sequence_cell(dataset: Path, recipe: dict, seed: int, epochs: int | None,
     result = stream_sequences.fit(recipe, train_data, seed, epochs, validation)
     seconds = time.perf_counter() - start
     held = np.setdiff1d(np.arange(len(train_data.labels)), result.trained)
-    test_accuracy, _ = stream_sequences.step_score(result.model, test_data,
-                                                   np.arange(len(test_data.labels)))  # fmt: skip
+    test_accuracy, _ = stream_sequences.step_score(
+        result.model, test_data, np.arange(len(test_data.labels))
+    )
     answers = stream_sequences.sequence_answers(result.model, test_data)
     return {
         "model": recipe["name"],
@@ -135,8 +149,16 @@ def sequence_cell(dataset: Path, recipe: dict, seed: int, epochs: int | None,
     }
 
 
-def window_cell(dataset: Path, recipe: dict, seed: int, epochs: int | None, validation: float,
-                views, mode: str, command: str) -> dict:  # fmt: skip
+def window_cell(
+    dataset: Path,
+    recipe: dict,
+    seed: int,
+    epochs: int | None,
+    validation: float,
+    views,
+    mode: str,
+    command: str,
+) -> dict:
     """One (model, seed) cell of a window model.
 
     dataset : the stream dataset's directory; recipe : the model's loaded recipe
@@ -156,14 +178,22 @@ def window_cell(dataset: Path, recipe: dict, seed: int, epochs: int | None, vali
     train_views, test_views = views
     rows = training_windows(train_views, seed, validation, list(train_views.classes))
     start = time.perf_counter()
-    result = train(recipe, dataset, seed=seed, epochs=epochs, progress=False, rows=rows,
-                   test=scored_windows(test_views))  # fmt: skip
+    result = train(
+        recipe,
+        dataset,
+        seed=seed,
+        epochs=epochs,
+        progress=False,
+        rows=rows,
+        test=scored_windows(test_views),
+    )
     seconds = time.perf_counter() - start
     if mode == EVENT:
         answers = decision_answers(result.model, test_views)
     else:
-        answers = frame_answers(result.model, test_views, result.spec, result.silent_from,
-                                clock=mode)  # fmt: skip
+        answers = frame_answers(
+            result.model, test_views, result.spec, result.silent_from, clock=mode
+        )
     return {
         "model": cell_name(recipe, mode),
         "mode": mode,
@@ -183,9 +213,16 @@ def window_cell(dataset: Path, recipe: dict, seed: int, epochs: int | None, vali
     }
 
 
-def run_cells(dataset: Path, out: Path, planned: list, seeds: Sequence[int], command: str,
-              epochs: Callable[[str], int | None] = lambda name: None, validation: float = 0.1,
-              note: Callable[[str], None] = print) -> list[dict]:  # fmt: skip
+def run_cells(
+    dataset: Path,
+    out: Path,
+    planned: list,
+    seeds: Sequence[int],
+    command: str,
+    epochs: Callable[[str], int | None] = lambda name: None,
+    validation: float = 0.1,
+    note: Callable[[str], None] = print,
+) -> list[dict]:
     """Every (model, seed) cell of ``planned`` (:func:`plans`) not yet in ``out``'s
     cells.jsonl, appended as each finishes; every cell of the file returned.
 
@@ -199,8 +236,12 @@ def run_cells(dataset: Path, out: Path, planned: list, seeds: Sequence[int], com
     path = out / CELLS
     cells = read_cells(path, dataset.name)
     done = {(c["model"], c["seed"]) for c in cells}
-    todo = [(m, mode, r, s) for m, mode, r in planned for s in seeds
-            if (cell_name(r, mode), s) not in done]  # fmt: skip
+    todo = [
+        (m, mode, r, s)
+        for m, mode, r in planned
+        for s in seeds
+        if (cell_name(r, mode), s) not in done
+    ]
     if not todo:
         return cells
     inputs = read_inputs(dataset, planned)  # before anything is written
@@ -216,9 +257,11 @@ def run_cells(dataset: Path, out: Path, planned: list, seeds: Sequence[int], com
             f.write(json.dumps(record) + "\n")
         cells.append(record)
         acc = dict(zip(DELAYS_MS, record["accuracy_after"]["accuracy"]))
-        note(f"{record['model']} seed {seed}: 10 ms {acc[10]:.3f}, 50 ms {acc[50]:.3f}, "
-             f"end {record['accuracy_after']['end_accuracy']:.3f} "
-             f"({record['train_seconds']} s)")  # fmt: skip
+        note(
+            f"{record['model']} seed {seed}: 10 ms {acc[10]:.3f}, 50 ms {acc[50]:.3f}, "
+            f"end {record['accuracy_after']['end_accuracy']:.3f} "
+            f"({record['train_seconds']} s)"
+        )
     return cells
 
 
@@ -235,8 +278,14 @@ def summarise_estimate(fits: list[dict], command: str) -> dict:
     return {"command": command, "clock": "sensor time from t_reference_us", "delays": table}
 
 
-def run_estimate(dataset: Path, out: Path, families: Sequence[str], seeds: Sequence[int],
-                 command: str, note: Callable[[str], None] = print) -> dict:  # fmt: skip
+def run_estimate(
+    dataset: Path,
+    out: Path,
+    families: Sequence[str],
+    seeds: Sequence[int],
+    command: str,
+    note: Callable[[str], None] = print,
+) -> dict:
     """Every (family, seed) learner of the estimate not yet in ``out``'s estimate-fits.jsonl,
     appended as each finishes; then estimate.json from every fit of the file (returned).
 
@@ -265,12 +314,24 @@ def run_estimate(dataset: Path, out: Path, families: Sequence[str], seeds: Seque
             if (family, seed) in done:
                 continue
             draw = any_time(train, np.random.default_rng(seed), view)
-            scores, record = train_learner(draw(), train.labels, train.classes, seed,
-                                           BoundConfig(model=model), draw,
-                                           height=train.delays.shape[1])  # fmt: skip
+            scores, record = train_learner(
+                draw(),
+                train.labels,
+                train.classes,
+                seed,
+                BoundConfig(model=model),
+                draw,
+                height=train.delays.shape[1],
+            )
             accuracy = [float((scores(x).argmax(1) == test.labels).mean()) for x in tests]
-            cell = {"dataset": dataset.name, "family": family, "seed": seed,
-                    "delays_ms": list(DELAYS_MS), "accuracy": accuracy, **record}  # fmt: skip
+            cell = {
+                "dataset": dataset.name,
+                "family": family,
+                "seed": seed,
+                "delays_ms": list(DELAYS_MS),
+                "accuracy": accuracy,
+                **record,
+            }
             with path.open("a") as f:
                 f.write(json.dumps(cell) + "\n")
             fits.append(cell)
@@ -282,129 +343,3 @@ def run_estimate(dataset: Path, out: Path, families: Sequence[str], seeds: Seque
     if todo or not (out / ESTIMATE).exists():
         (out / ESTIMATE).write_text(json.dumps(summary, indent=1) + "\n")
     return summary
-
-
-def _interval(values: list) -> tuple[float, float]:
-    """Mean and 95 % half-width of the figures that exist (None: a network that never answered
-    after the reference); NaN where none does, a NaN half-width for one."""
-    given = [float(v) for v in values if v is not None and np.isfinite(v)]
-    if len(given) > 1:
-        return mean_interval(given)
-    return (given[0] if given else float("nan")), float("nan")
-
-
-def summary(cells: list[dict]) -> dict:
-    """Per model: each figure's mean and 95 % half-width over its seeds."""
-    out = {}
-    for model in sorted({c["model"] for c in cells}):
-        mine = [c for c in cells if c["model"] == model]
-        figures = {
-            **{f"acc_{d:g}ms": [c["accuracy_after"]["accuracy"][k] for c in mine]
-               for k, d in enumerate(DELAYS_MS)},
-            "acc_end": [c["accuracy_after"]["end_accuracy"] for c in mine],
-            "area": [c["area_under_curve"]["area"] for c in mine],
-            "wait_ms": [c["first_answer_after_reference_ms"]["median"] for c in mine],
-            "test_window_accuracy": [c["test_window_accuracy"] for c in mine],
-        }  # fmt: skip
-        out[model] = {"seeds": len(mine)} | {name: _interval(v) for name, v in figures.items()}
-    return out
-
-
-REPORT_TEXT = (
-    "Accuracy on the sensor's clock, ms after each test stream's reference time (the object's "
-    "first return; for `none`, one of its returns, drawn), mean and 95 % Student's t "
-    "half-width over seeds. A frame-based network answers when a rotation's frame is complete "
-    "(cut at the rear: half a rotation after the window's middle): the answer in force 10 ms "
-    "after the reference is the one of the frame before, made without the object (a guess from "
-    "the background); so does a network over rotations (`gru_rotations`). `-window`: the same "
-    "frame-based network answering when its window is complete (its last pulse plus the longest "
-    "time of flight: the forward sector published as soon as it is scanned). An event-driven "
-    "network (`-event`) answers in every window at its first output spike; a network over "
-    "binned events (`lif_stream`) at the end of every bin. 'Wait' is the median time from the "
-    "reference to the first answer after it. 'Window accuracy': a window model's on the test "
-    "windows from the reference's on, a stream network's over the steps from the reference's "
-    "on. The estimate: learners trained on what the sensor knows at any time around the "
-    "reference, scored at each delay (docs/streams.md, 'What the data allow'); its seed mean, "
-    "the best family's."
-)
-
-
-def report_table(table: dict, estimate: dict | None) -> list[str]:
-    """The report's table (markdown lines) of a :func:`summary` and the estimate (None: no row
-    of it): per model, accuracy 10, 50 and 100 ms after the reference and at the span's end,
-    the area, the wait and the window accuracy, mean ± 95 % half-width."""
-    lines = [
-        "| model | seeds | 10 ms | 50 ms | 100 ms | end of span | area 0-100 ms | wait, ms | "
-        "window accuracy |",
-        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
-    ]
-
-    def cell(pair):
-        mean, half = pair
-        if np.isnan(mean):
-            return "n/a"
-        return f"{mean:.3f}" + ("" if np.isnan(half) else f" ± {half:.3f}")
-
-    for model, row in table.items():
-        lines.append(
-            f"| {model} | {row['seeds']} | {cell(row['acc_10ms'])} | {cell(row['acc_50ms'])} | "
-            f"{cell(row['acc_100ms'])} | {cell(row['acc_end'])} | {cell(row['area'])} | "
-            f"{cell(row['wait_ms'])} | {cell(row['test_window_accuracy'])} |"
-        )
-    if estimate is not None:
-        at = estimate["delays"]
-        seeds = max(f["seeds"] for f in at["10"]["families"].values())
-        lines.append(
-            f"| estimate | {seeds} | {at['10']['estimate']:.3f} ({at['10']['best']}) | "
-            f"{at['50']['estimate']:.3f} ({at['50']['best']}) | "
-            f"{at['100']['estimate']:.3f} ({at['100']['best']}) | | | | |"
-        )
-    return lines
-
-
-def write_report(out: Path, cells: list[dict]) -> None:
-    """report.md, summary.json and accuracy-latency.png of ``out`` from its cells and, where
-    there is one, the estimate (estimate.json) beside them."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    table = summary(cells)
-    estimate = None
-    if (out / ESTIMATE).exists():
-        estimate = json.loads((out / ESTIMATE).read_text())
-    commands = list(dict.fromkeys(c["command"] for c in cells))
-    if estimate is not None:
-        commands.append(estimate["command"])
-    lines = [
-        "# Networks on pulse streams",
-        "",
-        f"Cells in `{CELLS}`, made by:",
-        "",
-        *[f"    {c}" for c in commands],
-        "",
-        REPORT_TEXT,
-        "",
-        *report_table(table, estimate),
-    ]
-    lines += ["", "![accuracy against time](accuracy-latency.png)"]
-    (out / "report.md").write_text("\n".join(lines) + "\n")
-    (out / "summary.json").write_text(json.dumps(table, indent=1, default=float) + "\n")
-    fig, ax = plt.subplots(figsize=(6, 3.6))
-    for model, row in table.items():
-        mean = [row[f"acc_{d:g}ms"][0] for d in DELAYS_MS]
-        half = np.nan_to_num([row[f"acc_{d:g}ms"][1] for d in DELAYS_MS])
-        ax.plot(DELAYS_MS, mean, marker="o", label=model)
-        ax.fill_between(DELAYS_MS, np.array(mean) - half, np.array(mean) + half, alpha=0.2)
-    if estimate is not None:
-        values = [estimate["delays"][f"{d:g}"]["estimate"] for d in DELAYS_MS]
-        ax.plot(DELAYS_MS, values, "k--", label="estimate")
-    ax.set_xscale("log")
-    ax.set_xlabel("ms after the object's first return (sensor time)")
-    ax.set_ylabel("test accuracy")
-    ax.set_ylim(0, 1)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "accuracy-latency.png", dpi=110)
-    plt.close(fig)

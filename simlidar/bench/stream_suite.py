@@ -38,10 +38,33 @@ from simlidar.content import check_keys, key_error, read_toml, shipped_or_path
 from simlidar.errors import ConfigError, DatasetError
 
 TASK = "stream"
-KEYS = ("name", "task", "description", "models", "event_models", "window_models", "estimate",
-        "seeds", "estimate_seeds", "validation", "generate", "budget")  # fmt: skip
-GENERATE = ("classes", "train_size", "test_size", "seed", "width", "fov_deg", "rotations",
-            "min_object_hits", "max_attempts", "variation", "sensor")  # fmt: skip
+KEYS = (
+    "name",
+    "task",
+    "description",
+    "models",
+    "event_models",
+    "window_models",
+    "estimate",
+    "seeds",
+    "estimate_seeds",
+    "validation",
+    "generate",
+    "budget",
+)
+GENERATE = (
+    "classes",
+    "train_size",
+    "test_size",
+    "seed",
+    "width",
+    "fov_deg",
+    "rotations",
+    "min_object_hits",
+    "max_attempts",
+    "variation",
+    "sensor",
+)
 MAX_SUITE_BYTES = 1024 * 1024
 
 
@@ -179,8 +202,9 @@ def _epochs(where: str, budget, models: set) -> dict:
     for key, value in budget.items():
         if isinstance(value, dict):
             if key not in models:
-                raise key_error(where, f"budget.{key}", f"a model of the suite {sorted(models)}",
-                                key)  # fmt: skip
+                raise key_error(
+                    where, f"budget.{key}", f"a model of the suite {sorted(models)}", key
+                )
             for inner in value:
                 if inner != "epochs":
                     raise key_error(where, f"budget.{key}.{inner}", "epochs", value[inner])
@@ -230,9 +254,16 @@ def stream_dataset(suite: StreamSuite, out: Path, progress: bool = True, note=pr
     return path
 
 
-def run_stream_suite(suite: StreamSuite, out: Path, command: str, dataset: Path | None = None,
-                     models: list[str] | None = None, epochs: int | None = None,
-                     progress: bool = True, note=print) -> dict:  # fmt: skip
+def run_stream_suite(
+    suite: StreamSuite,
+    out: Path,
+    command: str,
+    dataset: Path | None = None,
+    models: list[str] | None = None,
+    epochs: int | None = None,
+    progress: bool = True,
+    note=print,
+) -> dict:
     """Make (or keep) the suite's dataset, run its cells and estimate, write the report; the
     report's summary.
 
@@ -243,21 +274,26 @@ def run_stream_suite(suite: StreamSuite, out: Path, command: str, dataset: Path 
     progress, note : a progress bar while the dataset is made; called with a line as each
         cell finishes
     """
-    from simlidar.bench import stream_bench
+    from simlidar.bench import stream_bench, stream_report
 
-    planned = stream_bench.plans(models if models is not None else suite.models,
-                                 suite.event_models, suite.window_models)  # fmt: skip
+    planned = stream_bench.plans(
+        models if models is not None else suite.models, suite.event_models, suite.window_models
+    )
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {out}: expected a folder")
     if dataset is None:
         dataset = stream_dataset(suite, out, progress, note)
     cells = stream_bench.run_cells(
-        dataset, out, planned, suite.seeds, command,
+        dataset,
+        out,
+        planned,
+        suite.seeds,
+        command,
         epochs=lambda name: epochs if epochs is not None else suite.epochs_of(name),
-        validation=suite.validation, note=note,
-    )  # fmt: skip
+        validation=suite.validation,
+        note=note,
+    )
     if suite.estimate:
-        stream_bench.run_estimate(dataset, out, suite.estimate, suite.estimate_seeds, command,
-                                  note)  # fmt: skip
-    stream_bench.write_report(out, cells)
-    return stream_bench.summary(cells)
+        stream_bench.run_estimate(dataset, out, suite.estimate, suite.estimate_seeds, command, note)
+    stream_report.write_report(out, cells)
+    return stream_report.summary(cells)

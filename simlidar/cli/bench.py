@@ -236,8 +236,14 @@ def _stream_suite(suite, models, dataset, out, epochs, threads, as_json):
     except ConfigError as exc:
         raise click.BadParameter(str(exc), param_hint="'--suite'") from None
     names = None if models is None else [m.strip() for m in models.split(",") if m.strip()]
-    given = [("--suite", suite), ("--models", models), ("--dataset", dataset), ("--out", out),
-             ("--epochs", epochs), ("--threads", threads)]  # fmt: skip
+    given = [
+        ("--suite", suite),
+        ("--models", models),
+        ("--dataset", dataset),
+        ("--out", out),
+        ("--epochs", epochs),
+        ("--threads", threads),
+    ]
     default = chosen.name if dataset is None else f"{chosen.name}-{dataset.name}"
     out = out if out is not None else (Path("bench") / default).absolute()
     command = "simlidar bench" + "".join(
@@ -246,9 +252,15 @@ def _stream_suite(suite, models, dataset, out, epochs, threads, as_json):
     torch.set_num_threads(threads)
     with _stdout_kept_for(as_json):
         table = run_stream_suite(
-            chosen, out, command, dataset=dataset, models=names, epochs=epochs,
-            progress=not as_json, note=lambda line: click.echo(line, err=as_json),
-        )  # fmt: skip
+            chosen,
+            out,
+            command,
+            dataset=dataset,
+            models=names,
+            epochs=epochs,
+            progress=not as_json,
+            note=lambda line: click.echo(line, err=as_json),
+        )
     if as_json:
         click.echo(json.dumps({"suite": chosen.name, "out": str(out), "models": table}))
         return
@@ -342,10 +354,14 @@ def bench(
 
     if is_stream_suite(suite):
         refused = {
-            "--max-seconds": max_seconds, "--validation": validation, "--patience": patience,
-            "--remeasure": remeasure or None, "--scheduler": scheduler, "--workers": workers,
+            "--max-seconds": max_seconds,
+            "--validation": validation,
+            "--patience": patience,
+            "--remeasure": remeasure or None,
+            "--scheduler": scheduler,
+            "--workers": workers,
             "--device": None if device == "cpu" else device,
-        }  # fmt: skip
+        }
         given = [name for name, value in refused.items() if value is not None]
         if given:
             raise click.UsageError(

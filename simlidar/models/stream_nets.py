@@ -190,8 +190,9 @@ def _decay(value, name: str) -> float:
     return float(value)
 
 
-def rotation_gru(input_shape, classes, generator=None, conv=((16, 5, 2), (32, 5, 2)),
-                 dense=128, hidden=128):  # fmt: skip
+def rotation_gru(
+    input_shape, classes, generator=None, conv=((16, 5, 2), (32, 5, 2)), dense=128, hidden=128
+):
     """The builder of :class:`RotationGRU` (the registry's ``gru_rotations``).
 
     input_shape, classes, generator : the registry's (C, H, W), classes and seeded generator
@@ -201,8 +202,16 @@ def rotation_gru(input_shape, classes, generator=None, conv=((16, 5, 2), (32, 5,
     return RotationGRU(input_shape, classes, generator, conv, dense, hidden)
 
 
-def lif_stream(input_shape, classes, generator=None, conv=((16, 5, 2), (32, 5, 2)),
-               dense=128, beta=0.95, beta_out=0.99, gain=4.0):  # fmt: skip
+def lif_stream(
+    input_shape,
+    classes,
+    generator=None,
+    conv=((16, 5, 2), (32, 5, 2)),
+    dense=128,
+    beta=0.95,
+    beta_out=0.99,
+    gain=4.0,
+):
     """The builder of :class:`LIFStream` (the registry's ``lif_stream``).
 
     input_shape, classes, generator : the registry's (C, H, W), classes and seeded generator
@@ -213,5 +222,13 @@ def lif_stream(input_shape, classes, generator=None, conv=((16, 5, 2), (32, 5, 2
     """
     if isinstance(gain, bool) or not isinstance(gain, int | float) or not 0 < gain <= 100:
         raise ConfigError(f"gain={gain!r}: expected a number in (0, 100]")
-    return LIFStream(input_shape, classes, generator, conv, dense, _decay(beta, "beta"),
-                     _decay(beta_out, "beta_out"), float(gain))  # fmt: skip
+    return LIFStream(
+        input_shape,
+        classes,
+        generator,
+        conv,
+        dense,
+        _decay(beta, "beta"),
+        _decay(beta_out, "beta_out"),
+        float(gain),
+    )

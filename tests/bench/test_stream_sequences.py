@@ -134,8 +134,10 @@ def test_stream_tables_are_checked(tmp_path):
         with pytest.raises(ConfigError, match=re.escape(words)):
             stream_spec_of({"name": "x", "stream": table})
     bad = tmp_path / "bad.toml"
-    bad.write_text('model = "lif_stream"\n[stream]\ninput = "bins"\nbin_ms = 50\n'
-                   "[training]\nlr = 0.01\nbatch_size = 4\nepochs = 1\n")  # fmt: skip
+    bad.write_text(
+        'model = "lif_stream"\n[stream]\ninput = "bins"\nbin_ms = 50\n'
+        "[training]\nlr = 0.01\nbatch_size = 4\nepochs = 1\n"
+    )
     with pytest.raises(ConfigError, match=r"bad.toml: \[stream\] bin_ms=50"):
         load_recipe(bad)
     with pytest.raises(ConfigError, match="no \\[stream\\] table; expected a stream network"):
@@ -145,16 +147,30 @@ def test_stream_tables_are_checked(tmp_path):
 
 
 def _bench(dataset, out, *models, extra=()):
-    command = [sys.executable, str(ROOT / "benchmark/stream_bench.py"), str(dataset), "--out",
-               str(out), "--models", ",".join(models), "--seeds", "0", "--epochs", "1",
-               "--validation", "0.25", *extra]  # fmt: skip
+    command = [
+        sys.executable,
+        str(ROOT / "benchmark/stream_bench.py"),
+        str(dataset),
+        "--out",
+        str(out),
+        "--models",
+        ",".join(models),
+        "--seeds",
+        "0",
+        "--epochs",
+        "1",
+        "--validation",
+        "0.25",
+        *extra,
+    ]
     return subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=ROOT)
 
 
 def test_the_benchmark_script_with_stream_networks(dataset, tmp_path):
     """The shipped GRU and LIF networks and snnTorch's through the same script and cells."""
-    done = _bench(dataset, tmp_path / "b", "gru_rotations", "lif_stream",
-                  "examples/snntorch_stream.toml")  # fmt: skip
+    done = _bench(
+        dataset, tmp_path / "b", "gru_rotations", "lif_stream", "examples/snntorch_stream.toml"
+    )
     assert done.returncode == 0, done.stderr
     cells = [json.loads(line) for line in (tmp_path / "b/cells.jsonl").read_text().splitlines()]
     assert [c["model"] for c in cells] == ["gru_rotations", "lif_stream", "snntorch_stream"]

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from simlidar.bench.stream_bench import report_table, summary
+from simlidar.bench.stream_report import report_table, summary
 from simlidar.bench.stream_suite import is_stream_suite, load_stream_suite
 from simlidar.bench.stream_task import read_cells
 from simlidar.bench.suite import load_suite
