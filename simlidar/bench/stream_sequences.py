@@ -38,7 +38,7 @@ from simlidar.bench import latency
 from simlidar.bench.selection import SELECTION, Selection, validation_split
 from simlidar.bench.stream_task import stream_config, stream_views
 from simlidar.bench.train import TrainingError, make_optimizer
-from simlidar.dataset.loaders import load_split, split_info
+from simlidar.dataset.loaders import split_info
 from simlidar.dataset.stream_loaders import load_stream
 from simlidar.errors import ConfigError
 from simlidar.models.registry import build_model
@@ -104,15 +104,19 @@ def sequences(dataset: str | Path, split: str, spec: StreamSpec) -> Sequences:
         "shape": views.windows.shape[2:],
     }
     if spec.input == ROTATIONS:
-        return Sequences(step_end_us=views.frame_end_us, reference_step=views.first_rotation,
-                         windows=views.windows, **common)  # fmt: skip
+        return Sequences(
+            step_end_us=views.frame_end_us,
+            reference_step=views.first_rotation,
+            windows=views.windows,
+            **common,
+        )
     config = stream_config(split_info(dataset, split).attrs)
     bin_us = spec.bin_ms * latency.US_PER_MS
     steps = math.ceil((views.span_us + config.sensor.tof_max_ns * 1e-3) / bin_us)
-    delays, _ = load_split(dataset, split)
     events = load_stream(dataset, split).events
     sample = np.repeat(np.arange(len(views.labels)), events.count)
-    near = 1.0 - delays[sample, events.y, events.columns(config.rotation_us, config.width)]
+    rotation = events.rotations(config.rotation_us)  # the windows are the split's delays
+    near = 1.0 - views.windows[sample, rotation, events.y, events.x]
     starts = np.concatenate([[0], np.cumsum(events.count)]).astype(np.int64)
     step = np.floor(events.t_us / bin_us).astype(np.int64)  # the bin of the event's arrival
     ends = np.broadcast_to((np.arange(steps) + 1.0) * bin_us, (len(views.labels), steps))
@@ -182,8 +186,13 @@ class SequenceResult:
     trained: np.ndarray  # the train split's streams trained on
 
 
-def fit(recipe: dict, train: Sequences, seed: int, epochs: int | None = None,
-        validation: float | None = None) -> SequenceResult:  # fmt: skip
+def fit(
+    recipe: dict,
+    train: Sequences,
+    seed: int,
+    epochs: int | None = None,
+    validation: float | None = None,
+) -> SequenceResult:
     """Train a stream network (module docstring): Adam or SGD of the recipe's ``[training]``
     on crops of the training streams, the epoch of the best validation score kept.
     Deterministic for a seed (one torch.Generator for the weights and the stream order, one
@@ -217,8 +226,10 @@ def fit(recipe: dict, train: Sequences, seed: int, epochs: int | None = None,
             if training.l2:
                 loss = loss + training.l2 * sum((p**2).sum() for p in model.parameters())
             if not torch.isfinite(loss):
-                raise TrainingError(f"{where}: epoch {epoch}: the training loss is {loss.item()}"
-                                    "; expected a finite loss: nothing is kept")  # fmt: skip
+                raise TrainingError(
+                    f"{where}: epoch {epoch}: the training loss is {loss.item()}"
+                    "; expected a finite loss: nothing is kept"
+                )
             optimizer.zero_grad()
             loss.backward()
             if training.clip_grad_norm:
