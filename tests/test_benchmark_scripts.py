@@ -976,12 +976,12 @@ def test_the_committed_weather_table_recomputes_from_its_cells():
     trained in clear air and on mixed weather), the estimate is each weather's every-spike row
     of the estimate's runs (with its best family's seed spread), and no model's mean is above
     the estimate of the weather it is tested in."""
-    weather = _script("weather")
+    weather_report = _script("weather_report")
     folder = ROOT / "benchmark/results/weather"
     result = json.loads((folder / "weather.json").read_text())
     cells = _weather_cells(folder)
     weathers = list(result["datasets"])
-    again = weather.summarise(cells, weathers, result["bound"])
+    again = weather_report.summarise(cells, weathers, result["bound"])
     assert again["points"].keys() == result["points"].keys()
     for model, rows in result["points"].items():
         for mine, theirs in zip(again["points"][model], rows, strict=True):
@@ -1036,13 +1036,13 @@ def test_every_committed_weather_score_is_at_or_below_the_estimate_but_the_known
     every pattern makes significant, and its row's mean over seeds is below the estimate.
     weather.json holds the same list, and docs/weather.md's block is what the script writes
     from it (``weather.py --no-train --doc docs/weather.md``), figures and all."""
-    weather = _script("weather")
+    weather_estimate, weather_report = _script("weather_estimate"), _script("weather_report")
     reproduction = _script("reproduction_table")
     folder = ROOT / "benchmark/results/weather"
     result = json.loads((folder / "weather.json").read_text())
     cells, names = _weather_cells(folder), result["datasets"]
-    runs = weather.estimate_runs(names, folder / "bound")
-    above = weather.above_the_estimate(cells, names, runs)
+    runs = weather_estimate.estimate_runs(names, folder / "bound")
+    above = weather_estimate.above_the_estimate(cells, names, runs)
     scores = sum(len(c) for c in cells.values()) * len(names)
     assert scores == 270
     found = {(e["variant"], e["weather"], e["seed"]): e["lead"] for e in above}
@@ -1052,19 +1052,21 @@ def test_every_committed_weather_score_is_at_or_below_the_estimate_but_the_known
         assert (e["mcnemar_p_min"] > 0.05) == (e["lead"] <= 5), e
         assert e["seeds_mean"] < e["bound"], e
     assert result["above_the_estimate"] == json.loads(json.dumps(above))
-    assert result["bound"] == json.loads(json.dumps(weather.estimate(runs)))
+    assert result["bound"] == json.loads(json.dumps(weather_estimate.estimate(runs)))
     page = ROOT / "docs/weather.md"
-    _, block, _ = reproduction.split(page.read_text(), page, weather.DOC_START, weather.DOC_END)
-    assert block == "\n".join(weather.above_block(result))
+    _, block, _ = reproduction.split(
+        page.read_text(), page, weather_report.DOC_START, weather_report.DOC_END
+    )
+    assert block == "\n".join(weather_report.above_block(result))
     assert "| snntorch_lif (mixed) | fog V = 30 m | 1 | 14.00 (84 of 600) |" in block
 
 
 def test_weather_reads_a_lead_over_the_estimate_in_test_samples():
-    """weather.above_the_estimate on a made-up run: 600 test samples, the estimate 0.5 (300, a
-    seed ensemble); a row's seeds at 303 and 290 right: seed 0 leads by 3 (p at least 0.25 =
+    """weather_estimate.above_the_estimate on a made-up run: 600 test samples, the estimate 0.5
+    (300, a seed ensemble); a row's seeds at 303 and 290 right: seed 0 leads by 3 (p at least 0.25 =
     2 ** -2), seed 1 is below; its seeds' mean 296.5 is below the estimate. The block names
     the families and says that the CNN family is not in the estimate."""
-    weather = _script("weather")
+    weather_estimate, weather_report = _script("weather_estimate"), _script("weather_report")
     family = {"accuracy": [0.49, 0.48], "accuracy_mean": 0.485, "accuracy_std": 0.007,
               "ensemble": 0.5}  # fmt: skip
     run = {
@@ -1076,14 +1078,14 @@ def test_weather_reads_a_lead_over_the_estimate_in_test_samples():
     }  # fmt: skip
     right = {0: 303, 1: 290}
     cells = {"m": [{"seed": s, "test_accuracy": {"clear": n / 600}} for s, n in right.items()]}
-    above = weather.above_the_estimate(cells, {"clear": "d"}, {"clear": run})
+    above = weather_estimate.above_the_estimate(cells, {"clear": "d"}, {"clear": run})
     assert [(e["seed"], e["lead"]) for e in above] == [(0, 3)]
     assert above[0]["mcnemar_p_min"] == 0.25
     assert above[0]["seeds_mean"] == pytest.approx(296.5 / 600)
-    estimate = weather.estimate({"clear": run})
+    estimate = weather_estimate.estimate({"clear": run})
     assert estimate["clear"]["family_mean"] == pytest.approx(48.5)
     summary = {"points": {"m": [{"seeds": [0, 1]}]}, "bound": estimate}
-    block = weather.above_block(summary | {"above_the_estimate": above})
+    block = weather_report.above_block(summary | {"above_the_estimate": above})
     assert block[0].startswith(
         "The estimate with every spike: the best of the learner families (mlp: MLP 256-256;"
     )
