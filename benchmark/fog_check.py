@@ -11,9 +11,9 @@
    rather than the raw measurements: read the ratio as an order-of-magnitude check.
 2. **The dataset.** ``--samples`` train samples of the ``sensor`` profile at each visibility:
    the share of the clear-air returns lost, the share of pulses whose first return is the
-   fog's own (surface 0), and its median range; once with the biaxial crossover the
-   generator uses (:data:`simlidar.sensor.weather.CROSSOVER_M`) and once with Hahner et al.'s
-   slider defaults (0.9 m to 1.0 m), to show how much the fog's echo hangs on that unknown.
+   fog's own (surface 0), and its median range; once with the receiver's own biaxial crossover
+   (:func:`simlidar.sensor.receiver.crossover_ranges`) and once with Hahner et al.'s slider
+   defaults (0.9 m to 1.0 m), to show how much the fog's echo hangs on that unknown.
 
 Writes fog.md, fog.json and fog.png under ``--out``.
 """
@@ -28,7 +28,6 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import simlidar.sensor.weather as weather
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.profiles import load_profile
 from simlidar.generator.returns import receiver_physics
@@ -37,7 +36,7 @@ from simlidar.scene.recipe import load_catalog
 from simlidar.script_args import command_line, integers, run
 from simlidar.sensor.model import SPEED_OF_LIGHT_M_PER_S
 from simlidar.sensor.raycast import MAX_BATCH
-from simlidar.sensor.receiver import max_range_m
+from simlidar.sensor.receiver import crossover_ranges, max_range_m
 
 ROOT = Path(__file__).resolve().parents[1]
 # Seeing Through Fog's fit for the HDL-64E S3D (lidar_foggification.py: n, g)
@@ -101,13 +100,18 @@ def weather_rows(samples: int, option: str, values) -> list[dict]:
     return rows
 
 
-def dataset(samples: int, crossover: tuple[float, float]) -> list[dict]:
-    kept = weather.CROSSOVER_M
-    weather.CROSSOVER_M = crossover
+def dataset(samples: int, crossover: tuple[float, float] | None) -> list[dict]:
+    """:func:`weather_rows` over the visibilities, with the receiver's own crossover (None) or
+    with ``crossover`` (r_1, r_2) in its place."""
+    import simlidar.generator.returns as returns
+
+    kept = returns.crossover_ranges
+    if crossover is not None:
+        returns.crossover_ranges = lambda receiver: crossover
     try:
         rows = weather_rows(samples, "fog_visibility_m", VISIBILITIES)
     finally:
-        weather.CROSSOVER_M = kept
+        returns.crossover_ranges = kept
     return [
         {
             "visibility_m": r["fog_visibility_m"],
@@ -128,8 +132,8 @@ def main(argv=None) -> int:
     result = {
         "command": command_line("fog_check.py", argv),
         "ranges": ranges(),
-        "crossover_m": list(weather.CROSSOVER_M),
-        "dataset": dataset(args.samples, weather.CROSSOVER_M),
+        "crossover_m": list(crossover_ranges(receiver_physics(load_profile("sensor")).receiver)),
+        "dataset": dataset(args.samples, None),
         "dataset_hahner_sliders": dataset(args.samples, HAHNER_SLIDERS),
         "samples": args.samples,
     }

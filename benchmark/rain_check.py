@@ -2,12 +2,14 @@
 
     python benchmark/rain_check.py [--samples 512] [--out benchmark/results/rain]
 
-1. **Extinction.** The generator's alpha (Marshall-Palmer drops, Q_ext = 2: LISA, Kilic et al.
-   2021) beside Ulbrich & Atlas's fit for rain in the near infrared, k = 1.45 R^0.64 dB/km (the
-   curve LISA validates its own against, ``python_old/mie_plots.py``; fitted over 1 to 20
-   mm/h), and beside the 0.01 R^0.6 per metre of Goodin et al. 2019's MAVS simulator
-   (``lidar.cpp``, also LISA's ``msu_rain``), which is some 25 times stronger: the models in
-   use disagree, and this says where ours sits.
+1. **Extinction.** The generator's alpha (Mie theory over Marshall-Palmer drops at the
+   receiver's wavelength, :func:`simlidar.sensor.scattering.rain_coefficients`; the drops as
+   LISA, Kilic et al. 2021, draws them) beside Ulbrich & Atlas's fit for rain in the near
+   infrared, k = 1.45 R^0.64 dB/km (the curve LISA validates its own against,
+   ``python_old/mie_plots.py``; fitted over 1 to 20 mm/h), and beside the 0.01 R^0.6 per
+   metre of Goodin et al. 2019's MAVS simulator (``lidar.cpp``, also LISA's ``msu_rain``),
+   which is some 25 times stronger: the models in use disagree, and this says where ours
+   sits.
 2. **Range.** The range at which a target of reflectance 0.1 and 0.8 (square to the beam) drops
    below the VLP-16 receiver's threshold, by rain rate.
 3. **The dataset.** ``--samples`` train samples of the ``sensor`` profile at each rate: the share
@@ -30,12 +32,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from fog_check import weather_rows, write_results
 
-import simlidar.sensor.weather as weather
 from simlidar.generator.profiles import load_profile
 from simlidar.generator.returns import receiver_physics
 from simlidar.script_args import command_line, integers, run
 from simlidar.sensor.raycast import MAX_BATCH
 from simlidar.sensor.receiver import max_range_m
+from simlidar.sensor.scattering import rain_coefficients
 
 ROOT = Path(__file__).resolve().parents[1]
 RATES = (0.0, 5.0, 10.0, 25.0, 50.0, 100.0, 200.0)  # mm/h
@@ -57,7 +59,7 @@ def extinction() -> list[dict]:
     receiver = receiver_physics(load_profile("sensor")).receiver
     rows = []
     for rate in RATES[1:]:
-        alpha = weather.rain_extinction_per_m(rate)
+        alpha = rain_coefficients(rate, receiver.wavelength_nm).extinction_per_m
         ours_db = DB_PER_NEPER * alpha * 1e3
         rows.append(
             {
@@ -80,8 +82,10 @@ def main(argv=None) -> int:
     parser.add_argument("--samples", type=integers(32, MAX_BATCH, one=True), default=512)
     parser.add_argument("--out", type=Path, default=ROOT / "benchmark/results/rain")
     args = parser.parse_args(argv)
+    receiver = receiver_physics(load_profile("sensor")).receiver
     result = {
         "command": command_line("rain_check.py", argv),
+        "clear_max_range_m": {str(rho): float(max_range_m(receiver, rho)) for rho in REFLECTANCES},
         "extinction": extinction(),
         "dataset": weather_rows(args.samples, "rain_rate_mm_h", RATES),
         "samples": args.samples,
@@ -112,7 +116,8 @@ def report(result: dict) -> str:
         )
     lines += [
         "",
-        f"Clear air: 0.1 reaches {math.sqrt(0.1 / 0.8) * 100:.1f} m, 0.8 the rated 100 m.",
+        f"Clear air: 0.1 reaches {result['clear_max_range_m']['0.1']:.1f} m, 0.8 "
+        f"{result['clear_max_range_m']['0.8']:.1f} m.",
         "",
         f"## {result['samples']} `sensor` samples by rain rate",
         "",

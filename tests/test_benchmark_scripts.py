@@ -862,7 +862,7 @@ def test_benchmark_scripts_refuse_a_bad_argument_in_one_line_writing_nothing(
 def test_fog_check_keeps_points_lost_within_half_of_the_chamber_fit():
     """Issue 41's fog check: the VLP-16 receiver's maximum range in fog (reflectance 0.1 and
     0.8, alpha 0.05 to 0.2 per m) within 0.5 to 1.5 times the range Seeing Through Fog's model,
-    fitted to fog-chamber measurements of an HDL-64E S3D, gives (measured: 0.61 to 1.28); the
+    fitted to fog-chamber measurements of an HDL-64E S3D, gives (measured: 0.66 to 1.34); the
     fit by hand at alpha 0.1, reflectance 0.8: ln(1.25 / 0.04) / 0.2 = 17.2 m."""
     fog = _script("fog_check")
     assert fog.stf_range_m(0.8, 0.1) == pytest.approx(math.log(1.25 / 0.04) / 0.2)
@@ -875,8 +875,9 @@ def test_fog_check_keeps_points_lost_within_half_of_the_chamber_fit():
 
 
 def test_rain_check_keeps_the_extinction_within_a_tenth_of_ulbrich_and_atlas():
-    """Issue 41's rain check: the generator's rain extinction within 10 % of Ulbrich & Atlas's
-    fit (1.45 R^0.64 dB/km) at every rate of the check (measured: 1.04 to 1.07, also beyond
+    """Issue 41's rain check: the generator's rain extinction (Mie since 5.0.0) within 10 % of
+    Ulbrich & Atlas's fit (1.45 R^0.64 dB/km) at every rate of the check (measured: 1.04 to
+    1.07, also beyond
     the fit's 20 mm/h), the committed table as the script computes it, and the committed
     dataset rows: returns lost and the drops' returns rise with the rate."""
     rain = _script("rain_check")
@@ -887,7 +888,8 @@ def test_rain_check_keeps_the_extinction_within_a_tenth_of_ulbrich_and_atlas():
     assert committed["extinction"] == json.loads(json.dumps(rows))
     lost = [r["lost_percent"] for r in committed["dataset"]]
     drops = [r["weather_returns_percent"] for r in committed["dataset"]]
-    assert lost == sorted(lost) and drops == sorted(drops) and lost[0] == drops[0] == 0.0
+    assert lost == sorted(lost) and drops == sorted(drops) and lost[0] == 0.0
+    assert drops[0] < 0.01  # clear air: the detector's false alarms alone (1 in 10,000 pulses)
 
 
 def test_weather_scores_models_trained_in_clear_air_on_every_weather(tmp_path):
@@ -904,8 +906,8 @@ def test_weather_scores_models_trained_in_clear_air_on_every_weather(tmp_path):
     assert weather.main(args) == 0
     result = json.loads((out / "weather.json").read_text())
     names = result["datasets"]
-    assert names["clear"].endswith("-sensor-v4.0.0") and "-fog50.0-" in names["50"]
-    assert names["rain100"].endswith("-sensor-rain100.0-v4.2.0")
+    assert names["clear"].endswith("-sensor-v5.0.0") and "-fog50.0-" in names["50"]
+    assert names["rain100"].endswith("-sensor-rain100.0-v5.0.0")
     assert list(result["points"]) == ["cnn", "cnn (mixed)"]
     for model, middle in (("cnn", ""), ("cnn (mixed)", "mixed__")):
         rows = result["points"][model]

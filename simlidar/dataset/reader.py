@@ -22,13 +22,11 @@ from simlidar.dataset.schema import (
 from simlidar.dataset.shards import find_split_files, shard_of
 from simlidar.dataset.storage import datasets_of, entry_problem
 from simlidar.dataset.version import (
+    CALIBRATED_VERSION,
     GENERATOR,
     MOTION_VERSION,
     PHYSICAL_VERSION,
-    RAIN_WAVEFORM_VERSION,
-    RETURNS_VERSION,
     SCAN_VERSION,
-    SENSOR_VERSION,
     SOURCES,
     major,
 )
@@ -345,21 +343,17 @@ def read_split_info(path: Path) -> SplitInfo:
 
 def written_version(attrs) -> str | None:
     """The version this simlidar writes for a split like this one, when it is not its
-    source's current version: a split in motion is MOTION_VERSION (4.3.0); one with a receiver
-    is RAIN_WAVEFORM_VERSION (4.2.0) with
-    rain or a stored waveform (``rain_rate_mm_h``, ``waveform_bin_ns`` in its configuration),
-    RETURNS_VERSION (4.1.0) where its returns come from waveforms (attribute ``return_mode``),
-    else SENSOR_VERSION (4.0.0); a scan-timed split is SCAN_VERSION (3.0.0); a generated split
+    source's current version: a split with a receiver is CALIBRATED_VERSION (5.0.0; a 4.x one
+    reads, with a warning that its records changed); one in motion is MOTION_VERSION (4.3.0);
+    a scan-timed split is SCAN_VERSION (3.0.0); a generated split
     without a profile follows the physical rule, still written as PHYSICAL_VERSION (1.0.0)."""
     if split_source(attrs) != GENERATOR:
         return None
     config = _decode(attrs.get("config", ""))
+    if "receiver" in attrs:
+        return CALIBRATED_VERSION
     if in_motion({"config": config}):
         return MOTION_VERSION
-    if "receiver" in attrs:
-        if isinstance(config, dict) and {"rain_rate_mm_h", "waveform_bin_ns"} & config.keys():
-            return RAIN_WAVEFORM_VERSION
-        return RETURNS_VERSION if "return_mode" in attrs else SENSOR_VERSION
     if _decode(attrs.get("timing", "flash")) == "scan":
         return SCAN_VERSION
     return PHYSICAL_VERSION if "profile" not in attrs else None

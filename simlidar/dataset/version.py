@@ -40,6 +40,11 @@ RAIN_WAVEFORM_VERSION = "4.2.0"
 # datasets ``object_motion`` and ``ego_motion`` and their configuration keys added (a new
 # MINOR); datasets without motion keep their versions and bytes.
 MOTION_VERSION = "4.3.0"
+# The calibrated receiver (issue 62): every dataset of a profile with a receiver (`sensor`),
+# clear or in weather, flash, scan or in motion: detection with noise and false alarms, angle
+# laws per material, intensity from the signal, fog and rain from Mie theory, the overlap on
+# every echo, constants brought up to date (a new MAJOR: the records change).
+CALIBRATED_VERSION = "5.0.0"
 
 # Release dates are part of the published metadata (croissant.json's datePublished), so they are
 # constants too: a dataset's bytes never depend on the day it was generated.
@@ -51,6 +56,7 @@ RELEASE_DATES: dict[str, str] = {
     "4.1.0": "2026-11-26",
     "4.2.0": "2026-11-26",
     "4.3.0": "2026-11-28",
+    "5.0.0": "2026-11-28",
 }
 
 RELEASE_NOTES: dict[str, str] = {
@@ -127,21 +133,33 @@ RELEASE_NOTES: dict[str, str] = {
         "motion table used) with moving objects. Fields added, hence a new MINOR. Datasets "
         "without motion keep their versions and bytes."
     ),
+    "5.0.0": (
+        "A receiver calibrated to measurement (issue 62), for every dataset of a profile with a "
+        "receiver (`sensor`). Detection is a probability: each echo's peak is measured with the "
+        "detector's noise (its own, and the shot noise of the signal and of sunlight), and the "
+        "noise's own crossings of the threshold are false alarms at Rice's rate. The threshold "
+        "is fitted to the HDL-64E S2's rated ranges and the road rings of KITTI scans; asphalt "
+        "follows Oren-Nayar's rough-surface law, car paint has a clear coat's specular lobe, "
+        "retro-reflectors fall with their entrance angle. Range noise is the edge's timing "
+        "jitter with the manual's accuracy as a floor; the reflectivity byte follows the "
+        "measured signal, range-compensated. Fog and rain take their extinction and "
+        "backscatter from Mie theory over their drops; the overlap of beam and receiver field "
+        "applies to every echo. VLP-16 pulse 5 ns, HDL-64E divergence 3.4 mrad. The records "
+        "change, hence a new MAJOR; the `paper` and `physical` profiles keep their versions "
+        "and bytes."
+    ),
 }
 
 
 def dataset_version(config) -> str:
     """The version a generated dataset of ``config`` (a GeneratorConfig) carries:
-    RAIN_WAVEFORM_VERSION for rain or a stored waveform, RETURNS_VERSION under a receiver whose
-    returns come from waveforms, SENSOR_VERSION under another receiver, SCAN_VERSION under scan
-    timing, PHYSICAL_VERSION for the physical pulse rule (its records are those of 1.0.0), else
-    DATASET_VERSION; MOTION_VERSION, before all of them, for a dataset in motion."""
+    CALIBRATED_VERSION under a receiver (the 4.x receiver versions are no longer made),
+    MOTION_VERSION for a dataset in motion, SCAN_VERSION under scan timing, PHYSICAL_VERSION
+    for the physical pulse rule (its records are those of 1.0.0), else DATASET_VERSION."""
+    if config.receiver is not None:
+        return CALIBRATED_VERSION
     if config.moves:
         return MOTION_VERSION
-    if config.receiver is not None:
-        if config.rain_rate_mm_h > 0.0 or config.waveform_bin_ns > 0.0:
-            return RAIN_WAVEFORM_VERSION
-        return RETURNS_VERSION if config.full_waveform else SENSOR_VERSION
     if config.timing == "scan":
         return SCAN_VERSION
     return PHYSICAL_VERSION if config.profile is None else DATASET_VERSION
@@ -166,6 +184,8 @@ SWEEP_RETURNS_VERSION = "1.3.0"
 # ``object_motion``, the object's box at the frame's reference time; fields and configuration
 # keys added. Sweeps without motion keep their versions and bytes.
 SWEEP_MOTION_VERSION = "1.4.0"
+# Sweeps through the calibrated receiver (issue 62; as CALIBRATED_VERSION): the records change.
+SWEEP_CALIBRATED_VERSION = "2.0.0"
 
 
 def major(version: str) -> int:

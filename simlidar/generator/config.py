@@ -312,17 +312,24 @@ class GeneratorConfig:
 
     @property
     def extinction_per_m(self) -> float:
-        """The atmosphere's extinction coefficient alpha (1/m): the fog's and the rain's (0 in
-        clear air)."""
-        from simlidar.sensor.receiver import koschmieder_extinction_per_m
-        from simlidar.sensor.weather import rain_extinction_per_m
+        """The atmosphere's extinction coefficient alpha (1/m) at the receiver's wavelength:
+        the fog's and the rain's, from Mie theory over their drops
+        (:mod:`simlidar.sensor.scattering`; a fog's drops as many as make its extinction in
+        visible light Koschmieder's ln(20) / V); 0 in clear air."""
+        from simlidar.sensor.scattering import fog_coefficients, rain_coefficients
 
+        fog_on = math.isfinite(self.fog_visibility_m)
+        if not fog_on and self.rain_rate_mm_h == 0.0:
+            return 0.0
+        from simlidar.sensor.receiver import load_receiver
+
+        wavelength = load_receiver(self.receiver).wavelength_nm
         fog = 0.0
-        if math.isfinite(self.fog_visibility_m):
-            fog = koschmieder_extinction_per_m(self.fog_visibility_m)
+        if fog_on:
+            fog = fog_coefficients(self.fog_visibility_m, wavelength).extinction_per_m
         if self.rain_rate_mm_h == 0.0:
-            return fog  # the fog's alone, bit for bit
-        return fog + rain_extinction_per_m(self.rain_rate_mm_h)
+            return fog
+        return fog + rain_coefficients(self.rain_rate_mm_h, wavelength).extinction_per_m
 
     @property
     def full_waveform(self) -> bool:

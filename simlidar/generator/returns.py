@@ -1,33 +1,41 @@
-"""Hits -> returns through a receiver: the profiles with a ``receiver`` key (``sensor``; issue 41).
+"""Hits -> returns through a receiver: the profiles with a ``receiver`` key (``sensor``; issues
+41 and 62).
 
 Every hit in range of the ray caster becomes a return under the other profiles. Here a hit
-returns only if the receiver detects it (:mod:`simlidar.sensor.receiver`, every formula in
-``docs/sensor-model.md``; with a beam footprint, a return mode or fog, through each pulse's
-waveform: :func:`receive_beams`):
+returns only if the receiver detects it (:mod:`simlidar.sensor.receiver`,
+:mod:`simlidar.sensor.detection`; every formula in ``docs/sensor-model.md``, "The calibrated
+receiver"; with a beam footprint, a return mode or weather, through each pulse's waveform:
+:func:`receive_beams`):
 
 1. each catalog surface of a sample is made of one material, a choice among the materials
    file's ``[surfaces]`` list, with a reflectance drawn uniformly in that material's
-   ``reflectance_range``;
-2. per pixel, the received power of the LiDAR range equation, from the hit's range, the
-   surface's reflectance and the incidence angle, and the fog's two-way extinction where the
-   dataset has one (``--fog``; clear air: extinction 0);
-3. a power below the receiver's threshold is no return (a drop-out); a detected return moves
-   by Gaussian range noise of sigma ``range_noise_m(power)`` and is quantised to the sensor's
+   ``reflectance_range`` and the material's angle law;
+2. per pixel, the received power of the LiDAR range equation, from the hit's range, rho
+   f(theta) of its surface (:func:`effective_reflectance`), the biaxial overlap and the
+   atmosphere's two-way extinction (``--fog``, ``--rain``; clear air: 0);
+3. the peak is measured with the detector's noise and detected where it reaches the threshold
+   (a drop-out otherwise); the noise's own false alarms (:func:`_false_alarms`) are echoes of
+   surface 0; a return moves by the edge's timing jitter over the accuracy floor
+   (:func:`simlidar.sensor.receiver.timing_noise_m`) and is quantised to the sensor's
    resolution as every return is (a return moved out of the sensor's range is no return);
-4. the sensor's calibrated reflectivity byte (``intensity``) of each return.
+4. the sensor's reflectivity byte (``intensity``) of each return, from its measured peak,
+   range-compensated.
 
 Randomness: a sample's draws here come from a stream of their own,
-``SeedSequence(seed, spawn_key=(split, index, RECEIVER_STREAM))``, read in a fixed order (two
-uniforms per catalog surface, label order: material, reflectance; then one standard normal per
-pixel, and in ``dual`` return mode a second block of one per pixel), so the sample's own
-stream, and with it the scenes, phases and noise of the other profiles, is untouched: a
-``sensor`` sample sees the scene its ``physical`` twin (same seed, split and index) sees.
+``SeedSequence(seed, spawn_key=(split, index, RECEIVER_STREAM))``, read in a fixed order: two
+uniforms per catalog surface (label order: material, reflectance); the rain's drops (with
+rain); ``ECHOES_MEASURED`` standard normals a pulse (the noise on its strongest echoes); the
+false alarms (a Poisson count a pulse, two uniforms an alarm); one standard normal a pulse and
+reported return (the range noise; a second block in ``dual`` mode); the stored waveform's noise
+(on request). The sample's own stream, and with it the scenes, phases and noise of the other
+profiles, is untouched: a ``sensor`` sample sees the scene its ``physical`` twin (same seed,
+split and index) sees.
 """
 
 import hashlib
 import json
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -39,17 +47,19 @@ from simlidar.sensor.model import SPEED_OF_LIGHT_M_PER_S, Sensor, tof_ns
 from simlidar.sensor.receiver import (
     Material,
     Receiver,
-    detected,
+    apparent_reflectance,
+    crossover_ranges,
     load_materials,
     load_receiver,
     materials_to_dict,
-    range_noise_m,
     received_power_w,
     receiver_to_dict,
     reflectivity_byte,
+    signal_noise_w,
+    timing_noise_m,
 )
 from simlidar.sensor.waveform import BIN_NS, by_row, echoes, pulse_sigma_ns, reported, sampled
-from simlidar.sensor.weather import C_M_PER_NS, Rain, fog_table, rain
+from simlidar.sensor.weather import CROSSOVER_M, Rain, fog_table, rain
 
 # The child stream key of a sample's receiver draws (the issue's number: any constant will do,
 # as long as no other stream of a sample uses it)
@@ -133,18 +143,49 @@ def receiver_stream(seed: int, split_id: int, index: int) -> np.random.Generator
 
 def draw_surfaces(g: np.random.Generator, choices: list[list[Material]]):
     """One sample's materials: the reflectance (S,) float64 and retro-reflectivity (S,) bool of
-    each of its S surface labels (label 0: NaN, False). Two uniforms a label, drawn for every
-    label whether the sample shows it or not (a fixed number of draws)."""
+    each of its S surface labels (label 0: NaN, False), and each label's angle law as (S, 4)
+    float64 (:func:`law_columns`: Oren-Nayar's B / A, the retro exponent, the coat's rho_s and
+    lobe width; label 0: Lambert). Two uniforms a label, drawn for every label whether the
+    sample shows it or not (a fixed number of draws)."""
     u = g.random((len(choices) - 1, 2))
     reflectance = np.full(len(choices), np.nan)
     retro = np.zeros(len(choices), bool)
+    laws = np.tile(law_columns(None), (len(choices), 1))
     for label, (pick, level) in enumerate(u, start=1):
         options = choices[label]
         material = options[min(int(pick * len(options)), len(options) - 1)]
         low, high = material.reflectance_min, material.reflectance_max
         reflectance[label] = low + level * (high - low)
         retro[label] = material.kind == "retroreflective"
-    return reflectance, retro
+        laws[label] = law_columns(material)
+    return reflectance, retro, laws
+
+
+def law_columns(material: Material | None) -> np.ndarray:
+    """A material's angle law as four numbers (None: Lambert): f(theta) = cos^n + r sin^2,
+    r Oren-Nayar's B / A (0 but for ``oren_nayar``), n the retro exponent (1 but for
+    ``retroreflective``), then the coat's rho_s and Ward lobe width (degrees)."""
+    from simlidar.sensor.angle_laws import oren_nayar_ratio
+
+    if material is None:
+        return np.array([0.0, 1.0, 0.0, 0.0])
+    ratio = oren_nayar_ratio(material.roughness_deg) if material.angle_law == "oren_nayar" else 0.0
+    exponent = material.exponent if material.angle_law == "retroreflective" else 1.0
+    return np.array([ratio, exponent, material.specular, material.lobe_deg])
+
+
+def effective_reflectance(rho, cos_incidence, laws):
+    """rho f(theta) + rho_s f_s(theta): what the range equation multiplies for each hit, from
+    its reflectance, |cos(theta)| and law columns (``laws[..., 4]``, :func:`law_columns`)."""
+    from simlidar.sensor.angle_laws import law_factor, specular_factor
+
+    ratio, exponent, coat, lobe = (laws[..., k] for k in range(4))
+    value = rho * law_factor(cos_incidence, ratio, exponent)
+    glossy = coat > 0.0
+    if np.any(glossy):
+        lobe_s = specular_factor(cos_incidence, np.where(glossy, lobe, 1.0))
+        value = value + np.where(glossy & (cos_incidence > 0.0), coat * lobe_s, 0.0)
+    return value
 
 
 @dataclass(frozen=True)
@@ -156,7 +197,9 @@ class Returns:
     range_m: np.ndarray  # (n, H, W) float64, quantised; NaN: no return (missed or dropped)
     intensity: np.ndarray  # (n, H, W) uint8, the sensor's reflectivity byte; 0: no return
     reflectance: np.ndarray  # (n, H, W) float32, the hit surface's drawn value; NaN: no hit
-    power_w: np.ndarray  # (n, H, W) float32, received power of the hit; 0: no hit
+    # (n, H, W) float32, the measured peak power (noise included) of the reported return, or of
+    # the hit (the strongest echo) where none is reported, at least 0; 0: no hit
+    power_w: np.ndarray
     # receive_beams only, else None:
     surface: np.ndarray | None = None  # (n, H, W) uint8, the return's surface; 0: no return
     echoes: np.ndarray | None = None  # (n, H, W) uint8, echoes detected in the waveform
@@ -170,9 +213,10 @@ class Returns:
 
 
 def _surface_tables(streams, choices):
-    """Each sample's drawn reflectance (n, S) and retro-reflectivity (n, S) per surface label."""
+    """Each sample's drawn reflectance (n, S), retro-reflectivity (n, S) and law columns (n, S,
+    4) per surface label."""
     drawn = [draw_surfaces(g, choices) for g in streams]
-    return np.stack([r for r, _ in drawn]), np.stack([t for _, t in drawn])
+    return tuple(np.stack([d[k] for d in drawn]) for k in range(3))
 
 
 def _per_label(table: np.ndarray, labels: np.ndarray) -> np.ndarray:
@@ -181,18 +225,29 @@ def _per_label(table: np.ndarray, labels: np.ndarray) -> np.ndarray:
     return np.take_along_axis(table, flat, axis=1).reshape(labels.shape)
 
 
-def _hit_power(receiver, table, retro_table, range_m, surface, cos_incidence, alpha):
+def _hit_power(receiver, tables, range_m, surface, cos_incidence, alpha):
     """Per hit (any shape): whether there is one, the drawn reflectance (NaN: no hit), its
-    retro-reflectivity, the reflectance the equation uses (0: no hit), the range it divides by
-    (1 m where no hit) and the received power of the range equation (0: no hit)."""
+    retro-reflectivity, rho f(theta) (+ a coat's lobe; 0: no hit), the range it divides by
+    (1 m where no hit) and the received power of the range equation with the biaxial overlap
+    (0: no hit). ``tables``: :func:`_surface_tables`'."""
+    table, retro_table, laws = tables
     hit = ~np.isnan(range_m)
     reflectance = np.where(hit, _per_label(table, surface), np.nan)
     retro = _per_label(retro_table, surface)
-    rho = np.where(hit, reflectance, 0.0)
+    flat = surface.reshape(len(laws), -1).astype(np.int64)
+    law = np.take_along_axis(laws, flat[..., None], axis=1).reshape(surface.shape + (4,))
+    rho = np.where(hit, effective_reflectance(np.nan_to_num(reflectance), cos_incidence, law), 0.0)
     safe_m = np.where(hit, range_m, 1.0)  # the equation divides by R^2
-    incidence = np.arccos(np.clip(cos_incidence.astype(np.float64), 0.0, 1.0))
-    power = received_power_w(receiver, safe_m, rho, incidence, alpha)
+    power = received_power_w(receiver, safe_m, rho, 0.0, alpha) * overlap(receiver, safe_m)
     return hit, reflectance, retro, rho, safe_m, np.where(hit, power, 0.0)
+
+
+def overlap(receiver: Receiver, range_m):
+    """The biaxial overlap xi(R) of the receiver's geometry (1 where it has none)."""
+    from simlidar.sensor.weather import crossover
+
+    ranges = crossover_ranges(receiver)
+    return np.ones(np.shape(range_m)) if ranges is None else crossover(range_m, ranges)
 
 
 def receive_hits(
@@ -227,12 +282,10 @@ def receive_hits(
             weights, config.return_mode, config.extinction_per_m, config.fog_visibility_m,
             config.rain_rate_mm_h, config.waveform_bin_ns, config.waveform_bins,
         )  # fmt: skip
-    got = receive(
+    return receive(
         physics, choices, config.sensor, streams, range_m, surface, cos_incidence,
         config.extinction_per_m,
     )  # fmt: skip
-    returned = np.where(np.isnan(got.range_m), 0, surface).astype(np.uint8)
-    return replace(got, surface=returned)
 
 
 def receive(
@@ -259,22 +312,90 @@ def receive(
         clear air), two-way Beer-Lambert in the range equation
     """
     receiver = physics.receiver
-    table, retro_table = _surface_tables(streams, choices)
-    z = np.stack([g.standard_normal(range_m.shape[1:]) for g in streams])  # (n, H, W)
+    tables = _surface_tables(streams, choices)
     hit, reflectance, retro, rho, safe_m, power = _hit_power(
-        receiver, table, retro_table, range_m, surface, cos_incidence, extinction_per_m
+        receiver, tables, range_m, surface, cos_incidence, extinction_per_m
     )
-    seen = hit & detected(receiver, power)
-    sigma = np.where(seen, range_noise_m(receiver, np.where(seen, power, 1.0)), 0.0)
-    returned_m = quantise_range(np.where(seen, safe_m + sigma * z, np.nan), sensor)
+    shape = power.shape + (ECHOES_MEASURED,)
+    padded = np.zeros(shape)
+    padded[..., 0] = power  # one echo a pulse: the first of the draws measures it
+    measured = _measured(receiver, streams, padded, np.broadcast_to(rho[..., None], shape))
+    measured = measured[..., 0]
+    seen = hit & (measured >= receiver.threshold_w)
+    alarm_m, alarm_w = _false_alarms(receiver, streams, sensor, rho)
+    z = np.stack([g.standard_normal(range_m.shape[1:]) for g in streams])  # (n, H, W)
+    alarm = ~np.isnan(alarm_m) & (~seen | (alarm_w > measured))  # the strongest echo reported
+    centre = np.where(alarm, alarm_m, np.where(seen, safe_m, np.nan))
+    peak = np.where(alarm, alarm_w, np.where(seen, measured, 0.0))
+    found = alarm | seen
+    noise = signal_noise_w(receiver, peak, np.where(alarm, 0.0, rho))
+    sigma = np.where(found, timing_noise_m(receiver, np.where(found, peak, 1.0), noise), 0.0)
+    returned_m = quantise_range(np.where(found, centre + sigma * z, np.nan), sensor)
     returned = ~np.isnan(returned_m)
-    intensity = np.where(returned, reflectivity_byte(receiver, rho, retro), 0)
+    intensity = np.where(
+        returned, _reflectivity(receiver, peak, np.nan_to_num(returned_m), retro & ~alarm), 0
+    )
     return Returns(
         range_m=returned_m,
         intensity=intensity.astype(np.uint8),
         reflectance=reflectance.astype(np.float32),
-        power_w=power.astype(np.float32),
+        power_w=np.where(found, peak, np.where(hit, np.maximum(measured, 0.0), 0.0)).astype(
+            np.float32
+        ),
+        surface=np.where(returned & ~alarm, surface, 0).astype(np.uint8),
     )
+
+
+def _measured(receiver: Receiver, streams, power_w, rho):
+    """Peak powers as the receiver measures them: ``power_w`` (n, H, W, E) plus the noise of
+    :func:`simlidar.sensor.receiver.signal_noise_w` (over the sunlight a scene of ``rho``
+    sends) times a standard normal, E a pulse from each sample's stream (drawn whatever the
+    powers, so a sample's draws never depend on its block). Without noise, the powers and no
+    draw."""
+    if receiver.noise_w == 0.0:
+        return power_w
+    sigma = signal_noise_w(receiver, power_w, rho)
+    z = np.stack([g.standard_normal(power_w.shape[1:]) for g in streams])
+    return power_w + sigma * z
+
+
+def _false_alarms(receiver: Receiver, streams, sensor: Sensor, rho):
+    """The strongest false alarm of each pulse (range m, peak W; NaN / 0: none): the noise
+    crossing the threshold while the pulse listens for 2 R_max / c, at Rice's rate for the
+    noise without signal (:mod:`simlidar.sensor.detection`), drawn from each sample's stream
+    (a Poisson count a pulse, then two uniforms an alarm). None without noise."""
+    from simlidar.sensor.detection import false_alarm_rate_hz, false_alarms
+
+    shape = rho.shape
+    if receiver.noise_w == 0.0 or not receiver.bandwidth_hz > 0.0:
+        return np.full(shape, np.nan), np.zeros(shape)
+    listen_s = 2.0 * sensor.max_range_m / SPEED_OF_LIGHT_M_PER_S
+    detector = receiver.detector()
+    quiet = signal_noise_w(receiver, np.zeros(shape), rho)  # sigma_n, the pulse's background
+    rate = false_alarm_rate_hz(detector, receiver.threshold_w, quiet)
+    range_m, peak_w = np.full(shape, np.nan), np.zeros(shape)
+    pixels = int(np.prod(shape[1:]))
+    for i, g in enumerate(streams):
+        pulse, time_s, height = false_alarms(
+            g, pixels, rate[i].ravel(), listen_s, receiver.threshold_w, quiet[i].ravel()
+        )
+        strongest = np.zeros(pixels)
+        np.maximum.at(strongest, pulse, height)
+        keep = height == strongest[pulse]
+        r, w = np.full(pixels, np.nan), np.zeros(pixels)
+        r[pulse[keep]] = time_s[keep] * SPEED_OF_LIGHT_M_PER_S / 2.0
+        w[pulse[keep]] = height[keep]
+        range_m[i], peak_w[i] = r.reshape(shape[1:]), w.reshape(shape[1:])
+    return range_m, peak_w
+
+
+def _reflectivity(receiver: Receiver, peak_w, range_m, retroreflective):
+    """The reflectivity byte of returns of measured peak ``peak_w`` at ``range_m``: the
+    apparent reflectance (range-compensated, :func:`simlidar.sensor.receiver.apparent_reflectance`)
+    on the sensor's scale, a retro-reflector's (and any echo brighter than a white diffuse
+    target) on its retro-reflective range."""
+    apparent = apparent_reflectance(receiver, np.maximum(peak_w, 0.0), range_m)
+    return reflectivity_byte(receiver, apparent, retroreflective | (apparent > 1.0))
 
 
 def receive_beams(
@@ -299,23 +420,25 @@ def receive_beams(
     1. each sub-ray's received power is the range equation's for its hit, times its weight
        (:func:`simlidar.sensor.footprint.footprint`);
     2. the pulse's waveform is their sum of Gaussian pulses, its echoes the waveform's peaks
-       (:func:`simlidar.sensor.waveform.echoes`), detected at the receiver's threshold;
+       (:func:`simlidar.sensor.waveform.echoes`), measured with the detector's noise and
+       joined by the pulse's strongest false alarm (:func:`_measured_echoes`), detected at the
+       receiver's threshold;
     3. the mode picks the reported returns among them (:func:`simlidar.sensor.waveform.reported`);
-       each reported return moves by the range noise of its own peak power (one standard normal
-       per pixel and reported return: after the draws of :func:`receive`, a second block in
-       ``dual`` mode; a return reported twice is one measurement) and is quantised;
-    4. a return's surface, reflectance and intensity are those of the sub-ray that adds most to
-       its peak.
+       each reported return moves by the timing jitter of its own measured peak (one standard
+       normal per pixel and reported return, a second block in ``dual`` mode; a return
+       reported twice is one measurement) and is quantised;
+    4. a return's surface and reflectance are those of the sub-ray that adds most to its peak
+       (surface 0 where the surfaces make less than half of it: the weather's or the noise's
+       echo); its intensity is its measured peak's, range-compensated.
 
     physics, choices, sensor, streams : :func:`receive`'s
     range_m, surface, cos_incidence : (n, H, W, S) as :func:`receive`'s, per sub-ray
     weights : (S,) the sub-rays' shares of the beam's power
     mode : of the receiver's ``return_modes``
     extinction_per_m : :func:`receive`'s: the atmosphere's alpha (fog, rain; 0: clear air)
-    visibility_m : a fog's visibility (its ``extinction_per_m`` the Koschmieder alpha): the
-        fog's backscatter joins the waveform (:mod:`simlidar.sensor.weather`), and an echo
-        the fog makes is a return of surface 0, NaN reflectance and the reflectivity byte of
-        its apparent reflectance (the range equation read backwards at normal incidence)
+    visibility_m : a fog's visibility: the fog's backscatter (Mie's, :func:`fog_backscatter`)
+        joins the waveform (:mod:`simlidar.sensor.weather`), and an echo the fog makes is a
+        return of surface 0, NaN reflectance and the reflectivity byte of its signal
     rain_rate_mm_h : a rain's rate (its extinction is in ``extinction_per_m``): the echoes of
         its drops (:class:`simlidar.sensor.weather.Rain`) join the waveform, drawn from each
         sample's stream after the draws above; an echo the drops make is a return of surface
@@ -326,28 +449,27 @@ def receive_beams(
     """
     receiver = physics.receiver
     n, rows, cols, subrays = range_m.shape
-    table, retro_table = _surface_tables(streams, choices)
+    tables = _surface_tables(streams, choices)
     reports = 2 if mode == "dual" else 1
-    z = np.stack([g.standard_normal((reports, rows, cols)) for g in streams])  # (n, R, H, W)
-    z = np.moveaxis(z, 1, -1)  # (n, H, W, R)
     hit, reflectance, retro, rho, safe_m, power = _hit_power(
-        receiver, table, retro_table, range_m, surface, cos_incidence, extinction_per_m
+        receiver, tables, range_m, surface, cos_incidence, extinction_per_m
     )
     power = (power * weights).reshape(-1, subrays)
     times = np.where(hit, tof_ns(safe_m), np.nan).reshape(-1, subrays)
     sigma_ns = pulse_sigma_ns(receiver.pulse_width_ns)
+    geometry = crossover_ranges(receiver) or CROSSOVER_M
     fog = None
     if math.isfinite(visibility_m):
         fog = fog_table(
             receiver.peak_power_w, receiver.aperture_area_m2, receiver.optics_efficiency,
             receiver.threshold_w, visibility_m, extinction_per_m, sigma_ns, BIN_NS,
-            sensor.max_range_m,
+            sensor.max_range_m, fog_backscatter(visibility_m, receiver.wavelength_nm), geometry,
         )  # fmt: skip
     axis_m = range_m.reshape(-1, subrays)[:, 0]  # NaN: no hit
     drops = rain(
         receiver.peak_power_w, receiver.aperture_area_m2, receiver.optics_efficiency,
         receiver.threshold_w, receiver.divergence_h_mrad, receiver.divergence_v_mrad,
-        rain_rate_mm_h,
+        rain_rate_mm_h, geometry,
     )  # fmt: skip
     all_times, all_power, drop_ns, drop_w = times, power, None, None
     if drops is not None:
@@ -363,6 +485,16 @@ def receive_beams(
         stored = sampled(
             all_times, all_power, sigma_ns, waveform_bin_ns, waveform_bins, fog, columns
         ).reshape(n, rows, cols, waveform_bins)
+    pixel_rho = rho.reshape(-1, subrays)[:, 0]  # the background's scene: the axis's hit
+    echo = _measured_echoes(receiver, streams, sensor, echo, pixel_rho, (rows, cols))
+    z = np.stack([g.standard_normal((reports, rows, cols)) for g in streams])  # (n, R, H, W)
+    z = np.moveaxis(z, 1, -1)  # (n, H, W, R)
+    if waveform_bins and receiver.noise_w > 0.0:  # the stored waveform's noise, bin by bin
+        sigma_bins = signal_noise_w(
+            receiver, np.maximum(stored, 0.0), pixel_rho.reshape(n, rows, cols)[..., None]
+        )
+        bins_z = np.stack([g.standard_normal(stored.shape[1:]) for g in streams])
+        stored = (stored + sigma_bins * bins_z).astype(np.float32)
     pick = reported(echo, receiver.threshold_w, mode, receiver.dual_when_strongest_is_last)
     pulses = np.arange(len(pick))[:, None]
     found = pick >= 0
@@ -380,28 +512,26 @@ def receive_beams(
     )
     main = np.argmax(np.nan_to_num(share, nan=-1.0), axis=2)  # (P, R)
     flat = (n * rows * cols, subrays)
-    main_rho = np.take_along_axis(rho.reshape(flat), main, axis=1)
+    main_rho = np.take_along_axis(reflectance.reshape(flat), main, axis=1)  # as drawn
     main_retro = np.take_along_axis(retro.reshape(flat), main, axis=1)
     main_surface = np.take_along_axis(surface.reshape(flat), main, axis=1)
-    # an echo the surfaces make less than half of is the weather's (fog, drops)
+    # an echo the surfaces make less than half of is the weather's or the noise's (fog,
+    # drops, false alarms)
     fogged = found & (np.nan_to_num(share, nan=0.0).sum(axis=2) < 0.5 * peak_w)
-    apparent = (
-        peak_w
-        * math.pi
-        * np.nan_to_num(peak_ns * C_M_PER_NS / 2.0) ** 2
-        / (receiver.peak_power_w * receiver.aperture_area_m2 * receiver.optics_efficiency)
-    )
-    main_rho = np.where(fogged, apparent, main_rho)
     main_retro = np.where(fogged, False, main_retro)
     main_surface = np.where(fogged, 0, main_surface)
     same = (pick[:, -1] == pick[:, 0])[:, None]  # dual: one return reported twice
     noise = z.reshape(-1, reports)
     noise = np.where(same, noise[:, :1], noise)
-    sigma_m = np.where(found, range_noise_m(receiver, np.where(found, peak_w, 1.0)), 0.0)
+    back = np.where(fogged, 0.0, pixel_rho[:, None])
+    sigma_w = signal_noise_w(receiver, np.where(found, peak_w, 0.0), back)
+    sigma_m = np.where(found, timing_noise_m(receiver, np.where(found, peak_w, 1.0), sigma_w), 0.0)
     centre_m = peak_ns * 1e-9 * SPEED_OF_LIGHT_M_PER_S / 2.0
     returned_m = quantise_range(np.where(found, centre_m + sigma_m * noise, np.nan), sensor)
     returned = ~np.isnan(returned_m)
-    intensity = np.where(returned, reflectivity_byte(receiver, main_rho, main_retro), 0)
+    intensity = np.where(
+        returned, _reflectivity(receiver, peak_w, np.nan_to_num(returned_m), main_retro), 0
+    )
     labels = np.where(returned, main_surface, 0)
     first = np.argmin(np.where(returned, returned_m, np.inf), axis=1)[:, None]
     primary = {
@@ -434,6 +564,54 @@ def receive_beams(
         returns_surface=labels.reshape(shape + (reports,)).astype(np.uint8),
         waveform=stored,
     )
+
+
+ECHOES_MEASURED = 4  # a pulse's strongest echoes measured with noise (see _measured_echoes)
+
+
+def fog_backscatter(visibility_m: float, wavelength_nm: float) -> float:
+    """beta (1 / (m sr)) of the fog of visibility V at the receiver's wavelength: Mie theory
+    over the shipped fog's drops (:func:`simlidar.sensor.scattering.fog_coefficients`)."""
+    from simlidar.sensor.scattering import fog_coefficients
+
+    return fog_coefficients(visibility_m, wavelength_nm).backscatter_per_m_sr
+
+
+def _measured_echoes(receiver: Receiver, streams, sensor: Sensor, echo, rho, pixels_shape):
+    """The echoes of a block of pulses as the receiver measures them: each pulse's
+    ``ECHOES_MEASURED`` strongest peaks plus noise (:func:`_measured`: that many standard
+    normals a pulse, so a sample's draws do not depend on its block; a further echo of a pulse,
+    weaker than four others, keeps its noiseless peak), and the pulse's strongest false alarm
+    (:func:`_false_alarms`) as one more echo. ``rho`` (P,): the scene's rho f(theta) behind
+    each pulse, for the sunlight's noise. Without noise, ``echo`` itself."""
+    if receiver.noise_w == 0.0:
+        return echo
+    n = len(streams)
+    power = np.nan_to_num(echo.power_w, nan=-np.inf)
+    order = np.argsort(-power, axis=1, kind="stable")[:, :ECHOES_MEASURED]
+    top = np.take_along_axis(power, order, axis=1)
+    top = np.pad(top, ((0, 0), (0, ECHOES_MEASURED - top.shape[1])), constant_values=-np.inf)
+    alive = np.isfinite(top)
+    shape = (n, *pixels_shape, ECHOES_MEASURED)
+    measured = _measured(
+        receiver, streams, np.where(alive, top, 0.0).reshape(shape),
+        np.broadcast_to(rho.reshape(n, *pixels_shape)[..., None], shape),
+    )  # fmt: skip
+    measured = measured.reshape(-1, ECHOES_MEASURED)
+    new_power = echo.power_w.copy()
+    rows = np.arange(len(power))[:, None]
+    columns = order.shape[1]
+    new_power[rows, order] = np.where(alive[:, :columns], measured[:, :columns], np.nan)
+    alarm_m, alarm_w = _false_alarms(receiver, streams, sensor, rho.reshape(n, *pixels_shape))
+    alarm_ns, alarm_w = tof_ns(alarm_m.ravel()), alarm_w.ravel()
+    times = np.hstack([echo.time_ns, alarm_ns[:, None]])
+    powers = np.hstack([new_power, np.where(np.isnan(alarm_ns), np.nan, alarm_w)[:, None]])
+    # each pulse's echoes in time order again, NaN last
+    key = np.where(np.isnan(times), np.inf, times)
+    again = np.argsort(key, axis=1, kind="stable")
+    times = np.take_along_axis(times, again, axis=1)
+    powers = np.take_along_axis(powers, again, axis=1)
+    return type(echo)(times, powers, (~np.isnan(times)).sum(axis=1))
 
 
 def _drop_echoes(drops: Rain, streams, pixels: int, axis_m: np.ndarray, extinction_per_m: float):

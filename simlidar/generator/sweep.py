@@ -39,9 +39,8 @@ from simlidar import __version__
 from simlidar.atomic import building
 from simlidar.dataset.schema import SWEEP_FILE, SWEEP_FORMAT, reported_returns, sweep_schema
 from simlidar.dataset.version import (
+    SWEEP_CALIBRATED_VERSION,
     SWEEP_MOTION_VERSION,
-    SWEEP_RECEIVER_VERSION,
-    SWEEP_RETURNS_VERSION,
     SWEEP_VERSION,
 )
 from simlidar.dataset.writer import SplitWriter
@@ -354,14 +353,13 @@ def object_boxes(scene) -> np.ndarray:
 
 
 def sweep_version(config: GeneratorConfig, sweep: SweepConfig | None = None) -> str:
-    """SWEEP_MOTION_VERSION where anything moves, SWEEP_RETURNS_VERSION where every reported
-    return is stored or with rain (a configuration key 1.2.0 does not know),
-    SWEEP_RECEIVER_VERSION through a receiver, else SWEEP_VERSION."""
+    """SWEEP_CALIBRATED_VERSION through a receiver (the 1.2.0 and 1.3.0 receiver versions are
+    no longer made), SWEEP_MOTION_VERSION where anything moves, else SWEEP_VERSION."""
+    if config.receiver is not None:
+        return SWEEP_CALIBRATED_VERSION
     if config.moves or (sweep is not None and sweep.sequence(config) != 1):
         return SWEEP_MOTION_VERSION
-    if stores_returns(config) or config.rain_rate_mm_h:
-        return SWEEP_RETURNS_VERSION
-    return SWEEP_RECEIVER_VERSION if config.receiver is not None else SWEEP_VERSION
+    return SWEEP_VERSION
 
 
 def sweep_name(config: GeneratorConfig, sweep: SweepConfig) -> str:

@@ -55,6 +55,7 @@ class Detector:
     own_noise_w: float  # sigma_0, dark and amplifier noise referred to the optical input
     filter_nm: float  # d_lambda, the optical band-pass filter's width
     field_sr: float  # Omega, the receiver's field of view
+    shot: bool = True  # False: no shot noise, sigma = sigma_0 at every power
 
     def __post_init__(self) -> None:
         for key in ("responsivity_a_w", "bandwidth_hz", "own_noise_w", "filter_nm", "field_sr"):
@@ -86,6 +87,8 @@ def background_w(
 
 def noise_w(detector: Detector, signal_w, background_w=0.0):
     """sigma(P) (W): the noise on a received power ``signal_w`` (any shape) over a background."""
+    if not detector.shot:
+        return np.full(np.shape(signal_w), float(detector.own_noise_w))
     shot = (
         2.0
         * ELECTRON_CHARGE_C
@@ -144,11 +147,15 @@ def false_alarms(
     order.
 
     g : the random stream, read in that order (counts, then two uniforms an alarm)
-    threshold_w : T; sigma_n_w : the noise's sigma without signal
+    rate_hz, sigma_n_w : Rice's rate and the noise's sigma without signal, one for every pulse
+        or (pulses,) each its own
+    threshold_w : T
     """
-    counts = g.poisson(rate_hz * listen_s, pulses)
+    mean = np.broadcast_to(np.asarray(rate_hz, dtype=np.float64) * listen_s, (pulses,))
+    counts = g.poisson(mean)
     pulse = np.repeat(np.arange(pulses), counts)
     draws = g.random((len(pulse), 2))
     time_s = draws[:, 0] * listen_s
-    peak_w = threshold_w - sigma_n_w**2 / threshold_w * np.log1p(-draws[:, 1])
+    sigma = np.broadcast_to(np.asarray(sigma_n_w, dtype=np.float64), (pulses,))[pulse]
+    peak_w = threshold_w - sigma**2 / threshold_w * np.log1p(-draws[:, 1])
     return pulse, time_s, peak_w

@@ -62,6 +62,17 @@ class Receiver:
     dual_when_strongest_is_last: str  # what dual mode reports beside the last return then
     reflectivity_diffuse_max: int = 0  # reported reflectivity of a 100 % diffuse target; 0: none
     reflectivity_max: int = 0  # reported reflectivity of an ideal retro-reflector; 0: none
+    # the detector's noise (issue 62; simlidar.sensor.detection); 0: a deterministic threshold
+    noise_w: float = 0.0  # sigma_0, dark and amplifier noise referred to the optical input
+    responsivity_a_w: float = 0.0  # R_0 (0: no shot noise)
+    excess_noise: float = 0.0  # F of the APD
+    bandwidth_hz: float = 0.0  # B, the receiver's noise bandwidth
+    filter_nm: float = 0.0  # the optical filter's width (sunlight's background)
+    field_sr: float = 0.0  # the receiver's field of view (sunlight's background)
+    ambient_w_m2_nm: float = 0.0  # solar spectral irradiance at the wavelength (0: night)
+    # the biaxial overlap of beam and receiver (issue 62); 0: every range seen whole
+    separation_m: float = 0.0  # between the transmitter's and the receiver's axes
+    receiver_opening_deg: float = 0.0  # the receiver's full field angle
 
     def __post_init__(self) -> None:
         # the name is a file's stem, printed in cards and errors: never a path (a dataset's
@@ -100,6 +111,19 @@ class Receiver:
                 "'second_strongest' or 'first'",
                 self.dual_when_strongest_is_last,
             )
+        for key in NOISE_KEYS + OVERLAP_KEYS:
+            value = getattr(self, key)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise key_error(where, key, "a number >= 0 (0: not modelled)", value)
+        if self.noise_w > 0.0 and self.shot_noise and self.excess_noise < 1.0:
+            raise key_error(where, "excess_noise", "F >= 1 with shot noise", self.excess_noise)
+        if (self.separation_m > 0.0) != (self.receiver_opening_deg > 0.0):
+            raise key_error(
+                where,
+                "receiver_opening_deg",
+                "both separation_m and receiver_opening_deg, or neither",
+                [self.separation_m, self.receiver_opening_deg],
+            )
         scale = (self.reflectivity_diffuse_max, self.reflectivity_max)
         if scale != (0, 0) and not 0 < scale[0] < scale[1] <= 255:
             raise key_error(
@@ -108,6 +132,41 @@ class Receiver:
                 "0 < reflectivity_diffuse_max < reflectivity_max <= 255 (or neither key)",
                 list(scale),
             )
+
+    @property
+    def shot_noise(self) -> bool:
+        """Whether the signal's and sunlight's shot noise is modelled."""
+        return self.responsivity_a_w > 0.0 and self.bandwidth_hz > 0.0
+
+    def detector(self):
+        """The receiver's noise as a :class:`simlidar.sensor.detection.Detector` (None
+        without ``noise_w``)."""
+        from simlidar.sensor.detection import Detector
+
+        if self.noise_w == 0.0:
+            return None
+        if not self.shot_noise:  # no shot noise: sigma = sigma_0 at every power
+            return Detector(1.0, 1.0, 1.0, self.noise_w, 1.0, 1.0, shot=False)
+        return Detector(
+            self.responsivity_a_w,
+            self.excess_noise,
+            self.bandwidth_hz,
+            self.noise_w,
+            self.filter_nm or 1.0,
+            self.field_sr or 1.0,
+        )
+
+
+NOISE_KEYS = (
+    "noise_w",
+    "responsivity_a_w",
+    "excess_noise",
+    "bandwidth_hz",
+    "filter_nm",
+    "field_sr",
+    "ambient_w_m2_nm",
+)
+OVERLAP_KEYS = ("separation_m", "receiver_opening_deg")
 
 
 @dataclass(frozen=True)
@@ -119,16 +178,39 @@ class Material:
     reflectance: float  # nominal; Lambertian-equivalent gain for a retro-reflector (may be > 1)
     reflectance_min: float  # a sample draws its reflectance from min..max
     reflectance_max: float
+    # how its return falls with incidence (issue 62; simlidar.sensor.angle_laws)
+    angle_law: str = "lambert"
+    roughness_deg: float = 0.0  # sigma of "oren_nayar"
+    exponent: float = 1.0  # n of "retroreflective"
+    specular: float = 0.0  # rho_s of a glossy coat's Ward lobe (0: none) ...
+    lobe_deg: float = 0.0  # ... and its width a
+
+    def angle_factor(self, cos_incidence):
+        """f(theta) of this material's law at |cos(theta)| ``cos_incidence`` (its coat's lobe
+        apart: ``specular`` x :func:`simlidar.sensor.angle_laws.specular_factor`)."""
+        from simlidar.sensor.angle_laws import angle_factor
+
+        return angle_factor(self.angle_law, cos_incidence, self.roughness_deg, self.exponent)
+
+
+_ANGLE_DEFAULTS = {
+    "angle_law": "lambert",
+    "roughness_deg": 0.0,
+    "exponent": 1.0,
+    "specular": 0.0,
+    "lobe_deg": 0.0,
+}
 
 
 _STRINGS = {"model", "manual", "dual_when_strongest_is_last"}
 _INTS = {"reflectivity_diffuse_max", "reflectivity_max"}
 _RECEIVER_KEYS = [f.name for f in fields(Receiver) if f.name != "name"]
+_OPTIONAL = _INTS | set(NOISE_KEYS) | set(OVERLAP_KEYS)
 
 
 def _receiver_values(where: str, data: dict) -> dict:
     """The file's values with their types checked: a ConfigError naming the key otherwise."""
-    check_keys(where, data, _RECEIVER_KEYS, _INTS)
+    check_keys(where, data, _RECEIVER_KEYS, _OPTIONAL)
     values = {}
     for key, value in data.items():
         if key in _STRINGS:
@@ -177,17 +259,20 @@ def checked_receiver(where: str, name: str, data) -> Receiver:
 def receiver_to_dict(receiver: Receiver) -> dict:
     """A receiver's keys as its file writes them, and its name (the inverse of
     :func:`checked_receiver`)."""
-    return asdict(receiver) | {"return_modes": list(receiver.return_modes)}
+    values = asdict(receiver) | {"return_modes": list(receiver.return_modes)}
+    # a key not modelled (0) is left out, so a receiver without them stores as before
+    return {k: v for k, v in values.items() if k not in _OPTIONAL - _INTS or v != 0.0}
 
 
 def _material(where: str, name: str, table) -> Material:
     if not isinstance(table, dict):
         raise key_error(where, f"material.{name}", "a table", table)
-    keys = {"kind", "reflectance", "reflectance_range"}
+    required = {"kind", "reflectance", "reflectance_range"}
+    keys = required | _ANGLE_DEFAULTS.keys()
     for key in table:
         if key not in keys:
             raise key_error(where, f"material.{name}.{key}", f"one of {sorted(keys)}", key)
-    for key in sorted(keys - table.keys()):
+    for key in sorted(required - table.keys()):
         raise ConfigError(f"{where}: key 'material.{name}.{key}' is missing")
     kind, nominal, span = table["kind"], table["reflectance"], table["reflectance_range"]
     if kind not in MATERIAL_KINDS:
@@ -206,7 +291,38 @@ def _material(where: str, name: str, table) -> Material:
             f"0 < min <= reflectance <= max{bound}",
             [low, nominal, high],
         )
-    return Material(name, kind, float(nominal), low, high)
+    law = _angle_law(where, name, table)
+    return Material(name, kind, float(nominal), low, high, **law)
+
+
+def _angle_law(where: str, name: str, table: dict) -> dict:
+    """A material's angle-law keys, checked (defaults: Lambert, no coat)."""
+    from simlidar.sensor.angle_laws import ANGLE_LAWS
+
+    values = {k: table.get(k, v) for k, v in _ANGLE_DEFAULTS.items()}
+    if values["angle_law"] not in ANGLE_LAWS:
+        raise key_error(
+            where, f"material.{name}.angle_law", f"one of {list(ANGLE_LAWS)}", values["angle_law"]
+        )
+    bounds = {
+        "roughness_deg": (0.0, 90.0),
+        "exponent": (0.0, 100.0),
+        "specular": (0.0, 1.0),
+        "lobe_deg": (0.0, 45.0),
+    }
+    for key, (low, high) in bounds.items():
+        value = values[key]
+        if not (finite_number(value) and low <= value <= high):
+            raise key_error(where, f"material.{name}.{key}", f"a number in [{low}, {high}]", value)
+        values[key] = float(value)
+    if (values["specular"] > 0.0) != (values["lobe_deg"] > 0.0):
+        raise key_error(
+            where,
+            f"material.{name}.lobe_deg",
+            "a lobe width with a specular coat, and neither without one",
+            [values["specular"], values["lobe_deg"]],
+        )
+    return values
 
 
 def load_materials(path: str | Path | None = None) -> tuple[dict[str, Material], dict]:
@@ -243,14 +359,17 @@ def checked_materials(where: str, data) -> tuple[dict[str, Material], dict]:
 def materials_to_dict(materials: dict[str, Material], surfaces: dict) -> dict:
     """Materials and surfaces as a materials file writes them (the inverse of
     :func:`checked_materials`)."""
-    tables = {
-        m.name: {
+    tables = {}
+    for m in materials.values():
+        tables[m.name] = {
             "kind": m.kind,
             "reflectance": m.reflectance,
             "reflectance_range": [m.reflectance_min, m.reflectance_max],
         }
-        for m in materials.values()
-    }
+        # a law's key at its default is left out, so a Lambertian file stores as before
+        for key, default in _ANGLE_DEFAULTS.items():
+            if getattr(m, key) != default:
+                tables[m.name][key] = getattr(m, key)
     return {"material": tables, "surfaces": surfaces}
 
 
@@ -304,21 +423,6 @@ def max_range_m(receiver: Receiver, reflectance, incidence_rad=0.0, extinction_p
     return low if low.ndim else float(low)
 
 
-def range_noise_m(receiver: Receiver, power_w):
-    """Range noise (1 sigma, metres) of a return of ``power_w``: sigma grows as 1/sqrt(SNR),
-    the law LISA uses (Kilic et al. 2021, ``sig = dR / sqrt(2 * snr)`` with snr = P / P_min),
-    anchored so that sigma is the manual's accuracy at the threshold (calibrated: the accuracy
-    is read as the worst case within the rated range)::
-
-        sigma = accuracy_m * sqrt(P_th / P)
-
-    Infinite where the power is not positive; power's shape."""
-    power_w = np.asarray(power_w, dtype=float)
-    positive = power_w > 0.0
-    sigma = receiver.accuracy_m * np.sqrt(receiver.threshold_w / np.where(positive, power_w, 1.0))
-    return np.where(positive, sigma, np.inf)
-
-
 def reflectivity_byte(receiver: Receiver, reflectance, retroreflective=False):
     """The calibrated reflectivity a receiver reports for a return (uint8, the arguments'
     broadcast shape). VLP-16 manual sec. 6.1 p. 32: "Diffuse reflectors report values from 0 to
@@ -349,3 +453,78 @@ def koschmieder_extinction_per_m(visibility_m):
         raise ConfigError(f"visibility_m={visibility_m.tolist()}: expected positive metres")
     alpha = -math.log(KOSCHMIEDER_CONTRAST) / visibility_m
     return alpha if alpha.ndim else float(alpha)
+
+
+def crossover_ranges(receiver: Receiver) -> tuple[float, float] | None:
+    """r_1, r_2 of the receiver's biaxial geometry (None where it has none): the beam (its
+    larger full divergence) enters the receiver's field (``receiver_opening_deg``) at r_1 and
+    lies wholly inside it from r_2, for axes ``separation_m`` apart and apertures of the
+    receiver's area (Hahner et al. 2021's R_1, R_2 formulas, their ``theory.py``; both
+    apertures taken as the receiver's)."""
+    if receiver.separation_m == 0.0:
+        return None
+    radius = math.sqrt(receiver.aperture_area_m2 / math.pi)
+    tan_t = math.tan(0.5e-3 * max(receiver.divergence_h_mrad, receiver.divergence_v_mrad))
+    tan_r = math.tan(math.radians(receiver.receiver_opening_deg) / 2.0)
+    if not tan_r > tan_t:
+        raise ConfigError(
+            f"receiver {receiver.name!r}: receiver_opening_deg={receiver.receiver_opening_deg!r} "
+            "is narrower than the beam: expected a field wider than the divergence"
+        )
+    r_1 = max(0.0, (receiver.separation_m - 2.0 * radius) / (tan_t + tan_r))
+    r_2 = receiver.separation_m / (tan_r - tan_t)
+    return r_1, r_2
+
+
+def signal_noise_w(receiver: Receiver, power_w, reflectance=0.0):
+    """sigma (W) of the noise on a received power (any shape): the detector's own, and the
+    shot noise of the signal and of the sunlight a scene of ``reflectance`` (rho f(theta),
+    the hit's; 0: sky) sends into the field of view (:mod:`simlidar.sensor.detection`); 0
+    without ``noise_w``."""
+    from simlidar.sensor.detection import background_w, noise_w
+
+    detector = receiver.detector()
+    if detector is None:
+        return np.zeros(np.shape(power_w))
+    back = background_w(
+        detector,
+        receiver.ambient_w_m2_nm,
+        reflectance,
+        receiver.aperture_area_m2,
+        receiver.optics_efficiency,
+    )
+    return noise_w(detector, power_w, back)
+
+
+def timing_noise_m(receiver: Receiver, power_w, sigma_w):
+    """Range noise (1 sigma, m) of a return of ``power_w`` measured with noise ``sigma_w``:
+    the timing jitter of a pulse's edge, noise over slope (the textbook relation sigma_t =
+    sigma_n / (dV/dt), e.g. Spieler, *Semiconductor Detector Systems*, Oxford 2005, on timing
+    measurements; not read here), for the Gaussian pulse's steepest
+    slope S / (sigma_p sqrt(e)), sigma_t = sigma_p sqrt(e) sigma / S, in quadrature with the
+    manual's accuracy as the floor (calibrated: the accuracy read as what remains at high
+    SNR)::
+
+        sigma_R = sqrt(accuracy^2 + (c sigma_t / 2)^2)
+
+    Infinite where the power is not positive; the arguments' broadcast shape."""
+    from simlidar.sensor.waveform import pulse_sigma_ns
+
+    power = np.asarray(power_w, dtype=float)
+    positive = power > 0.0
+    sigma_t_ns = (
+        pulse_sigma_ns(receiver.pulse_width_ns)
+        * math.sqrt(math.e)
+        * np.asarray(sigma_w)
+        / np.where(positive, power, 1.0)
+    )
+    jitter_m = 0.5 * 0.299792458 * sigma_t_ns
+    return np.where(positive, np.sqrt(receiver.accuracy_m**2 + jitter_m**2), np.inf)
+
+
+def apparent_reflectance(receiver: Receiver, power_w, range_m):
+    """The reflectance a return's power reads as, compensated for range as a unit calibrates
+    its intensity (not for incidence or the air, which it cannot know): P pi R^2 / (P_0 A_r
+    eta); broadcast shape."""
+    constant = receiver.peak_power_w * receiver.aperture_area_m2 * receiver.optics_efficiency
+    return np.asarray(power_w, dtype=float) * math.pi * np.asarray(range_m) ** 2 / constant

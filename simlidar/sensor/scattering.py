@@ -298,7 +298,24 @@ def rain_optics(atmosphere: Atmosphere, rate_mm_h: float, wavelength_nm: float) 
 
 
 def drop_backscatter_efficiency(diameter_mm, wavelength_nm: float) -> np.ndarray:
-    """Q_back of drops of these diameters (their cells' means), diameter's shape."""
+    """Q_back of drops of these diameters (their cells' means; a drop beyond the table's
+    largest, 6 mm at 903 nm, larger than rain drops stay whole, takes its last cell), the
+    diameters' shape."""
     table = load_table(band_of(wavelength_nm))
     x = math.pi * np.asarray(diameter_mm, dtype=np.float64) * 1e-3 / (wavelength_nm * 1e-9)
-    return table.q_back[table.cell(x)]
+    return table.q_back[table.cell(np.clip(x, table.edges[0], table.edges[-1]))]
+
+
+DEFAULT_FOG = "advection"  # the fog a visibility means unless said (choice: see water.toml)
+
+
+@lru_cache(maxsize=256)
+def fog_coefficients(visibility_m: float, wavelength_nm: float, fog: str = DEFAULT_FOG) -> Optics:
+    """:func:`fog_optics` of the shipped fog ``fog`` (cached)."""
+    return fog_optics(load_atmosphere().fogs[fog], visibility_m, wavelength_nm)
+
+
+@lru_cache(maxsize=256)
+def rain_coefficients(rate_mm_h: float, wavelength_nm: float) -> Optics:
+    """:func:`rain_optics` of the shipped Marshall-Palmer rain (cached)."""
+    return rain_optics(load_atmosphere(), rate_mm_h, wavelength_nm)

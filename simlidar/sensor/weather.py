@@ -83,9 +83,10 @@ def backscatter_per_m_sr(visibility_m: float) -> float:
     return BACKSCATTER_TIMES_MOR / visibility_m
 
 
-def crossover(range_m):
-    """xi(R): the share of the beam the receiver sees at range R (linear from r_1 to r_2)."""
-    low, high = CROSSOVER_M
+def crossover(range_m, ranges: tuple[float, float] = CROSSOVER_M):
+    """xi(R): the share of the beam the receiver sees at range R (linear from r_1 to r_2,
+    ``ranges``; Hahner et al.'s geometry by default)."""
+    low, high = ranges
     return np.clip((np.asarray(range_m, dtype=float) - low) / (high - low), 0.0, 1.0)
 
 
@@ -141,6 +142,8 @@ def fog_table(
     sigma_ns: float,
     bin_ns: float,
     max_range_m: float,
+    backscatter: float | None = None,
+    crossover_m: tuple[float, float] = CROSSOVER_M,
 ) -> FogTable | None:
     """The fog's waveform table (:class:`FogTable`) for a receiver and a fog; None where even
     unblocked it never reaches ``FLOOR`` x the threshold.
@@ -154,12 +157,15 @@ def fog_table(
     sigma_ns : the Gaussian pulse's sigma (ns; :func:`simlidar.sensor.waveform.pulse_sigma_ns`)
     bin_ns : the waveform's bin (ns; :data:`simlidar.sensor.waveform.BIN_NS`)
     max_range_m : the sensor's range (m): the slabs reach no further
+    backscatter : beta (1 / (m sr)); None: Hahner et al.'s 0.046 / V
+    crossover_m : the receiver's r_1, r_2 (Hahner et al.'s geometry by default)
     """
-    beta = backscatter_per_m_sr(visibility_m)
+    beta = backscatter_per_m_sr(visibility_m) if backscatter is None else backscatter
     constant = peak_power_w * aperture_area_m2 * optics_efficiency * beta
-    start = CROSSOVER_M[0]
+    start = max(crossover_m[0], SLAB_M)
     centres = start + (np.arange(int((max_range_m - start) / SLAB_M)) + 0.5) * SLAB_M
-    density = crossover(centres) * np.exp(-2.0 * extinction_per_m * centres) / centres**2
+    density = crossover(centres, crossover_m) * np.exp(-2.0 * extinction_per_m * centres)
+    density = density / centres**2
     slab_w = constant * density * SLAB_M  # each slab's echo, a Gaussian pulse of this peak
     # the unblocked fog's waveform is at most the slabs within a pulse's reach summed
     reach = int(math.ceil(4.0 * sigma_ns * C_M_PER_NS / 2.0 / SLAB_M))
@@ -228,6 +234,7 @@ class Rain:
     smallest_mm: float
     mean_per_pulse: float
     nearest_m: float  # the crossover's r_1: no drop nearer is seen
+    crossover_m: tuple[float, float] = CROSSOVER_M
 
     def draw(self, g: np.random.Generator, pulses: int):
         """One sample's drops in its ``pulses`` beams: (pulse index, range m, diameter mm),
@@ -247,7 +254,23 @@ class Rain:
         r = np.asarray(range_m, dtype=float)
         d_m = np.asarray(diameter_mm, dtype=float) * 1e-3
         share = np.minimum(d_m**2 / (self.solid_angle * r**2), 1.0)
-        return self.full_w * share * crossover(r) * np.exp(-2.0 * extinction_per_m * r) / r**2
+        seen = crossover(r, self.crossover_m)
+        return self.full_w * share * seen * np.exp(-2.0 * extinction_per_m * r) / r**2
+
+
+def drop_reflectance(diameter_mm, wavelength_nm: float):
+    """What Mie theory would make a drop's reflectance in the range equation of a small target
+    covering D^2 / (theta_h theta_v r^2) of the beam (LISA's share): pi Q_back / 16, Q_back
+    the backscattering efficiency of a water sphere at the wavelength
+    (:func:`simlidar.sensor.scattering.drop_backscatter_efficiency`). A point scatterer of
+    backscatter cross-section sigma_b = Q_back pi D^2 / 4 returns P_0 A_r eta sigma_b / (4 pi
+    Omega r^4) of a beam of solid angle Omega; the share's range equation, P_0 A_r eta rho D^2
+    / (pi Omega r^4), equals it at rho = pi Q_back / 16. Not used for the drops' echoes (they
+    keep water's Fresnel reflectance: docs/sensor-model.md, "Rain"); the sensor sheet shows
+    it."""
+    from simlidar.sensor.scattering import drop_backscatter_efficiency
+
+    return math.pi * drop_backscatter_efficiency(diameter_mm, wavelength_nm) / 16.0
 
 
 def rain(
@@ -258,6 +281,7 @@ def rain(
     divergence_h_mrad: float,
     divergence_v_mrad: float,
     rate_mm_h: float,
+    crossover_m: tuple[float, float] = CROSSOVER_M,
 ) -> Rain | None:
     """The rain (:class:`Rain`) a receiver sees at rate R (mm/h); None for no rain.
 
@@ -269,6 +293,7 @@ def rain(
         the scan (mrad), theta_h and theta_v: a drop of diameter D at range r covers
         min(D^2 / (theta_h theta_v r^2), 1) of the beam
     rate_mm_h : the rain's rate R (mm/h; 0 or below: no rain)
+    crossover_m : the receiver's r_1, r_2 (Hahner et al.'s geometry by default)
     """
     from scipy.special import gamma, gammaincc
 
@@ -281,7 +306,8 @@ def rain(
     solid = divergence_h_mrad * 1e-3 * divergence_v_mrad * 1e-3
     # drop_w D_m^2 / r^4 >= FLOOR threshold  <=>  r <= (drop_w 1e-6 D_mm^2 / (FLOOR th))^(1/4)
     reach = (full_w / solid * 1e-6 / (RAIN_FLOOR * threshold_w)) ** 0.25
-    smallest = (CROSSOVER_M[0] / reach) ** 2
+    nearest = max(crossover_m[0], 0.05)
+    smallest = (nearest / reach) ** 2
     moment = gamma(_GAMMA_SHAPE) * gammaincc(_GAMMA_SHAPE, slope * smallest) / slope**_GAMMA_SHAPE
     mean = math.pi / 12.0 * solid * RAIN_N0_PER_M3_MM * reach**3 * moment
-    return Rain(rate_mm_h, slope, full_w, solid, reach, smallest, float(mean), CROSSOVER_M[0])
+    return Rain(rate_mm_h, slope, full_w, solid, reach, smallest, float(mean), nearest, crossover_m)

@@ -1,5 +1,5 @@
 """Beam footprints and return modes in generated datasets (issue 41): one ray a pulse through
-the waveform gives the 4.0.0 records exactly, a footprint keeps the scenes and adds echoes,
+the waveform gives the single ray's records exactly, a footprint keeps the scenes and adds echoes,
 the dual mode stores the manual's two returns, the same seed gives the same bytes whatever the
 batches and workers, and a wrong option is one line."""
 
@@ -30,24 +30,34 @@ def made(tmp_path_factory, sensor_dataset):
 
 
 def test_one_ray_through_the_waveform_gives_the_single_rays_records(made, read_split):
-    """A lone Gaussian's fitted peak is the ray's own time and power, so every per-pixel field
-    of the last and dual modes is 4.0.0's, bit for bit."""
+    """A lone Gaussian's fitted peak is the ray's own time and power, and both paths draw the
+    same noise in the same order (the measurement, the false alarms, then the range noise), so
+    every per-pixel field of the last and dual modes is the single ray's, bit for bit, but
+    where the noise raised a false alarm (a second echo the modes may report otherwise)."""
     base, attrs = read_split(made["one ray"])
-    assert made["one ray"].name == "simlidar-32c-noise0.1-sensor-v4.0.0"
+    assert made["one ray"].name == "simlidar-32c-noise0.1-sensor-v5.0.0"
     assert "return_mode" not in attrs and "echoes" not in base
     for name in ("one ray, dual", "one ray, last"):
         data, attrs = read_split(made[name])
-        assert made[name].name.endswith(f"-sensor-{attrs['return_mode']}-v4.1.0")
+        assert made[name].name.endswith(f"-sensor-{attrs['return_mode']}-v5.0.0")
+        alarm = (data["echoes"] >= 2) | ((data["surface"] == 0) & ~np.isnan(data["tof_ns"]))
+        assert alarm.mean() < 1e-3
         for field in PIXELS + SCENE:
-            assert np.array_equal(data[field], base[field], equal_nan=True), (name, field)
-        assert set(np.unique(data["echoes"])) <= {0, 1}  # one ray: at most one echo
-        assert np.array_equal(data["echoes"] == 1, ~np.isnan(base["tof_ns"]))
+            ours, theirs = data[field], base[field]
+            if ours.shape == alarm.shape:
+                ours, theirs = ours[~alarm], theirs[~alarm]
+            assert np.array_equal(ours, theirs, equal_nan=True), (name, field)
+        assert set(np.unique(data["echoes"][~alarm])) <= {0, 1}  # one ray: one echo
+        assert np.array_equal((data["echoes"] == 1)[~alarm], ~np.isnan(base["tof_ns"])[~alarm])
     dual, _ = read_split(made["one ray, dual"])
     assert dual["returns_tof_ns"].shape == base["tof_ns"].shape + (2,)
+    one = dual["echoes"] <= 1
     for field in ("returns_tof_ns", "returns_intensity", "returns_surface"):
         # one echo is reported twice (the manual: the block pairs are then identical)
-        assert np.array_equal(dual[field][..., 0], dual[field][..., 1], equal_nan=True)
-    assert np.array_equal(dual["returns_tof_ns"][..., 0], base["tof_ns"], equal_nan=True)
+        pair = dual[field][one]
+        assert np.array_equal(pair[..., 0], pair[..., 1], equal_nan=True)
+    got = dual["returns_tof_ns"][..., 0][one]
+    assert np.array_equal(got, base["tof_ns"][one], equal_nan=True)
 
 
 def test_a_footprint_keeps_the_scenes_and_reports_the_first_return(made, read_split):
@@ -56,7 +66,7 @@ def test_a_footprint_keeps_the_scenes_and_reports_the_first_return(made, read_sp
     base, _ = read_split(made["one ray"])
     data, attrs = read_split(made["footprint, dual"])
     assert attrs["beam_samples"] == 2 and attrs["return_mode"] == "dual"
-    assert made["footprint, dual"].name == "simlidar-32c-noise0.1-sensor-beam2-dual-v4.1.0"
+    assert made["footprint, dual"].name == "simlidar-32c-noise0.1-sensor-beam2-dual-v5.0.0"
     for field in SCENE:
         assert np.array_equal(data[field], base[field], equal_nan=True), field
     returns = data["returns_tof_ns"]
@@ -68,7 +78,8 @@ def test_a_footprint_keeps_the_scenes_and_reports_the_first_return(made, read_sp
     assert two.any()
     assert (returns[two][:, 0] != returns[two][:, 1]).all()
     assert (returns[two][:, 0] > returns[two][:, 1]).all()  # the last first, as the manual
-    assert (data["returns_intensity"][~np.isnan(returns)] > 0).all()
+    # a weak return near the sensor can read 0 (under 0.5 % apparent), as KITTI's do
+    assert (data["returns_intensity"][~np.isnan(returns)] > 0).mean() > 0.95
     same = ~np.isnan(data["tof_ns"]) & ~two
     agree = np.isclose(data["tof_ns"][same], base["tof_ns"][same], atol=1.0)  # within 15 cm
     assert agree.mean() > 0.95

@@ -62,7 +62,7 @@ def test_fog_distributions_by_hand():
     assert np.sum(fog.density(r)) * (r[1] - r[0]) == pytest.approx(fog.number_per_cm3, rel=1e-4)
 
 
-@pytest.mark.parametrize("name", ["advection", "radiation"])
+@pytest.mark.parametrize("name", ["advection", "moderate_advection", "chu_hogg"])
 def test_fog_visibility_sets_its_extinction_and_backscatter_scales_with_it(name):
     """At 550 nm a fog's extinction is ln(20) / V by construction; at 903 nm the drops (far
     larger than the wavelength) take within 5 % of it; alpha and beta scale as 1 / V, and the

@@ -18,11 +18,11 @@ SIGMA = pulse_sigma_ns(RECEIVER.pulse_width_ns)
 C = weather.C_M_PER_NS
 
 
-def _table(visibility_m, max_range_m=100.0):
+def _table(visibility_m, max_range_m=100.0, crossover_m=None):
     return weather.fog_table(
         RECEIVER.peak_power_w, RECEIVER.aperture_area_m2, RECEIVER.optics_efficiency,
         RECEIVER.threshold_w, visibility_m, koschmieder_extinction_per_m(visibility_m),
-        SIGMA, BIN_NS, max_range_m,
+        SIGMA, BIN_NS, max_range_m, None, crossover_m or weather.CROSSOVER_M,
     )  # fmt: skip
 
 
@@ -79,19 +79,19 @@ def test_thin_fog_is_too_faint_to_tabulate():
     assert _table(1e6) is None
 
 
-def test_the_fogs_echo_joins_the_modes(monkeypatch):
+def test_the_fogs_echo_joins_the_modes():
     """With Hahner et al.'s slider crossover (0.9 to 1.0 m) fog of 50 m visibility echoes near
-    1.2 m, stronger than a dark surface at 20 m: strongest reports the fog, last the surface,
-    dual both; with the generator's crossover the fog's echo stays under the threshold and the
-    surface is all a pulse reports."""
+    1.3 m (the 5 ns pulse), stronger than a dark surface at 20 m: strongest reports the fog,
+    last the surface, dual both; with Hahner et al.'s default geometry (1.67 to 7.64 m) and
+    their backscatter 0.046 / V the fog's echo stays under the threshold and the surface is
+    all a pulse reports."""
     t_hard = 2 * 20.0 / C
     hard_w = 5 * RECEIVER.threshold_w
     for crossover, expected in (
-        ((0.9, 1.0), {"strongest": [1.2], "last": [20.0], "dual": [20.0, 1.2]}),
+        ((0.9, 1.0), {"strongest": [1.3], "last": [20.0], "dual": [20.0, 1.3]}),
         (weather.CROSSOVER_M, {"strongest": [20.0], "last": [20.0], "dual": [20.0, 20.0]}),
     ):
-        monkeypatch.setattr(weather, "CROSSOVER_M", crossover)
-        table = _table(50.0)
+        table = _table(50.0, crossover_m=crossover)
         columns = table.column(np.array([20.0]))
         echo = echoes(np.array([[t_hard]]), np.array([[hard_w]]), SIGMA, BIN_NS, table, columns)
         for mode, ranges in expected.items():
