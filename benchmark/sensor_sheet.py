@@ -193,7 +193,7 @@ def sheet(result: dict, ref: dict) -> dict:
     curves = {
         "road_range_m": ranges.tolist(),
         "road_calibrated": road_share(
-            hdl, hdl_sensitivity(hdl), result["roughness_deg"], ranges, road["mount_height_m"]
+            hdl, sensitivity_of(hdl), result["roughness_deg"], ranges, road["mount_height_m"]
         ).tolist(),
         "road_before": old_share(
             OLD_SENSITIVITY["hdl64e"], ranges, road["mount_height_m"]
@@ -204,7 +204,7 @@ def sheet(result: dict, ref: dict) -> dict:
     curves["vlp16_ring_elevation_deg"] = VLP16_ELEVATIONS.tolist()
     curves["vlp16_ring_range_m"] = ring_m.tolist()
     curves["vlp16_ring_calibrated"] = road_share(
-        vlp, hdl_sensitivity(vlp), result["roughness_deg"], ring_m, mount
+        vlp, sensitivity_of(vlp), result["roughness_deg"], ring_m, mount
     ).tolist()
     curves["vlp16_ring_before"] = old_share(OLD_SENSITIVITY["vlp16"], ring_m, mount).tolist()
     visibilities = [200.0, 100.0, 50.0, 30.0]
@@ -364,7 +364,7 @@ def weather_shares() -> list[dict]:
     return shares
 
 
-def hdl_sensitivity(receiver) -> float:
+def sensitivity_of(receiver) -> float:
     """A shipped receiver's sensitivity K / T (m^2)."""
     return constant_w(receiver) / receiver.threshold_w
 
@@ -389,7 +389,7 @@ def draw(result: dict, ref: dict, made: dict, path: Path) -> None:
     rho = np.geomspace(0.02, 1.0, 100)
     for name, colour in (("hdl64e", "C0"), ("vlp16", "C1")):
         receiver = load_receiver(name)
-        ax[0, 0].plot(rho, np.sqrt(hdl_sensitivity(receiver) * rho), "-", color=colour,
+        ax[0, 0].plot(rho, np.sqrt(sensitivity_of(receiver) * rho), "-", color=colour,
                       label=f"{name}, calibrated")  # fmt: skip
         ax[0, 0].plot(rho, np.sqrt(OLD_SENSITIVITY[name] * rho), ":", color=colour,
                       label=f"{name}, before")  # fmt: skip
