@@ -14,10 +14,11 @@ receiver"; with a beam footprint, a return mode or weather, through each pulse's
    f(theta) of its surface (:func:`effective_reflectance`), the biaxial overlap and the
    atmosphere's two-way extinction (``--fog``, ``--rain``; clear air: 0);
 3. the peak is measured with the detector's noise and detected where it reaches the threshold
-   (a drop-out otherwise); the noise's own false alarms (:func:`_false_alarms`) are echoes of
-   surface 0; a return moves by the edge's timing jitter over the accuracy floor
-   (:func:`simlidar.sensor.receiver.timing_noise_m`) and is quantised to the sensor's
-   resolution as every return is (a return moved out of the sensor's range is no return);
+   (a drop-out otherwise); the noise's own false alarms are echoes of surface 0
+   (:mod:`simlidar.generator.measurement`); a return moves by the edge's timing jitter over
+   the accuracy floor (:func:`simlidar.sensor.receiver.timing_noise_m`) and is quantised to
+   the sensor's resolution as every return is (a return moved out of the sensor's range is
+   no return);
 4. the sensor's reflectivity byte (``intensity``) of each return, from its measured peak,
    range-compensated.
 
@@ -42,19 +43,25 @@ import numpy as np
 
 from simlidar.content import content_dir
 from simlidar.errors import ConfigError
+from simlidar.generator.measurement import (
+    ECHOES_MEASURED,
+    false_alarm_echoes,
+    fog_backscatter,
+    measure_peaks,
+    measured_echoes,
+    reflectivity,
+)
 from simlidar.generator.pulses import quantise_range
 from simlidar.sensor.model import SPEED_OF_LIGHT_M_PER_S, Sensor, tof_ns
 from simlidar.sensor.receiver import (
     Material,
     Receiver,
-    apparent_reflectance,
     crossover_ranges,
     load_materials,
     load_receiver,
     materials_to_dict,
     received_power_w,
     receiver_to_dict,
-    reflectivity_byte,
     signal_noise_w,
     timing_noise_m,
 )
@@ -319,10 +326,10 @@ def receive(
     shape = power.shape + (ECHOES_MEASURED,)
     padded = np.zeros(shape)
     padded[..., 0] = power  # one echo a pulse: the first of the draws measures it
-    measured = _measured(receiver, streams, padded, np.broadcast_to(rho[..., None], shape))
+    measured = measure_peaks(receiver, streams, padded, np.broadcast_to(rho[..., None], shape))
     measured = measured[..., 0]
     seen = hit & (measured >= receiver.threshold_w)
-    alarm_m, alarm_w = _false_alarms(receiver, streams, sensor, rho)
+    alarm_m, alarm_w = false_alarm_echoes(receiver, streams, sensor, rho)
     z = np.stack([g.standard_normal(range_m.shape[1:]) for g in streams])  # (n, H, W)
     alarm = ~np.isnan(alarm_m) & (~seen | (alarm_w > measured))  # the strongest echo reported
     centre = np.where(alarm, alarm_m, np.where(seen, safe_m, np.nan))
@@ -333,7 +340,7 @@ def receive(
     returned_m = quantise_range(np.where(found, centre + sigma * z, np.nan), sensor)
     returned = ~np.isnan(returned_m)
     intensity = np.where(
-        returned, _reflectivity(receiver, peak, np.nan_to_num(returned_m), retro & ~alarm), 0
+        returned, reflectivity(receiver, peak, np.nan_to_num(returned_m), retro & ~alarm), 0
     )
     return Returns(
         range_m=returned_m,
@@ -344,58 +351,6 @@ def receive(
         ),
         surface=np.where(returned & ~alarm, surface, 0).astype(np.uint8),
     )
-
-
-def _measured(receiver: Receiver, streams, power_w, rho):
-    """Peak powers as the receiver measures them: ``power_w`` (n, H, W, E) plus the noise of
-    :func:`simlidar.sensor.receiver.signal_noise_w` (over the sunlight a scene of ``rho``
-    sends) times a standard normal, E a pulse from each sample's stream (drawn whatever the
-    powers, so a sample's draws never depend on its block). Without noise, the powers and no
-    draw."""
-    if receiver.noise_w == 0.0:
-        return power_w
-    sigma = signal_noise_w(receiver, power_w, rho)
-    z = np.stack([g.standard_normal(power_w.shape[1:]) for g in streams])
-    return power_w + sigma * z
-
-
-def _false_alarms(receiver: Receiver, streams, sensor: Sensor, rho):
-    """The strongest false alarm of each pulse (range m, peak W; NaN / 0: none): the noise
-    crossing the threshold while the pulse listens for 2 R_max / c, at Rice's rate for the
-    noise without signal (:mod:`simlidar.sensor.detection`), drawn from each sample's stream
-    (a Poisson count a pulse, then two uniforms an alarm). None without noise."""
-    from simlidar.sensor.detection import false_alarm_rate_hz, false_alarms
-
-    shape = rho.shape
-    if receiver.noise_w == 0.0 or not receiver.bandwidth_hz > 0.0:
-        return np.full(shape, np.nan), np.zeros(shape)
-    listen_s = 2.0 * sensor.max_range_m / SPEED_OF_LIGHT_M_PER_S
-    detector = receiver.detector()
-    quiet = signal_noise_w(receiver, np.zeros(shape), rho)  # sigma_n, the pulse's background
-    rate = false_alarm_rate_hz(detector, receiver.threshold_w, quiet)
-    range_m, peak_w = np.full(shape, np.nan), np.zeros(shape)
-    pixels = int(np.prod(shape[1:]))
-    for i, g in enumerate(streams):
-        pulse, time_s, height = false_alarms(
-            g, pixels, rate[i].ravel(), listen_s, receiver.threshold_w, quiet[i].ravel()
-        )
-        strongest = np.zeros(pixels)
-        np.maximum.at(strongest, pulse, height)
-        keep = height == strongest[pulse]
-        r, w = np.full(pixels, np.nan), np.zeros(pixels)
-        r[pulse[keep]] = time_s[keep] * SPEED_OF_LIGHT_M_PER_S / 2.0
-        w[pulse[keep]] = height[keep]
-        range_m[i], peak_w[i] = r.reshape(shape[1:]), w.reshape(shape[1:])
-    return range_m, peak_w
-
-
-def _reflectivity(receiver: Receiver, peak_w, range_m, retroreflective):
-    """The reflectivity byte of returns of measured peak ``peak_w`` at ``range_m``: the
-    apparent reflectance (range-compensated, :func:`simlidar.sensor.receiver.apparent_reflectance`)
-    on the sensor's scale, a retro-reflector's (and any echo brighter than a white diffuse
-    target) on its retro-reflective range."""
-    apparent = apparent_reflectance(receiver, np.maximum(peak_w, 0.0), range_m)
-    return reflectivity_byte(receiver, apparent, retroreflective | (apparent > 1.0))
 
 
 def receive_beams(
@@ -421,7 +376,7 @@ def receive_beams(
        (:func:`simlidar.sensor.footprint.footprint`);
     2. the pulse's waveform is their sum of Gaussian pulses, its echoes the waveform's peaks
        (:func:`simlidar.sensor.waveform.echoes`), measured with the detector's noise and
-       joined by the pulse's strongest false alarm (:func:`_measured_echoes`), detected at the
+       joined by the pulse's strongest false alarm (:func:`measured_echoes`), detected at the
        receiver's threshold;
     3. the mode picks the reported returns among them (:func:`simlidar.sensor.waveform.reported`);
        each reported return moves by the timing jitter of its own measured peak (one standard
@@ -486,7 +441,7 @@ def receive_beams(
             all_times, all_power, sigma_ns, waveform_bin_ns, waveform_bins, fog, columns
         ).reshape(n, rows, cols, waveform_bins)
     pixel_rho = rho.reshape(-1, subrays)[:, 0]  # the background's scene: the axis's hit
-    echo = _measured_echoes(receiver, streams, sensor, echo, pixel_rho, (rows, cols))
+    echo = measured_echoes(receiver, streams, sensor, echo, pixel_rho, (rows, cols))
     z = np.stack([g.standard_normal((reports, rows, cols)) for g in streams])  # (n, R, H, W)
     z = np.moveaxis(z, 1, -1)  # (n, H, W, R)
     if waveform_bins and receiver.noise_w > 0.0:  # the stored waveform's noise, bin by bin
@@ -530,7 +485,7 @@ def receive_beams(
     returned_m = quantise_range(np.where(found, centre_m + sigma_m * noise, np.nan), sensor)
     returned = ~np.isnan(returned_m)
     intensity = np.where(
-        returned, _reflectivity(receiver, peak_w, np.nan_to_num(returned_m), main_retro), 0
+        returned, reflectivity(receiver, peak_w, np.nan_to_num(returned_m), main_retro), 0
     )
     labels = np.where(returned, main_surface, 0)
     first = np.argmin(np.where(returned, returned_m, np.inf), axis=1)[:, None]
@@ -564,54 +519,6 @@ def receive_beams(
         returns_surface=labels.reshape(shape + (reports,)).astype(np.uint8),
         waveform=stored,
     )
-
-
-ECHOES_MEASURED = 4  # a pulse's strongest echoes measured with noise (see _measured_echoes)
-
-
-def fog_backscatter(visibility_m: float, wavelength_nm: float) -> float:
-    """beta (1 / (m sr)) of the fog of visibility V at the receiver's wavelength: Mie theory
-    over the shipped fog's drops (:func:`simlidar.sensor.scattering.fog_coefficients`)."""
-    from simlidar.sensor.scattering import fog_coefficients
-
-    return fog_coefficients(visibility_m, wavelength_nm).backscatter_per_m_sr
-
-
-def _measured_echoes(receiver: Receiver, streams, sensor: Sensor, echo, rho, pixels_shape):
-    """The echoes of a block of pulses as the receiver measures them: each pulse's
-    ``ECHOES_MEASURED`` strongest peaks plus noise (:func:`_measured`: that many standard
-    normals a pulse, so a sample's draws do not depend on its block; a further echo of a pulse,
-    weaker than four others, keeps its noiseless peak), and the pulse's strongest false alarm
-    (:func:`_false_alarms`) as one more echo. ``rho`` (P,): the scene's rho f(theta) behind
-    each pulse, for the sunlight's noise. Without noise, ``echo`` itself."""
-    if receiver.noise_w == 0.0:
-        return echo
-    n = len(streams)
-    power = np.nan_to_num(echo.power_w, nan=-np.inf)
-    order = np.argsort(-power, axis=1, kind="stable")[:, :ECHOES_MEASURED]
-    top = np.take_along_axis(power, order, axis=1)
-    top = np.pad(top, ((0, 0), (0, ECHOES_MEASURED - top.shape[1])), constant_values=-np.inf)
-    alive = np.isfinite(top)
-    shape = (n, *pixels_shape, ECHOES_MEASURED)
-    measured = _measured(
-        receiver, streams, np.where(alive, top, 0.0).reshape(shape),
-        np.broadcast_to(rho.reshape(n, *pixels_shape)[..., None], shape),
-    )  # fmt: skip
-    measured = measured.reshape(-1, ECHOES_MEASURED)
-    new_power = echo.power_w.copy()
-    rows = np.arange(len(power))[:, None]
-    columns = order.shape[1]
-    new_power[rows, order] = np.where(alive[:, :columns], measured[:, :columns], np.nan)
-    alarm_m, alarm_w = _false_alarms(receiver, streams, sensor, rho.reshape(n, *pixels_shape))
-    alarm_ns, alarm_w = tof_ns(alarm_m.ravel()), alarm_w.ravel()
-    times = np.hstack([echo.time_ns, alarm_ns[:, None]])
-    powers = np.hstack([new_power, np.where(np.isnan(alarm_ns), np.nan, alarm_w)[:, None]])
-    # each pulse's echoes in time order again, NaN last
-    key = np.where(np.isnan(times), np.inf, times)
-    again = np.argsort(key, axis=1, kind="stable")
-    times = np.take_along_axis(times, again, axis=1)
-    powers = np.take_along_axis(powers, again, axis=1)
-    return type(echo)(times, powers, (~np.isnan(times)).sum(axis=1))
 
 
 def _drop_echoes(drops: Rain, streams, pixels: int, axis_m: np.ndarray, extinction_per_m: float):
