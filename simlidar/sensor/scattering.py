@@ -297,15 +297,6 @@ def rain_optics(atmosphere: Atmosphere, rate_mm_h: float, wavelength_nm: float) 
     return _integrals(d_mm * 1e-3, per_m, wavelength_nm)
 
 
-def drop_backscatter_efficiency(diameter_mm, wavelength_nm: float) -> np.ndarray:
-    """Q_back of drops of these diameters (their cells' means; a drop beyond the table's
-    largest, 6 mm at 903 nm, larger than rain drops stay whole, takes its last cell), the
-    diameters' shape."""
-    table = load_table(band_of(wavelength_nm))
-    x = math.pi * np.asarray(diameter_mm, dtype=np.float64) * 1e-3 / (wavelength_nm * 1e-9)
-    return table.q_back[table.cell(np.clip(x, table.edges[0], table.edges[-1]))]
-
-
 DEFAULT_FOG = "advection"  # the fog a visibility means unless said (choice: see water.toml)
 
 

@@ -258,21 +258,6 @@ class Rain:
         return self.full_w * share * seen * np.exp(-2.0 * extinction_per_m * r) / r**2
 
 
-def drop_reflectance(diameter_mm, wavelength_nm: float):
-    """What Mie theory would make a drop's reflectance in the range equation of a small target
-    covering D^2 / (theta_h theta_v r^2) of the beam (LISA's share): pi Q_back / 16, Q_back
-    the backscattering efficiency of a water sphere at the wavelength
-    (:func:`simlidar.sensor.scattering.drop_backscatter_efficiency`). A point scatterer of
-    backscatter cross-section sigma_b = Q_back pi D^2 / 4 returns P_0 A_r eta sigma_b / (4 pi
-    Omega r^4) of a beam of solid angle Omega; the share's range equation, P_0 A_r eta rho D^2
-    / (pi Omega r^4), equals it at rho = pi Q_back / 16. Not used for the drops' echoes (they
-    keep water's Fresnel reflectance: docs/sensor-model.md, "Rain"); the sensor sheet shows
-    it."""
-    from simlidar.sensor.scattering import drop_backscatter_efficiency
-
-    return math.pi * drop_backscatter_efficiency(diameter_mm, wavelength_nm) / 16.0
-
-
 def rain(
     peak_power_w: float,
     aperture_area_m2: float,
