@@ -15,6 +15,15 @@ in the same run.
 3. **Whole files.** :func:`simlidar.generator.stream_files.generate_streams` writing a dataset
    of ``--streams`` train and a quarter as many test streams (no preview): streams a minute,
    the HDF5 writing, card and checksums included.
+4. **Through the receiver.** The same streams through the calibrated receiver (``--profile
+   sensor``) in clear air, fog of 50 m visibility and rain of 50 mm/h, the same way: streams a
+   minute, and what the receiver made of them against the streams without one (the same
+   scenes): events a stream, the share that are the weather's or the noise's echoes (surface
+   0), the share of the object's hits detected, and the objects it never detected.
+
+``--doc FILE`` puts the table between FILE's lines ``<!-- stream-speed:start -->`` and
+``<!-- stream-speed:end -->`` (docs/streams.md); ``--from-json FILE`` writes it from committed
+figures without measuring.
 
 The process pins itself to one CPU before numpy and Embree start their thread pools and
 measures CPU time (the machine is shared: a wall clock would count the others' work).
@@ -30,6 +39,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import json  # noqa: E402
 import statistics  # noqa: E402
+import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -41,6 +51,17 @@ from simlidar.generator.stream_config import StreamConfig  # noqa: E402
 from simlidar.generator.stream_files import generate_streams  # noqa: E402
 from simlidar.scene.recipe import load_catalog  # noqa: E402
 from simlidar.script_args import in_folder, integers, run  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import reproduction_table  # noqa: E402
+
+DOC_START, DOC_END = "<!-- stream-speed:start -->", "<!-- stream-speed:end -->"
+# the receiver's conditions measured: (name, StreamConfig's fields)
+RECEIVER_RUNS = (
+    ("clear air", {"profile": "sensor"}),
+    ("fog, V = 50 m", {"profile": "sensor", "fog_visibility_m": 50.0}),
+    ("rain, 50 mm/h", {"profile": "sensor", "rain_rate_mm_h": 50.0}),
+)
 from simlidar.sensor.moving import OBJECT_CELLS  # noqa: E402
 
 
@@ -88,6 +109,11 @@ def measure(streams: int, repeats: int, batch: int) -> dict:
                                                    test_size=max(4, streams // 4),
                                                    progress=False, preview=False))  # fmt: skip
     written = streams + max(4, streams // 4)
+    receiver = {
+        name: _received(StreamConfig(train_size=streams, test_size=max(4, streams // 4), **more),
+                        catalog, batches, repeats, batch)
+        for name, more in RECEIVER_RUNS
+    }  # fmt: skip
     us_stream = stream_s / pulses * 1e6
     us_window = window_s / window_pulses * 1e6
     return {
@@ -105,7 +131,69 @@ def measure(streams: int, repeats: int, batch: int) -> dict:
         "files_cpu_s": files_s,
         "files_streams_per_min": written / files_s * 60.0,
         "target_streams_per_min": 1000,
+        "receiver": receiver,
     }
+
+
+def _received(config: StreamConfig, catalog, plain: list, repeats: int, batch: int) -> dict:
+    """Streams through ``config``'s receiver: their speed, and what the receiver made of the
+    hits of ``plain`` (the same streams without one)."""
+    streams = config.train_size
+
+    def streams_run():
+        return [simulate_streams(config, catalog, "train", s, min(s + batch, streams))
+                for s in range(0, streams, batch)]  # fmt: skip
+
+    seconds, batches = _rounds(streams_run, repeats)
+    events = sum(int(b.event_count.sum()) for b in batches)
+    echoes = sum(int((b.event_surface == 0).sum()) for b in batches)
+    hits = sum(int(b.object_events.sum()) for b in plain)
+    seen = sum(int(b.object_events.sum()) for b in batches)
+    objects = sum(int((b.object != 0).sum()) for b in batches)
+    unseen = sum(int(((b.object != 0) & (b.object_events == 0)).sum()) for b in batches)
+    return {
+        "simulate_cpu_s": seconds,
+        "simulate_streams_per_min": streams / seconds * 60.0,
+        "events_a_stream": events / streams,
+        "echo_share": echoes / events,
+        "object_hits_detected": seen / hits,
+        "objects": objects,
+        "objects_unseen": unseen,
+    }
+
+
+def table(f: dict) -> list[str]:
+    """The figures as docs/streams.md's table (markdown lines)."""
+    rows = [
+        "| | figure |",
+        "| --- | ---: |",
+        f"| pulses a stream ({f['rotations']} rotations x {f['width']} columns x 16 lasers) | "
+        f"{f['pulses_a_stream']:,} |",
+        f"| draws a stream / events a stream | {f['draws_a_stream']:.2f} / "
+        f"{f['events_a_stream']:,.0f} |",
+        f"| simulated, streams a minute | {f['simulate_streams_per_min']:,.0f} |",
+        f"| written to files (HDF5, card, checksums), streams a minute | "
+        f"{f['files_streams_per_min']:,.0f} |",
+        f"| CPU us a pulse cast: stream / window in motion (same run) | "
+        f"{f['us_per_pulse_stream']:.2f} / {f['us_per_pulse_window_in_motion']:.2f} "
+        f"({f['ratio_stream_to_window']:.2f} x) |",
+    ]
+    if "receiver" in f:
+        rows += [
+            "",
+            "Through the receiver (`--profile sensor`), the same streams:",
+            "",
+            "| | streams a minute | events a stream | weather's and noise's echoes | object's "
+            "hits detected | objects never detected |",
+            "| --- | ---: | ---: | ---: | ---: | ---: |",
+        ]
+        for name, r in f["receiver"].items():
+            rows.append(
+                f"| {name} | {r['simulate_streams_per_min']:,.0f} | {r['events_a_stream']:,.0f} | "
+                f"{100 * r['echo_share']:.2f} % | {100 * r['object_hits_detected']:.1f} % | "
+                f"{r['objects_unseen']} of {r['objects']} |"
+            )
+    return rows
 
 
 def main(argv=None) -> int:
@@ -114,7 +202,26 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=integers(1, 100, one=True), default=3)
     parser.add_argument("--batch", type=integers(1, OBJECT_CELLS, one=True), default=64)
     parser.add_argument("--json", type=in_folder, default=None, help="also write the figures")
+    parser.add_argument(
+        "--doc",
+        type=reproduction_table.markdown_file,
+        metavar="FILE",
+        help=f"also put the table into FILE, between its lines {DOC_START} and {DOC_END}",
+    )
+    parser.add_argument(
+        "--from-json",
+        type=reproduction_table.markdown_file,
+        metavar="FILE",
+        help="measure nothing: the table of FILE's figures (with --doc, into the doc)",
+    )
     args = parser.parse_args(argv)
+    if args.doc is not None:  # its markers, before anything is measured
+        reproduction_table.split(args.doc.read_text(), args.doc, DOC_START, DOC_END)
+    if args.from_json is not None:
+        figures = reproduction_table.read_json(args.from_json)
+        print("\n".join(table(figures)))
+        _write_doc(args.doc, figures)
+        return 0
     figures = measure(args.streams, args.repeats, args.batch)
     f = figures
     print(
@@ -130,9 +237,24 @@ def main(argv=None) -> int:
         f"  us a pulse: stream {f['us_per_pulse_stream']:.3f}, window in motion "
         f"{f['us_per_pulse_window_in_motion']:.3f} (ratio {f['ratio_stream_to_window']:.2f})"
     )
+    for name, r in f["receiver"].items():
+        print(
+            f"  through the receiver, {name}: {r['simulate_streams_per_min']:.0f} streams/min, "
+            f"{r['events_a_stream']:.0f} events a stream ({100 * r['echo_share']:.2f} % the "
+            f"weather's or noise's), {100 * r['object_hits_detected']:.1f} % of the object's "
+            f"hits detected, {r['objects_unseen']} of {r['objects']} objects never"
+        )
     if args.json is not None:
         args.json.write_text(json.dumps(figures, indent=2) + "\n")
+    _write_doc(args.doc, figures)
     return 0
+
+
+def _write_doc(doc: Path | None, figures: dict) -> None:
+    if doc is None:
+        return
+    before, _, after = reproduction_table.split(doc.read_text(), doc, DOC_START, DOC_END)
+    doc.write_text(before + "\n".join(table(figures)) + "\n" + after)
 
 
 if __name__ == "__main__":

@@ -64,6 +64,9 @@ GENERATE = (
     "max_attempts",
     "variation",
     "sensor",
+    "profile",
+    "fog_visibility_m",
+    "rain_rate_mm_h",
 )
 MAX_SUITE_BYTES = 1024 * 1024
 

@@ -21,22 +21,36 @@ from simlidar.sensor.moving import OBJECT_CELLS
 @setting_option(StreamConfig, "width")
 @setting_option(StreamConfig, "variation")
 @sensor_option
+@click.option(
+    "--profile",
+    default=None,
+    help="A profile with a receiver (sensor, or a .toml file): a hit is an event only when the "
+    "receiver detects it, with its range noise, reflectivity byte and false alarms "
+    "(docs/streams.md). [default: none: every hit in range is an event]",
+)
+@setting_option(
+    StreamConfig, "fog_visibility_m", "--fog", "fog_visibility_m", metavar="VISIBILITY_M"
+)
+@setting_option(StreamConfig, "rain_rate_mm_h", "--rain", "rain_rate_mm_h", metavar="MM_PER_H")
 @scenes_option
 @batch_options(OBJECT_CELLS, BATCH, "Streams")
 @out_option("the dataset directory")
 @click.option("--force", is_flag=True, help="Overwrite an existing dataset directory.")
 @click.option("--no-preview", is_flag=True, help="Do not draw preview.png.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-def stream(classes, rotations, train_size, test_size, seed, width, variation, sensor, scenes,
-           batch_size, workers, out, force, no_preview, as_json):  # fmt: skip
+def stream(classes, rotations, train_size, test_size, seed, width, variation, sensor, profile,
+           fog_visibility_m, rain_rate_mm_h, scenes, batch_size, workers, out, force, no_preview,
+           as_json):  # fmt: skip
     """Generate a pulse-stream dataset of moving scenes: several rotations of the sensor's
     window while the ego drives and an object comes into view (oncoming, overtaking,
     crossing), every pulse cast at its own time, as ragged events and dense times of flight,
-    with the time each object first returns (docs/streams.md)."""
+    with the time each object first returns (docs/streams.md). With --profile sensor, through
+    the VLP-16's receiver, in fog (--fog) or rain (--rain) if asked."""
     start = time.perf_counter()
     path = generate_streams(
         out, classes=classes, train_size=train_size, test_size=test_size, seed=seed,
         width=width, rotations=rotations, variation=variation, sensor=chosen_sensor_of(sensor),
+        profile=profile, fog_visibility_m=fog_visibility_m, rain_rate_mm_h=rain_rate_mm_h,
         scenes=catalog_for(scenes, classes), batch_size=batch_size, force=force,
         progress=not as_json, preview=not no_preview, workers=workers,
     )  # fmt: skip

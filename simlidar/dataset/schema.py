@@ -408,5 +408,5 @@ def expected_shapes(
     dims = {"N": n, "E": e, "H": h, "W": w, "R": rotations}
     return {
         name: (dtype, tuple(dims.get(d, d) for d in shape))
-        for name, (dtype, shape) in CONVERTED_SCHEMAS[source].items()
+        for name, (dtype, shape) in CONVERTED[source].schema_of(receiver).items()
     }

@@ -7,7 +7,7 @@ Each converter's is one module of the dataset stage, beside the readers that che
 ``simlidar/convert/<source>.py``. :data:`simlidar.dataset.version.CONVERTED` lists them.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 
 @dataclass(frozen=True)
@@ -43,6 +43,10 @@ class Source:
     call : the library function that makes it (its module, its name) and its first argument
         before the output folder (None: none), the card's "Regenerate"
     about : its prose, licence and citation
+    receiver_schema, receiver_fields : the datasets a split holds besides ``schema`` where it
+        has a ``receiver`` attribute (a stream through a receiver), and their lines (with
+        lines that replace ``fields``' there)
+    receiver_about : its prose there (None: ``about``'s)
     """
 
     name: str
@@ -54,6 +58,21 @@ class Source:
     fields: dict[str, str]
     call: tuple[str, str, str | None]
     about: About
+    receiver_schema: dict[str, tuple[str, tuple]] = field(default_factory=dict)
+    receiver_fields: dict[str, str] = field(default_factory=dict)
+    receiver_about: About | None = None
+
+    def schema_of(self, receiver: bool) -> dict[str, tuple[str, tuple]]:
+        """The datasets a split holds: ``schema``, and with a receiver ``receiver_schema``."""
+        return self.schema | (self.receiver_schema if receiver else {})
+
+    def fields_of(self, receiver: bool) -> dict[str, str]:
+        """Their card lines, as :meth:`schema_of`."""
+        return self.fields | (self.receiver_fields if receiver else {})
+
+    def about_of(self, receiver: bool) -> About:
+        """Its prose, as :meth:`schema_of`."""
+        return self.receiver_about if receiver and self.receiver_about else self.about
 
 
 # the two datasets every converted split holds, and their card lines

@@ -12,7 +12,8 @@ from pathlib import Path
 import h5py
 
 from simlidar.content import file_kind
-from simlidar.dataset.schema import CONVERTED_SCHEMAS, generated_schema
+from simlidar.dataset.schema import generated_schema
+from simlidar.dataset.version import CONVERTED
 from simlidar.errors import first_line
 from simlidar.resources import size_text
 
@@ -31,7 +32,7 @@ def datasets_of(path: Path, f: h5py.File) -> tuple[dict[str, h5py.Dataset], list
     than :data:`MAX_LINKS` links. Read from the file's structure alone, before any data."""
     datasets, problems, seen = {}, [], []
     names = set(generated_schema("scan", True, 2, 1, motion=True))
-    names |= {n for s in CONVERTED_SCHEMAS.values() for n in s}
+    names |= {n for s in CONVERTED.values() for n in s.schema_of(True)}
 
     def visit(name: str):
         seen.append(name)

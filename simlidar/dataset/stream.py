@@ -9,6 +9,8 @@ frame-based network reads rotation r's window from columns r W .. (r + 1) W), an
 sensor's clock, in Tonic's layout (x, y, t, p), for event-driven networks.
 """
 
+from dataclasses import replace
+
 from simlidar.dataset.source import DELAYS_AND_LABELS, About, Source
 
 NAME = "simlidar-stream"
@@ -70,17 +72,38 @@ ABOUT = About(
 }""",
 )
 
+# streams without a receiver are still written as 1.0.0, byte for byte (their records have
+# not changed); StreamConfig.version
+UNRECEIVED_VERSION = "1.0.0"
+
+# a stream through a receiver says so (streams without one keep 1.0.0's card, byte for byte)
+RECEIVER_ABOUT = replace(
+    ABOUT,
+    out_of_scope="Synthetic scenes of one object each with simple geometry, seen through a "
+    "simulated receiver calibrated to published sensor figures (docs/sensor-model.md). Not a "
+    "substitute for recorded data.",
+)
+
 SOURCE = Source(
     name=NAME,
-    version="1.0.0",
-    dates={"1.0.0": "2026-11-28"},
+    version="1.1.0",
+    dates={"1.0.0": "2026-11-28", "1.1.0": "2026-11-28"},
     notes={
         "1.0.0": (
             "First release (issue 60): pulse streams of moving scenes, several rotations of a "
             "spinning sensor's window with every pulse cast at its own time, as dense times of "
             "flight and ragged events with surface labels, the time each object first returns "
             "and its track."
-        )
+        ),
+        "1.1.0": (
+            "Streams through a receiver (`--profile sensor`, with `--fog V` or `--rain R`): the "
+            "calibrated receiver of dataset version 5.0.0 decides which hits are events, with "
+            "its range noise, false alarms and, in weather, the fog's and the drops' echoes "
+            "(events of surface 0). New datasets `event_intensity` (the reflectivity byte) and "
+            "`t_in_view_us` (the object's first hit, detected or not); `t_visible_us` is the "
+            "first detected event on the object; attributes `receiver` and `materials`. Fields "
+            "added, hence a new MINOR; streams without a receiver keep 1.0.0 and its bytes."
+        ),
     },
     schema={
         **DELAYS_AND_LABELS,
@@ -151,4 +174,20 @@ SOURCE = Source(
     },
     call=("simlidar.generator.stream_files", "generate_streams", None),
     about=ABOUT,
+    receiver_about=RECEIVER_ABOUT,
+    receiver_schema={
+        "t_in_view_us": ("float64", ("N",)),
+        "event_intensity": ("uint8", ("E",)),
+    },
+    receiver_fields={
+        "t_visible_us": "arrival of the first event on the object, us from the first firing "
+        "(NaN: no object, or the receiver detected none of its hits)",
+        "t_reference_us": "the time latencies count from: `t_visible_us`; where the receiver "
+        "detected none of the object's hits, `t_in_view_us`; for a stream without object the "
+        "arrival of one of its returns, drawn from the same range",
+        "t_in_view_us": "the object's first hit in range, detected or not, us from the first "
+        "firing (NaN: no object)",
+        "event_intensity": "event reflectivity byte, as the sensor reports it (0-100 diffuse, "
+        "101-255 retro-reflective)",
+    },
 )

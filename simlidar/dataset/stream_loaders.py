@@ -39,7 +39,13 @@ SAMPLE_NAMES = tuple(
     for n, (_, shape) in SOURCE.schema.items()
     if shape[0] == "N" and n not in ("delays", "event_start", "event_count")
 )
-EXTRA_FIELDS = ("t_us", "range_m", "surface")  # what ``fields`` may add to x, y, t, p
+# the per-sample and per-event datasets of a stream through a receiver (t_in_view_us;
+# intensity, without its prefix), read where the split has them
+RECEIVER_SAMPLE_NAMES = tuple(n for n, (_, s) in SOURCE.receiver_schema.items() if s[0] == "N")
+RECEIVER_EVENT_NAMES = tuple(n[6:] for n, (_, s) in SOURCE.receiver_schema.items() if s[0] == "E")
+# what ``fields`` may add to x, y, t, p (intensity: a stream through a receiver only)
+EXTRA_FIELDS = ("t_us", "range_m", "surface", *RECEIVER_EVENT_NAMES)
+EVENT_TYPES = {n[6:]: d for n, (d, _) in SOURCE.schema_of(True).items() if n.startswith("event_")}
 
 
 def stream_info(path: str | Path, split: str) -> SplitInfo:
@@ -103,6 +109,7 @@ class StreamEvents:
     t_us : (E,) float64 arrival, microseconds from the stream's first firing
     p : (E,) uint8 polarity (0); range_m : (E,) float32; surface : (E,) uint8 (index into
         the split's ``surface_names``)
+    intensity : (E,) uint8 the reflectivity byte, through a receiver; None without one
     """
 
     start: np.ndarray
@@ -113,6 +120,7 @@ class StreamEvents:
     p: np.ndarray
     range_m: np.ndarray
     surface: np.ndarray
+    intensity: np.ndarray | None = None
 
     def rows(self, index: int) -> slice:
         """The rows of sample ``index``'s events."""
@@ -136,7 +144,8 @@ class StreamSplit:
 
     samples : every per-sample dataset but the delays, by its name in the file (N rows each):
         labels (N,) int64, t_visible_us, t_reference_us (N,) float64, object, scenario,
-        layout (N,) uint8, object_track (N, R, 3), ... (docs/streams.md)
+        layout (N,) uint8, object_track (N, R, 3), ... and through a receiver t_in_view_us
+        (docs/streams.md)
     events : the events (:class:`StreamEvents`), one split's rows, its shards' joined
     attrs : the split's attributes, decoded
     files : the split's files, in sample order
@@ -162,14 +171,17 @@ def load_stream(path: str | Path, split: str = "train") -> StreamSplit:
     surfaces and the span. The delays: ``load_split``."""
     info = stream_info(path, split)
     limits = _event_limits(info)
-    samples: dict[str, list] = {n: [] for n in SAMPLE_NAMES}
-    events: dict[str, list] = {n: [] for n in ("start", "count", *EVENT_NAMES)}
+    received = "receiver" in info.attrs
+    sample_names = SAMPLE_NAMES + (RECEIVER_SAMPLE_NAMES if received else ())
+    event_names = EVENT_NAMES + (RECEIVER_EVENT_NAMES if received else ())
+    samples: dict[str, list] = {n: [] for n in sample_names}
+    events: dict[str, list] = {n: [] for n in ("start", "count", *event_names)}
     before = 0  # events of the files before this one
     for part, file in enumerate(info.files):
         start, count = _offsets(info, part)
-        rows = _read(file, SAMPLE_NAMES)
+        rows = _read(file, sample_names)
         _checked_labels(file, info.attrs, rows["labels"])
-        mine = {n[6:]: v for n, v in _read(file, tuple(f"event_{n}" for n in EVENT_NAMES)).items()}
+        mine = {n[6:]: v for n, v in _read(file, tuple(f"event_{n}" for n in event_names)).items()}
         found = first_outside(mine, limits)
         if found is not None:
             row, problem = found
@@ -177,9 +189,9 @@ def load_stream(path: str | Path, split: str = "train") -> StreamSplit:
             raise DatasetError(
                 f"{file} (sample {sample}, its event {row - start[sample]}): {problem}"
             )
-        for name in SAMPLE_NAMES:
+        for name in sample_names:
             samples[name].append(rows[name])
-        for name in EVENT_NAMES:
+        for name in event_names:
             events[name].append(mine[name])
         events["start"].append(start + before)
         events["count"].append(count)
@@ -275,13 +287,21 @@ class StreamEventDataset:
         self.span_us = float(info.attrs["span_us"])
         self.tick_us = _checked_tick(tick_us, self.span_us)
         self.fields = _checked_fields(fields)
+        missing = [
+            n for n in self.fields if n in RECEIVER_EVENT_NAMES and "receiver" not in info.attrs
+        ]
+        if missing:
+            raise ConfigError(
+                f"fields={shown(fields)}: {info.path} has no {missing[0]} (a stream without a "
+                "receiver); expected a stream made with --profile sensor"
+            )
         self.transform = transform
         self.target_transform = target_transform
         self.files = info.files
         self.classes = list(info.attrs["class_names"])
         self.sensor_size = sensor_size(info.width // int(info.attrs["rotations"]), info.height)
         self._limits = _event_limits(info)
-        extra = [(n, SOURCE.schema[f"event_{n}"][0]) for n in self.fields]
+        extra = [(n, EVENT_TYPES[n]) for n in self.fields]
         self.dtype = np.dtype(EVENT_DTYPE.descr + extra)
         self.ordering = self.dtype.names
         self._first = tuple(int(n) for n in np.cumsum((0, *info.sizes)))  # each file's first
@@ -332,7 +352,7 @@ class StreamEventDataset:
         they fit ``memory_budget`` and this process's memory, else from the datasets."""
         names = ("x", "y", "t_us", "p", *self.fields)
         if self._whole is None:
-            row = sum(np.dtype(SOURCE.schema[f"event_{n}"][0]).itemsize for n in names)
+            row = sum(np.dtype(EVENT_TYPES[n]).itemsize for n in names)
             need = row * sum(int(count.sum()) for _, count in self._offsets)
             room = available_memory()
             self._whole = need <= self.memory_budget and (room is None or need <= room)

@@ -119,21 +119,21 @@ class GeneratorConfig:
     fog_visibility_m: float = setting(
         math.inf,
         "Fog, by its meteorological visibility in metres: every pulse loses power to two-way "
-        "Beer-Lambert extinction exp(-2 alpha R), alpha = ln(20) / V (Koschmieder's law, as "
-        "Hahner et al. 2021), so weaker returns drop below the receiver's threshold, and the "
-        "fog's own backscatter (beta = 0.046 / V per m and sr, Hahner et al.) joins each "
-        "pulse's waveform, so near false returns appear; a profile with a receiver only "
-        "(sensor).",
+        "Beer-Lambert extinction exp(-2 alpha R), so weaker returns drop below the receiver's "
+        "threshold, and the fog's own backscatter joins each pulse's waveform, so near false "
+        "returns appear; both from Mie theory over an advection fog's drops, as many as make "
+        "Koschmieder's ln(20) / V in visible light (at 903 nm alpha = 1.01 ln(20) / V, beta = "
+        "0.170 / V per m and sr; docs/sensor-model.md); a profile with a receiver only (sensor).",
         Range(0, None, "metres", low_open=True, note="(inf: clear air)"),
     )
     # stored only when > 0, so that datasets without rain keep their bytes (as above)
     rain_rate_mm_h: float = setting(
         0.0,
         "Rain, by its rate in mm/h (after LISA, Kilic et al. 2021): drops of the Marshall-Palmer "
-        "size distribution take power from every pulse by two-way extinction (alpha = 1.56e-3 "
-        "per m at 10 mm/h) and the drops in a beam echo (water's Fresnel reflectance times the "
-        "share of the beam a drop covers), so near false returns appear; a profile with a "
-        "receiver only (sensor).",
+        "size distribution take power from every pulse by two-way extinction (Mie's, alpha = "
+        "1.56e-3 per m at 10 mm/h) and the drops in a beam echo (water's Fresnel reflectance "
+        "times the share of the beam a drop covers), so near false returns appear; a profile "
+        "with a receiver only (sensor).",
         Range(0, MAX_RAIN_MM_H, "mm/h", note="(0: no rain)"),
     )
     # stored only when not 1 / strongest, so that the sensor profile's datasets made before

@@ -73,14 +73,19 @@ def _source_rows(splits: dict) -> list[list]:
     return rows
 
 
+def _schema(info) -> dict:
+    """The datasets a converted split holds (its source's, a receiver's too where it has one)."""
+    return CONVERTED[info.source].schema_of("receiver" in info.attrs)
+
+
 def converted_front_matter(path: Path) -> dict:
     """The YAML front matter (Hugging Face dataset card metadata) of a converted dataset."""
     splits = dataset_splits(path)
     info = splits["train"]
-    about = CONVERTED[info.source].about
+    about = CONVERTED[info.source].about_of("receiver" in info.attrs)
     features = [
         hf_feature(name, dtype, _shape(shape, info)[1:], info.attrs["class_names"])
-        for name, (dtype, shape) in CONVERTED_SCHEMAS[info.source].items()
+        for name, (dtype, shape) in _schema(info).items()
         if shape[0] == "N"  # per-event datasets are not features of a sample
     ]
     pretty = f"{about.name}, {len(info.attrs['class_names'])} classes"
@@ -100,11 +105,13 @@ def converted_card(path: str | Path) -> str:
     path = Path(path)
     splits = dataset_splits(path)
     info = splits["train"]
-    attrs, about = info.attrs, CONVERTED[info.source].about
+    attrs = info.attrs
+    about = CONVERTED[info.source].about_of("receiver" in attrs)
     names = attrs["class_names"]
     counts = dataset_info(path)["counts"]
     version = attrs["dataset_version"]
     _, dates, notes = SOURCES[info.source]
+    lines = CONVERTED[info.source].fields_of("receiver" in attrs)
     sample = f"{info.height} x {info.width} float32 delays in [0, 1]"
     sections = [
         *card_head(
@@ -134,8 +141,8 @@ def converted_card(path: str | Path) -> str:
         table(
             ["dataset", "dtype", "shape", "meaning"],
             [
-                [f"`{name}`", dtype, _shape_text(shape, info), CONVERTED[info.source].fields[name]]
-                for name, (dtype, shape) in CONVERTED_SCHEMAS[info.source].items()
+                [f"`{name}`", dtype, _shape_text(shape, info), lines[name]]
+                for name, (dtype, shape) in _schema(info).items()
             ],
         )
         + "\n",
@@ -152,7 +159,9 @@ def converted_card(path: str | Path) -> str:
         "## Versions\n",
         "\n".join(
             f"* {v} ({dates.get(v, 'unreleased')}): {n}"
-            for v, n in notes_until(notes, version).items()
+            # its own version's and those before it (CARD_NOTES_SINCE is the generator's:
+            # a declared source's cards always listed those it knew, its own version's last)
+            for v, n in notes_until(notes, version, version).items()
         )
         + "\n",
         "## Loading\n",
@@ -170,9 +179,9 @@ def converted_croissant(path: str | Path, name: str | None = None) -> dict:
     path = Path(path)
     splits = dataset_splits(path)
     info = splits["train"]
-    about = CONVERTED[info.source].about
+    about = CONVERTED[info.source].about_of("receiver" in info.attrs)
     version = info.attrs["dataset_version"]
-    schema = CONVERTED_SCHEMAS[info.source]
+    schema = _schema(info)
 
     def record_set(split: str, rows: str) -> dict:
         fields = [n for n, (_, shape) in schema.items() if shape[0] == rows]
@@ -190,7 +199,7 @@ def converted_croissant(path: str | Path, name: str | None = None) -> dict:
                     n,
                     schema[n][0],
                     _shape(schema[n][1], info),
-                    CONVERTED[info.source].fields[n],
+                    CONVERTED[info.source].fields_of("receiver" in info.attrs)[n],
                     sharded=info.sharded,
                 )
                 for n in fields

@@ -22,6 +22,12 @@ import numpy as np
 
 from simlidar.errors import ConfigError, SimlidarError
 from simlidar.generator.pulses import quantise_range
+from simlidar.generator.returns import (
+    check_physics,
+    receive_hits,
+    receiver_physics,
+    receiver_stream,
+)
 from simlidar.generator.sequences import frame_cycles
 from simlidar.generator.simulate import (
     FIXED_COLUMNS,
@@ -67,6 +73,9 @@ class StreamBatch:
     event_surface: np.ndarray  # (E,) uint8, surface label
     event_object: np.ndarray  # (E,) bool, on the sample's object
     event_rotation: np.ndarray  # (E,) int64, the rotation whose window fired the pulse
+    # through a receiver only, else None:
+    t_in_view_us: np.ndarray | None = None  # (n,) float64, the object's first hit in range
+    event_intensity: np.ndarray | None = None  # (E,) uint8, the reflectivity byte
 
 
 def stream_rays(config: StreamConfig, phase: np.ndarray):
@@ -134,6 +143,10 @@ def simulate_streams(config: StreamConfig, catalog: Catalog, split: str, start: 
     sensor = config.sensor
     catalog = catalog.for_sensor(sensor.name).with_variation(config.variation)
     scenarios = catalog.scenarios
+    receiver = config.receiver_config
+    if receiver is not None:
+        physics = receiver_physics(receiver.profile)
+        choices = check_physics(physics, sensor, catalog.surfaces)
     plan = class_plan(catalog, config.classes)
     index = np.arange(start, stop)
     n = len(index)
@@ -149,10 +162,12 @@ def simulate_streams(config: StreamConfig, catalog: Catalog, split: str, start: 
     span_ns = config.rotations * rotation_ns
     tail_ns = scenarios.tail_ms * 1e6
 
-    out = {
-        "range_m": [None] * n, "surface": [None] * n, "on_object": [None] * n,
-        "times": [None] * n,
-    }  # fmt: skip
+    # each accepted stream's hits in range: unquantised range (NaN: none), surface, on the
+    # object, |cos| of incidence (through a receiver), emission times
+    shape = (n, sensor.beams, config.rotations * config.width)
+    hit_m, emitted = np.full(shape, np.nan), np.zeros(shape)
+    hit_surface, hit_object = np.zeros(shape, np.uint8), np.zeros(shape, bool)
+    cos_incidence = np.zeros(shape, np.float32)
     attempts = np.zeros(n, np.int32)
     phase = np.zeros(n)
     drawn_all = {
@@ -180,7 +195,8 @@ def simulate_streams(config: StreamConfig, catalog: Catalog, split: str, start: 
         ego, things = _motions(drawn, len(pending))
         times_s = times_ns * 1e-9
         hits = cast_moving(scene, origins, directions, index[pending] % MAX_BATCH,
-                           sensor.max_range_m, ego.poses(times_s), things, times_s)  # fmt: skip
+                           sensor.max_range_m, ego.poses(times_s), things, times_s,
+                           incidence=receiver is not None)  # fmt: skip
         r = quantise_range(hits.range_m, sensor)
         returned = ~np.isnan(r)
         on_object = hits.on_object & returned
@@ -198,11 +214,12 @@ def simulate_streams(config: StreamConfig, catalog: Catalog, split: str, start: 
                 part = slice(rotation * config.width, (rotation + 1) * config.width)
                 ok &= layouts_seen(catalog, layout[pending], hits.surface[..., part],
                                    returned[..., part], azimuth[part])  # fmt: skip
-        for k in np.nonzero(ok)[0]:
-            i = pending[k]
-            out["range_m"][i], out["surface"][i] = r[k], hits.surface[k]
-            out["on_object"][i], out["times"][i] = on_object[k], arrival_ns[k]
         done = pending[ok]
+        hit_m[done] = np.where(returned[ok], hits.range_m[ok], np.nan)
+        hit_surface[done] = np.where(returned[ok], hits.surface[ok], 0)
+        hit_object[done], emitted[done] = on_object[ok], times_ns[ok]
+        if receiver is not None:
+            cos_incidence[done] = hits.cos_incidence[ok]
         phase[done] = u[ok, 0]
         for key, values in drawn.items():
             drawn_all[key][done] = values[ok]
@@ -218,7 +235,21 @@ def simulate_streams(config: StreamConfig, catalog: Catalog, split: str, start: 
                 f"surface seen (width {config.width}, {config.rotations} rotations); expected "
                 "scenarios (scenarios.toml) whose objects come into view within the span"
             )
-    kept = _events(out, config, n)
+    geometric_m = quantise_range(hit_m, sensor)
+    in_view = _first_on_object(hit_object, emitted + tof_ns(np.nan_to_num(geometric_m)))
+    if receiver is None:
+        range_m, surface, intensity = geometric_m, hit_surface, None
+    else:  # each stream's receiver draws: its own stream, the window datasets' key
+        streams = [receiver_stream(config.seed, SPLIT_IDS[split], i) for i in index]
+        got = receive_hits(receiver, physics, choices, streams, hit_m, hit_surface,
+                           cos_incidence)  # fmt: skip
+        range_m, surface, intensity = got.range_m, got.surface, got.intensity
+    returned = ~np.isnan(range_m)
+    # an event is on the object where its pulse hit the object and the return is that hit's
+    # (not a false alarm's, the fog's or a drop's: surface 0)
+    on_object = hit_object & returned & (surface != 0)
+    arrival = np.where(returned, emitted + tof_ns(np.nan_to_num(range_m)), np.inf)
+    kept = _events(range_m, surface, on_object, arrival, intensity, config)
     _, things = _motions(drawn_all, n)
     _, _, all_times, _ = stream_rays(config, phase)
     middles = rotation_middles_s(config, all_times)  # (n, R)
@@ -229,8 +260,12 @@ def simulate_streams(config: StreamConfig, catalog: Catalog, split: str, start: 
     track = np.concatenate([at[..., :2], yaw[..., None]], axis=-1)
     track[obj == 0] = np.nan
     t_visible = kept.pop("t_visible_us")
-    reference = _references(kept, t_visible, reference_u, rotation_ns * 1e-3,
+    # an object the receiver never saw: its latencies count from its first hit in range
+    seen_from = np.where(np.isnan(t_visible), in_view, t_visible)
+    reference = _references(kept, seen_from, reference_u, rotation_ns * 1e-3,
                             (span_ns - tail_ns) * 1e-3)  # fmt: skip
+    if receiver is not None:
+        kept["t_in_view_us"] = in_view
     motion = np.stack([drawn_all["speed_mps"], drawn_all["heading_deg"],
                        drawn_all["yaw_rate_deg_s"]], axis=-1)  # fmt: skip
     return StreamBatch(
@@ -250,7 +285,8 @@ def simulate_streams(config: StreamConfig, catalog: Catalog, split: str, start: 
 
 
 def _references(events: dict, t_visible, u, low_us: float, high_us: float) -> np.ndarray:
-    """Each stream's reference time: its object's first return, or for a stream without object
+    """Each stream's reference time: its object's first return (``t_visible``; through a
+    receiver that saw none of its hits, its first hit in range), or for a stream without object
     the arrival of one of its returns between ``low_us`` and ``high_us`` (the range an object's
     first return is kept in), picked by its variate ``u``: a return, as an object's first is,
     so that the place in the window a figure is read at does not tell the classes apart (a
@@ -266,31 +302,42 @@ def _references(events: dict, t_visible, u, low_us: float, high_us: float) -> np
     return reference
 
 
-def _events(out: dict, config: StreamConfig, n: int) -> dict:
-    """Each accepted sample's returns as events in time order (ties: row, then column)."""
+def _first_on_object(on_object: np.ndarray, arrival_ns: np.ndarray) -> np.ndarray:
+    """Each stream's first arrival on its object, us (NaN: none); (n, H, C) inputs."""
+    first = np.where(on_object, arrival_ns, np.inf).min(axis=(1, 2)) * 1e-3
+    return np.where(np.isfinite(first), first, np.nan)
+
+
+def _events(range_m, surface, on_object, arrival_ns, intensity, config: StreamConfig) -> dict:
+    """Each stream's returns as events in time order (ties: row, then column): ``range_m``
+    (n, H, R W) quantised (NaN: no return), ``surface``, ``on_object``, ``arrival_ns`` (inf: no
+    return) and, through a receiver, ``intensity`` (None without one)."""
     width = config.width
-    fields = {k: [] for k in ("x", "y", "t", "r", "s", "o", "rot")}
+    n = len(range_m)
+    fields = {k: [] for k in ("x", "y", "t", "r", "s", "o", "rot", "i")}
     count = np.zeros(n, np.int64)
     hits = np.zeros(n, np.int32)
     visible = np.full(n, np.nan)
     for i in range(n):
-        t = out["times"][i]  # (H, R W), inf: no return
+        t = arrival_ns[i]  # (H, R W), inf: no return
         rows, cols = np.nonzero(np.isfinite(t))
         order = np.lexsort((cols, rows, t[rows, cols]))
         rows, cols = rows[order], cols[order]
-        on = out["on_object"][i][rows, cols]
+        on = on_object[i][rows, cols]
         fields["x"].append((cols % width).astype(np.uint16))
         fields["rot"].append((cols // width).astype(np.int64))
         fields["y"].append(rows.astype(np.uint8))
         fields["t"].append(t[rows, cols] * 1e-3)
-        fields["r"].append(out["range_m"][i][rows, cols].astype(np.float32))
-        fields["s"].append(out["surface"][i][rows, cols].astype(np.uint8))
+        fields["r"].append(range_m[i][rows, cols].astype(np.float32))
+        fields["s"].append(surface[i][rows, cols].astype(np.uint8))
         fields["o"].append(on)
+        if intensity is not None:
+            fields["i"].append(intensity[i][rows, cols].astype(np.uint8))
         count[i] = len(rows)
         hits[i] = on.sum()
         if on.any():
             visible[i] = fields["t"][-1][on][0]
-    return {
+    out = {
         "event_count": count,
         "event_x": np.concatenate(fields["x"]),
         "event_y": np.concatenate(fields["y"]),
@@ -302,3 +349,6 @@ def _events(out: dict, config: StreamConfig, n: int) -> dict:
         "object_events": hits,
         "t_visible_us": visible,
     }
+    if intensity is not None:
+        out["event_intensity"] = np.concatenate(fields["i"])
+    return out

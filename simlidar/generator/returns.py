@@ -89,6 +89,17 @@ class Physics:
         """The materials as stored in a split's ``materials`` attribute (the file's form)."""
         return materials_to_dict(self.materials, self.surfaces)
 
+    def attrs(self) -> dict:
+        """The attributes a split (a window dataset's, a sweep's, a stream's) made through this
+        receiver carries: ``receiver`` and ``materials`` as JSON, with their sha256."""
+        receiver, materials = self.receiver_dict(), self.materials_dict()
+        return {
+            "receiver": json.dumps(receiver, sort_keys=True),
+            "receiver_sha256": fingerprint(receiver),
+            "materials": json.dumps(materials, sort_keys=True),
+            "materials_sha256": fingerprint(materials),
+        }
+
 
 def fingerprint(values: dict) -> str:
     """sha256 of a JSON-able content (as the scene catalog's fingerprint is made)."""

@@ -25,7 +25,7 @@ from simlidar.dataset.version import dataset_version
 from simlidar.dataset.writer import SplitWriter, deflated_block
 from simlidar.generator.config import GeneratorConfig
 from simlidar.generator.pulses import split_rows
-from simlidar.generator.returns import fingerprint, receiver_physics
+from simlidar.generator.returns import receiver_physics
 from simlidar.generator.sequences import motion_attrs
 from simlidar.generator.simulate import class_plan
 from simlidar.scene.recipe import Catalog
@@ -208,12 +208,7 @@ def generated_split_attrs(config: GeneratorConfig, catalog: Catalog, split: str)
         attrs["timing"] = "scan"
         attrs["delay_unit_ns"] = config.scan_window_ns
     if config.receiver is not None:  # absent: every hit in range returns (the other profiles)
-        physics = receiver_physics(config.profile)
-        receiver, materials = physics.receiver_dict(), physics.materials_dict()
-        attrs["receiver"] = json.dumps(receiver, sort_keys=True)
-        attrs["receiver_sha256"] = fingerprint(receiver)
-        attrs["materials"] = json.dumps(materials, sort_keys=True)
-        attrs["materials_sha256"] = fingerprint(materials)
+        attrs |= receiver_physics(config.profile).attrs()
     if config.full_waveform:  # absent: one ray a pulse, its strongest return (4.0.0's bytes)
         attrs["beam_samples"] = config.beam_samples
         attrs["return_mode"] = config.return_mode

@@ -2,12 +2,13 @@
 every split file (attribute ``config``)."""
 
 import json
+import math
 from dataclasses import asdict, dataclass
 
 from simlidar.errors import ConfigError
-from simlidar.generator.config import SIZE, check_window
+from simlidar.generator.config import SIZE, GeneratorConfig, check_window
 from simlidar.sensor.model import Sensor, default_sensor
-from simlidar.settings import Range, setting
+from simlidar.settings import Range, help_of, rule_of, setting
 
 # the longest span a stream may have: every ray stays in the ray caster's cell (an object at
 # 108 m closing at 28 m/s for 2 s with the ego's 24 m) and a sample's events in one chunk
@@ -63,9 +64,30 @@ class StreamConfig:
         help="The sensor model (a file of sensors/, simlidar.sensor.load_sensor).",
         default_factory=default_sensor,
     )
+    # the receiver and its weather (issue 60, after the calibrated receiver of issue 62); each
+    # stored only when set, so that streams without a receiver keep version 1.0.0's bytes
+    profile: str | None = setting(
+        None,
+        "A profile with a receiver (sensor, or a .toml file): a hit is an event only when the "
+        "receiver detects it, with its range noise, reflectivity byte and false alarms "
+        "(docs/streams.md); None: every hit in range is an event.",
+    )
+    fog_visibility_m: float = setting(
+        math.inf,
+        help_of(GeneratorConfig, "fog_visibility_m"),
+        rule_of(GeneratorConfig, "fog_visibility_m"),
+    )
+    rain_rate_mm_h: float = setting(
+        0.0, help_of(GeneratorConfig, "rain_rate_mm_h"), rule_of(GeneratorConfig, "rain_rate_mm_h")
+    )
 
     def __post_init__(self) -> None:
         check_window(self, "stream")
+        if self.profile is not None and not isinstance(self.profile, str):
+            raise ConfigError(
+                f"profile={self.profile!r}: expected a profile's name or file (sensor), or None"
+            )
+        self.receiver_config  # noqa: B018 (checks the profile, fog and rain, as generate does)
         if self.span_s > MAX_SPAN_S:
             raise ConfigError(
                 f"rotations={self.rotations}: {self.span_s:g} s at {self.sensor.rpm:g} RPM; "
@@ -86,9 +108,48 @@ class StreamConfig:
     def split_sizes(self) -> dict[str, int]:
         return {"train": self.train_size, "test": self.test_size}
 
+    @property
+    def receiver_config(self) -> GeneratorConfig | None:
+        """The receiver's configuration (:func:`simlidar.generator.returns.receive_hits` reads
+        its profile, sensor, seed and weather) where the streams have a receiver, else None; a
+        ConfigError for a profile that cannot be read or has no receiver, and for weather
+        without one."""
+        from simlidar.generator.profiles import load_profile
+
+        if self.profile is None:
+            weather = GeneratorConfig(
+                sensor=self.sensor, width=self.width, fov_deg=self.fov_deg,
+                fog_visibility_m=self.fog_visibility_m, rain_rate_mm_h=self.rain_rate_mm_h,
+            )  # fmt: skip
+            return weather if weather.receiver is not None else None  # refused weather above
+        chosen = load_profile(self.profile)
+        if chosen.receiver is None:
+            raise ConfigError(
+                f"profile={self.profile!r} (--profile): expected a profile with a receiver "
+                "(sensor): a stream's events follow no other profile's rule"
+            )
+        return GeneratorConfig.from_profile(
+            chosen, classes=self.classes, seed=self.seed, sensor=self.sensor, width=self.width,
+            fov_deg=self.fov_deg, fog_visibility_m=self.fog_visibility_m,
+            rain_rate_mm_h=self.rain_rate_mm_h,
+        )  # fmt: skip
+
+    @property
+    def version(self) -> str:
+        """The dataset version these streams are written as: 1.1.0 through a receiver (the
+        stream source's current), else 1.0.0, whose records streams without one keep."""
+        from simlidar.dataset.stream import SOURCE, UNRECEIVED_VERSION
+
+        return SOURCE.version if self.profile is not None else UNRECEIVED_VERSION
+
     def to_json(self) -> str:
         """The configuration as stored (attribute ``config``): every field, the sensor by its
         name (its model is the attribute ``sensor``), so that the card's "Regenerate" passes
-        them to :func:`simlidar.generator.stream_files.generate_streams` as they are."""
+        them to :func:`simlidar.generator.stream_files.generate_streams` as they are; the
+        receiver's fields only where set (absent: none, clear air)."""
         values = asdict(self) | {"sensor": self.sensor.name}
+        for name, unset in (("profile", None), ("fog_visibility_m", math.inf),
+                            ("rain_rate_mm_h", 0.0)):  # fmt: skip
+            if values[name] == unset:
+                del values[name]
         return json.dumps(values, sort_keys=True)

@@ -4,6 +4,7 @@ metadata and checksums, written under a temporary name and renamed into place wh
 
 import hashlib
 import json
+import math
 from contextlib import ExitStack
 from pathlib import Path
 
@@ -16,6 +17,7 @@ from simlidar.dataset.writer import SplitWriter
 from simlidar.errors import ConfigError
 from simlidar.generator.declared_card import converted_split_attrs, write_release_files
 from simlidar.generator.pulse_streams import StreamBatch, simulate_streams
+from simlidar.generator.returns import receiver_physics
 from simlidar.generator.simulate import class_plan
 from simlidar.generator.stream_config import StreamConfig
 from simlidar.processes import capped_workers, forked_pool
@@ -38,8 +40,9 @@ EVENT_FIELDS = {
 
 def stream_name(config: StreamConfig) -> str:
     """``simlidar-stream-<classes>c-<rotations>rot-w<width>[-fov<deg>][-<sensor>][-var<v>]
-    [-hits<k>]-v<version>``: the field of view, sensor, variation and object hits where they
-    are not the defaults (36 degrees, the VLP-16, 1, 4); the seed, as in generate's names, is
+    [-hits<k>][-<profile>][-fog<V>][-rain<R>]-v<version>``: the field of view, sensor,
+    variation and object hits where they are not the defaults (36 degrees, the VLP-16, 1, 4),
+    the receiver's profile and weather where there is one; the seed, as in generate's names, is
     not named."""
     default = StreamConfig(classes=config.classes, train_size=config.train_size,
                            test_size=config.test_size)  # fmt: skip
@@ -48,9 +51,12 @@ def stream_name(config: StreamConfig) -> str:
     tag += f"-{config.sensor.name}" if config.sensor.name != "vlp16" else ""
     tag += f"-var{float(config.variation)!r}" if config.variation != 1.0 else ""
     tag += f"-hits{hits}" if hits != default.min_object_hits else ""
+    receiver = config.receiver_config
+    if receiver is not None:
+        tag += f"-{receiver.profile_name}{receiver.receiver_tag}"
     return (
         f"simlidar-stream-{config.classes}c-{config.rotations}rot-w{config.width}{tag}"
-        f"-v{SOURCE.version}"
+        f"-v{config.version}"
     )
 
 
@@ -70,6 +76,10 @@ def stream_split_attrs(config: StreamConfig, catalog: Catalog, split: str) -> di
     attrs = converted_split_attrs(NAME, split, config, plan.names, plan.mode, sensor.to_dict(),
                                   scenes_digest(catalog))  # fmt: skip
     columns = column_centres_deg(config.width, config.fov_deg)
+    attrs["dataset_version"] = config.version
+    receiver = config.receiver_config
+    if receiver is not None:
+        attrs |= receiver_physics(receiver.profile).attrs()
     return attrs | {
         "layout_names": np.array(catalog.layout_names, dtype=strings),
         "object_names": np.array(catalog.object_names, dtype=strings),
@@ -102,10 +112,11 @@ def dense_delays(batch: StreamBatch, config: StreamConfig) -> np.ndarray:
 
 
 def _per_sample(batch: StreamBatch, config: StreamConfig, first_event: int) -> dict:
+    schema = SOURCE.schema_of(config.profile is not None)
     rows = {
         name: getattr(batch, name)
-        for name in SOURCE.schema
-        if SOURCE.schema[name][1][0] == "N" and hasattr(batch, name)
+        for name in schema
+        if schema[name][1][0] == "N" and getattr(batch, name, None) is not None
     }
     rows["delays"] = dense_delays(batch, config)
     rows["event_start"] = first_event + np.cumsum(batch.event_count) - batch.event_count
@@ -132,7 +143,8 @@ def write_stream_split(path: Path, config: StreamConfig, catalog: Catalog, split
         forked after :data:`_SHARED` was set), their batches written in order; None: here
     """
     size = config.split_sizes[split]
-    schema = SOURCE.schema
+    schema = SOURCE.schema_of(config.profile is not None)
+    event_fields = EVENT_FIELDS | ({"event_intensity": "event_intensity"} if config.profile else {})
     dims = {"H": config.sensor.beams, "W": config.rotations * config.width,
             "R": config.rotations}  # fmt: skip
     shapes = {
@@ -141,8 +153,10 @@ def write_stream_split(path: Path, config: StreamConfig, catalog: Catalog, split
         if shape[0] == "N"
     }
     attrs = stream_split_attrs(config, catalog, split)
-    writer = SplitWriter(path, size, shapes, attrs, frozenset({"delays", "t_visible_us"}))
-    events: dict[str, list[np.ndarray]] = {name: [] for name in EVENT_FIELDS}
+    writer = SplitWriter(
+        path, size, shapes, attrs, frozenset({"delays", "t_visible_us", "t_in_view_us"})
+    )
+    events: dict[str, list[np.ndarray]] = {name: [] for name in event_fields}
     written = 0
     jobs = [(split, start, min(start + batch_size, size)) for start in range(0, size, batch_size)]
     batches = (simulate_streams(config, catalog, *job) for job in jobs)
@@ -152,7 +166,7 @@ def write_stream_split(path: Path, config: StreamConfig, catalog: Catalog, split
         for batch in batches:
             writer.append(_per_sample(batch, config, written))
             written += int(batch.event_count.sum())
-            for name, field in EVENT_FIELDS.items():
+            for name, field in event_fields.items():
                 events[name].append(getattr(batch, field))
             on_rows(len(batch.labels))
         for name, parts in events.items():
@@ -176,6 +190,9 @@ def generate_streams(
     max_attempts: int = 200,
     variation: float = 1.0,
     sensor: "str | Sensor" = "vlp16",
+    profile: str | None = None,
+    fog_visibility_m: float = math.inf,
+    rain_rate_mm_h: float = 0.0,
     scenes: "str | Path | Catalog | None" = None,
     batch_size: int = BATCH,
     force: bool = False,
@@ -187,8 +204,9 @@ def generate_streams(
     "Regenerate" calls this with the stored configuration.
 
     classes, train_size, test_size, seed, width, fov_deg, rotations, min_object_hits,
-    max_attempts, variation, sensor : :class:`StreamConfig`'s fields (``sensor``: a name in
-    sensors/, a .toml file or a Sensor)
+    max_attempts, variation, sensor, profile, fog_visibility_m, rain_rate_mm_h :
+    :class:`StreamConfig`'s fields (``sensor``: a name in sensors/, a .toml file or a Sensor;
+    ``profile``: a profile with a receiver, by name or file, or None)
 
     scenes : the scene catalog (a folder, default: the shipped one, or a loaded Catalog), with
         its scenarios.toml
@@ -204,7 +222,8 @@ def generate_streams(
         classes=classes, train_size=train_size, test_size=test_size, seed=seed, width=width,
         fov_deg=fov_deg, rotations=rotations, min_object_hits=min_object_hits,
         max_attempts=max_attempts, variation=variation,
-        sensor=sensor if isinstance(sensor, Sensor) else load_sensor(sensor),
+        sensor=sensor if isinstance(sensor, Sensor) else load_sensor(sensor), profile=profile,
+        fog_visibility_m=fog_visibility_m, rain_rate_mm_h=rain_rate_mm_h,
     )  # fmt: skip
     if isinstance(batch_size, bool) or not isinstance(batch_size, int):
         raise ConfigError(f"batch_size={batch_size!r}: expected an integer in 1..{OBJECT_CELLS}")

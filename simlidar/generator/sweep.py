@@ -52,7 +52,6 @@ from simlidar.generator.frames import frame_points as frame_points  # docs/sweep
 from simlidar.generator.pulses import quantise_range
 from simlidar.generator.returns import (
     check_physics,
-    fingerprint,
     receive_hits,
     receiver_physics,
     receiver_stream,
@@ -447,13 +446,7 @@ def sweep(
             attrs |= {"return_mode": config.return_mode, "beam_samples": config.beam_samples}
         physics = receiver_physics(config.profile)
         check_physics(physics, sensor, catalog.surfaces, config.return_mode)
-        receiver, materials = physics.receiver_dict(), physics.materials_dict()
-        attrs |= {
-            "receiver": json.dumps(receiver, sort_keys=True),
-            "receiver_sha256": fingerprint(receiver),
-            "materials": json.dumps(materials, sort_keys=True),
-            "materials_sha256": fingerprint(materials),
-        }
+        attrs |= physics.attrs()
     sequence = sweep_config.sequence(config)
     check_motion(config, catalog, sequence)
     if config.moves or sequence != 1:

@@ -115,3 +115,20 @@ def test_the_docs_results_table_is_the_committed_one():
     assert block.strip("\n") == "\n".join(report_table(summary(cells), estimate))
     # the report too: its header, its rule, a row a model and the estimate's
     assert (results / "report.md").read_text().count("\n| ") == len(summary(cells)) + 3
+
+
+def test_the_docs_speed_table_is_the_committed_one():
+    """docs/streams.md's speed table is what ``benchmark/stream_speed.py`` writes from its
+    committed figures (``--doc``), not retyped; the receiver's rows included."""
+    import subprocess
+    import sys
+
+    figures = ROOT / "benchmark/results/stream-speed/2026-11-28.json"
+    assert "receiver" in json.loads(figures.read_text())
+    made = subprocess.run(
+        [sys.executable, str(ROOT / "benchmark/stream_speed.py"), "--from-json", str(figures)],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    text = (ROOT / "docs/streams.md").read_text()
+    block = text.split("<!-- stream-speed:start -->\n")[1].split("<!-- stream-speed:end -->")[0]
+    assert block.strip("\n") == made.stdout.strip("\n")
