@@ -13,9 +13,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from simlidar.errors import ResultsError
 
 
-def bounds(sets: dict[str, Path], out: Path) -> dict[str, dict]:
-    """The estimate's runs with every spike per weather (early_bound.py's, made where missing;
-    the function keeps the older name)."""
+def bounds(sets: dict[str, Path], out: Path, learners: str = "mlp,wide,cnn") -> dict[str, dict]:
+    """The estimate's runs with every spike per weather (early_bound.py's, made where missing,
+    and given the families of ``learners`` they lack; the function keeps the older name)."""
     import early_bound
 
     early_bound.main(
@@ -25,6 +25,8 @@ def bounds(sets: dict[str, Path], out: Path) -> dict[str, dict]:
             "near_first/as_value",
             "--ks",
             "256",
+            "--learners",
+            learners,
             "--out",
             str(out),
         ]  # fmt: skip
