@@ -28,6 +28,9 @@ import numpy as np
 
 BIN_NS = 0.25  # HELIOS++ FWFSettings.h binSize_ns (default)
 REACH_SIGMAS = 4.0  # each pulse's waveform is sampled this many sigmas beyond its echoes
+# beyond this many sigmas an echo's Gaussian is exp(x) with x < -750: exactly 0.0 in float64
+# (the smallest subnormal is exp(-744.4)), so adding it changes no bit and it is not computed
+ZERO_SIGMAS = math.sqrt(1500.0)
 CHUNK_VALUES = 1 << 22  # waveform samples x sub-rays evaluated at once (memory: ~32 MB)
 
 
@@ -150,13 +153,24 @@ def echoes(
     t = k * bin_ns
     values = np.empty(len(pulse))
     rows = max(1, CHUNK_VALUES // max(1, times.shape[1]))
+    zero = ZERO_SIGMAS * sigma_ns
     for lo in range(0, len(pulse), rows):
         p, tt = pulse[lo : lo + rows], t[lo : lo + rows]
-        gap = tt[:, None] - np.nan_to_num(times[p], nan=0.0)
-        values[lo : lo + rows] = (powers[p] * np.exp(-(gap**2) / (2.0 * sigma_ns**2))).sum(axis=1)
+        # each term computed only where it can be other than 0.0: a sub-ray without a hit
+        # (NaN, power 0) and a Gaussian beyond ZERO_SIGMAS are exactly 0.0, so the terms, and
+        # their sum in the same order, are those of computing every one, bit for bit
+        gap = tt[:, None] - times[p]
+        near = np.abs(gap) <= zero
+        terms = np.zeros(gap.shape)
+        terms[near] = powers[p][near] * np.exp(-(gap[near] ** 2) / (2.0 * sigma_ns**2))
+        values[lo : lo + rows] = terms.sum(axis=1)
+        part = values[lo : lo + rows]
         for d in range(extra.shape[1]):
-            gap = tt - np.nan_to_num(extra[p, d], nan=0.0)
-            values[lo : lo + rows] += extra_w[p, d] * np.exp(-(gap**2) / (2.0 * sigma_ns**2))
+            # one column after the other, the bins its echo reaches only (as above: the values
+            # are sums of products of non-negative powers, never -0.0, and x + 0.0 is x)
+            gap = tt - extra[p, d]
+            near = np.flatnonzero(np.abs(gap) <= zero)
+            part[near] += extra_w[p[near], d] * np.exp(-(gap[near] ** 2) / (2.0 * sigma_ns**2))
     if fog is not None:  # the fog under the surfaces' echoes
         row, column = k - fog.first_bin, fog_columns[pulse]
         inside = (row >= 0) & (row < len(fog.watts)) & (column >= 0)

@@ -188,3 +188,30 @@ def test_echoes_apart_are_found_on_their_own_windows_bit_for_bit():
     np.testing.assert_array_equal(apart.time_ns, whole.time_ns)
     np.testing.assert_array_equal(apart.power_w, whole.power_w)
     np.testing.assert_array_equal(apart.count, whole.count)
+
+
+def test_echoes_skip_only_terms_that_are_exactly_zero(monkeypatch):
+    """Each echo's Gaussian is computed only within ZERO_SIGMAS of it (beyond, exp(x < -750)
+    is 0.0 in float64) and no-hit padding not at all: the echoes are those of computing every
+    term on every bin, bit for bit, for sub-rays, extra columns (drops) and fog alike."""
+    import simlidar.sensor.waveform as waveform
+    from simlidar.sensor.weather import FogTable
+
+    assert math.exp(-0.5 * waveform.ZERO_SIGMAS**2) == 0.0
+    g = np.random.default_rng(7)
+    pulses = 300
+    times = np.where(g.random((pulses, 3)) < 0.8, g.uniform(10, 600, (pulses, 3)), np.nan)
+    powers = 10 ** g.uniform(-9, -5, (pulses, 3))
+    extra = np.where(g.random((pulses, 4)) < 0.5, g.uniform(10, 600, (pulses, 4)), np.nan)
+    extra_w = 10 ** g.uniform(-9, -6, (pulses, 4))
+    sigma = pulse_sigma_ns(5.0)  # terms beyond 82 ns skipped: most pairs of echoes here
+    fog = FogTable(0, g.uniform(0, 1e-8, (2400, 2)), 0.0, BIN_NS)
+    columns = g.integers(-1, 2, pulses)
+    for more in ((None, None), (fog, columns)):
+        skipped = echoes(times, powers, sigma, BIN_NS, *more, extra, extra_w)
+        with monkeypatch.context() as m:
+            m.setattr(waveform, "ZERO_SIGMAS", math.inf)  # every term on every bin
+            every = echoes(times, powers, sigma, BIN_NS, *more, extra, extra_w)
+        np.testing.assert_array_equal(skipped.time_ns, every.time_ns)
+        np.testing.assert_array_equal(skipped.power_w, every.power_w)
+        np.testing.assert_array_equal(skipped.count, every.count)
