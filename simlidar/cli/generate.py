@@ -50,6 +50,23 @@ sensor_option = click.option(
 )
 
 
+def receiver_options(profile_help: str):
+    """``--profile`` (a profile with a receiver; ``profile_help`` says what it does), ``--fog``
+    and ``--rain``: the receiver and its weather, as ``sweep`` and ``stream`` take them."""
+
+    def apply(command):
+        command = setting_option(
+            GeneratorConfig, "rain_rate_mm_h", "--rain", "rain_rate_mm_h", metavar="MM_PER_H"
+        )(command)
+        command = setting_option(
+            GeneratorConfig, "fog_visibility_m", "--fog", "fog_visibility_m",
+            metavar="VISIBILITY_M",
+        )(command)  # fmt: skip
+        return click.option("--profile", default=None, help=profile_help)(command)
+
+    return apply
+
+
 def motion_options(command):
     """``--ego-speed``, ``--ego-yaw-rate`` and ``--moving-objects`` (generate's and sweep's)."""
     for option in reversed((
@@ -296,17 +313,11 @@ def _trajectory(path: Path | None):
 @setting_option(GeneratorConfig, "variation")
 @sensor_option
 @scenes_option
-@click.option(
-    "--profile",
-    default=None,
-    help="A profile with a receiver (sensor, or a .toml file): a hit returns only when the "
+@receiver_options(
+    "A profile with a receiver (sensor, or a .toml file): a hit returns only when the "
     "receiver detects it, and the intensity is its reflectivity byte instead of the |cos| "
-    "proxy (docs/sweeps.md). [default: none: every hit in range returns]",
+    "proxy (docs/sweeps.md). [default: none: every hit in range returns]"
 )
-@setting_option(
-    GeneratorConfig, "fog_visibility_m", "--fog", "fog_visibility_m", metavar="VISIBILITY_M"
-)
-@setting_option(GeneratorConfig, "rain_rate_mm_h", "--rain", "rain_rate_mm_h", metavar="MM_PER_H")
 @setting_option(GeneratorConfig, "beam_samples", metavar="Q")
 @setting_option(GeneratorConfig, "return_mode")
 @motion_options

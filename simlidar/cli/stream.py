@@ -5,7 +5,13 @@ import time
 
 import click
 
-from simlidar.cli.generate import catalog_for, chosen_sensor_of, out_option, sensor_option
+from simlidar.cli.generate import (
+    catalog_for,
+    chosen_sensor_of,
+    out_option,
+    receiver_options,
+    sensor_option,
+)
 from simlidar.cli.options import batch_options, scenes_option, setting_option
 from simlidar.generator.stream_config import StreamConfig
 from simlidar.generator.stream_files import BATCH, generate_streams
@@ -21,17 +27,11 @@ from simlidar.sensor.moving import OBJECT_CELLS
 @setting_option(StreamConfig, "width")
 @setting_option(StreamConfig, "variation")
 @sensor_option
-@click.option(
-    "--profile",
-    default=None,
-    help="A profile with a receiver (sensor, or a .toml file): a hit is an event only when the "
+@receiver_options(
+    "A profile with a receiver (sensor, or a .toml file): a hit is an event only when the "
     "receiver detects it, with its range noise, reflectivity byte and false alarms "
-    "(docs/streams.md). [default: none: every hit in range is an event]",
+    "(docs/streams.md). [default: none: every hit in range is an event]"
 )
-@setting_option(
-    StreamConfig, "fog_visibility_m", "--fog", "fog_visibility_m", metavar="VISIBILITY_M"
-)
-@setting_option(StreamConfig, "rain_rate_mm_h", "--rain", "rain_rate_mm_h", metavar="MM_PER_H")
 @scenes_option
 @batch_options(OBJECT_CELLS, BATCH, "Streams")
 @out_option("the dataset directory")
