@@ -21,6 +21,7 @@ from simlidar.dataset.schema import (
 )
 from simlidar.dataset.shards import find_split_files, shard_of
 from simlidar.dataset.storage import datasets_of, entry_problem
+from simlidar.dataset.stream import NAME as STREAM_SOURCE
 from simlidar.dataset.version import (
     CALIBRATED_VERSION,
     GENERATOR,
@@ -137,7 +138,7 @@ def check_attributes(path: Path, attrs: dict) -> list[str]:
             problems.append(f"{path}: attribute 'sensor': {exc}")
     if not {"catalog", "layout_names", "object_names"} & bad and split_source(attrs) == GENERATOR:
         problems += _catalog_problems(path, attrs)
-    if "receiver" in attrs and split_source(attrs) == GENERATOR:
+    if "receiver" in attrs and split_source(attrs) in (GENERATOR, STREAM_SOURCE):
         problems += _receiver_problems(path, attrs, bad)
     waveform = [name for name in ("waveform_bin_ns", "waveform_bins") if name in attrs]
     if waveform and (len(waveform) == 1 or "return_mode" not in attrs):
@@ -171,8 +172,8 @@ def _catalog_problems(path: Path, attrs: dict) -> list[str]:
 
 
 def _receiver_problems(path: Path, attrs: dict, bad: set) -> list[str]:
-    """A generated split with a receiver: its receiver and materials attributes present and
-    each what its file would hold (the card and readers use their values)."""
+    """A generated or stream split with a receiver: its receiver and materials attributes
+    present and each what its file would hold (the card and readers use their values)."""
     from simlidar.sensor.receiver import checked_materials, checked_receiver
 
     problems = [

@@ -166,3 +166,11 @@ def test_cli_refuses_in_one_line(cli, tmp_path, args, match):
     assert match in result.output and "Traceback" not in result.output
     assert len(result.output.strip().splitlines()) == 1, result.output
     assert not (tmp_path / "out").exists()
+
+
+def test_a_receiver_stream_without_its_materials_is_refused(written, tmp_path):
+    copy = tmp_path / written.name
+    shutil.copytree(written, copy)
+    with h5py.File(copy / "test.h5", "a") as f:
+        del f.attrs["materials"]
+    assert any("attribute 'materials' missing" in p for p in verify(copy))
