@@ -1,11 +1,14 @@
 """docs/img/streams-example.png: one stream of each class of a stream dataset, its events over
 the sensor's time (column of the window against arrival time), the object's in colour, the
-time it first returns marked.
+time it first returns marked; through a receiver, the weather's and the noise's echoes (surface
+0) in their own colour, and an object the receiver never detected marked where it came into
+view.
 
     python benchmark/stream_figure.py DATASET [--split test] [--out docs/img/streams-example.png]
 
-DATASET: a directory written by ``simlidar stream`` (the docs' figure: ``simlidar stream
---train-size 4 --test-size 8 --out /tmp/streams``).
+DATASET: a directory written by ``simlidar stream`` (the docs' figures: ``simlidar stream
+--train-size 4 --test-size 8 --out /tmp/streams``, with ``--profile sensor --fog 100`` for
+docs/img/streams-fog-example.png).
 """
 
 import argparse
@@ -26,7 +29,8 @@ def draw(dataset: Path, split: str, out: Path) -> None:
 
     info = split_info(dataset, split)
     names = ("labels", "t_visible_us", "event_start", "event_count", "scenario")
-    rows = load_arrays(info.files[0], names)
+    received = "receiver" in info.attrs
+    rows = load_arrays(info.files[0], names + (("t_in_view_us",) if received else ()))
     events = load_arrays(info.files[0], ("event_x", "event_t_us", "event_surface"))
     classes = info.attrs["class_names"]
     scenarios = info.attrs["scenario_names"]
@@ -40,13 +44,21 @@ def draw(dataset: Path, split: str, out: Path) -> None:
         t_ms = events["event_t_us"][part] / 1e3
         x, surface = events["event_x"][part], events["event_surface"][part]
         on = np.isin(surface, objects)
-        ax.scatter(t_ms[~on], x[~on], s=1, c="0.6", label="scene")
+        echo = surface == 0  # the weather's and the noise's (through a receiver)
+        scene = ~on & ~echo
+        ax.scatter(t_ms[scene], x[scene], s=1, c="0.6", label="scene")
+        if received:
+            ax.scatter(t_ms[echo], x[echo], s=1, c="tab:blue", label="fog, drops, noise")
         ax.scatter(t_ms[on], x[on], s=4, c="tab:red", label="object")
         visible = rows["t_visible_us"][i]
         title = f"{classes[label]} ({scenarios[rows['scenario'][i]]})"
         if np.isfinite(visible):
             ax.axvline(visible / 1e3, color="tab:red", lw=0.8, ls="--")
             title += f": first object return at {visible / 1e3:.1f} ms"
+        elif received and np.isfinite(rows["t_in_view_us"][i]):
+            in_view = rows["t_in_view_us"][i] / 1e3
+            ax.axvline(in_view, color="tab:red", lw=0.8, ls=":")
+            title += f": in view from {in_view:.1f} ms, never detected"
         ax.set_title(title, fontsize=9, loc="left")
         ax.set_ylabel("column")
     np.atleast_1d(axes)[-1].set_xlabel("arrival time, ms from the stream's first firing")
