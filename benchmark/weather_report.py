@@ -13,9 +13,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import reproduction_table
 from paper_table import interval
 
-# the lines around the block of docs/weather.md that --doc writes
+# the lines around the blocks of docs/weather.md that --doc writes: the scores above the
+# estimate, and the fog and rain tables
 DOC_START = "<!-- weather-above-the-estimate:start -->"
 DOC_END = "<!-- weather-above-the-estimate:end -->"
+TABLES_START = "<!-- weather-tables:start -->"
+TABLES_END = "<!-- weather-tables:end -->"
 
 
 def summarise(found: dict, weathers: list[str], bound: dict) -> dict:
@@ -90,14 +93,57 @@ def above_block(summary: dict) -> list[str]:
     return [*lines, "", " ".join(ABOVE_LEGEND)]
 
 
+def tables_block(summary: dict) -> list[str]:
+    """docs/weather.md's fog and rain tables: per row, clear air and each fog (then each rain),
+    mean ± sample std over its seeds (%), and the estimate with every spike."""
+    weathers = [p["weather"] for p in next(iter(summary["points"].values()))]
+    seeds = sorted({len(p["seeds"]) for rows in summary["points"].values() for p in rows})
+    lines = [
+        f"Test accuracy in %, mean ± sample std over {'/'.join(map(str, seeds))} seeds; "
+        '"(mixed)": trained on mixed weather.'
+    ]
+    for title, chosen in (
+        ("Fog", [w for w in weathers if w != "clear" and not w.startswith("rain")]),
+        ("Rain", [w for w in weathers if w.startswith("rain")]),
+    ):
+        if not chosen:
+            continue
+        shown = ["clear", *chosen]
+        names = [column(w).replace("fog ", "") for w in shown]
+        lines += ["", f"**{title}**", "", f"| model | {' | '.join(names)} |",
+                  "| --- |" + " ---: |" * len(shown)]  # fmt: skip
+        for model, rows in summary["points"].items():
+            by = {r["weather"]: r for r in rows}
+            cells = [
+                f"{by[w]['accuracy']:.2f}"
+                + (f" ± {by[w]['accuracy_std']:.2f}" if by[w]["accuracy_std"] is not None else "")
+                for w in shown
+            ]
+            lines.append(f"| {model} | " + " | ".join(cells) + " |")
+        if summary["bound"]:
+            estimate = [f"{summary['bound'][w]['accuracy']:.1f}" for w in shown]
+            lines.append(
+                "| *estimate, every spike (trained in that weather)* | "
+                + " | ".join(estimate)
+                + " |"
+            )
+    return lines
+
+
 def write_doc(path: Path, summary: dict) -> None:
-    """Put :func:`above_block` into ``path`` between its lines DOC_START and DOC_END."""
+    """Put :func:`tables_block` into ``path`` between its lines TABLES_START and TABLES_END and
+    :func:`above_block` between DOC_START and DOC_END."""
     from simlidar.atomic import write_file
 
-    before, _, after = reproduction_table.split(path.read_text(), path, DOC_START, DOC_END)
-    block = "\n".join(above_block(summary))
-    write_file(path, lambda temporary: temporary.write_text(before + block + after))
-    print(f"{path}: wrote the scores above the estimate")
+    text = path.read_text()
+    for start, end, block in (
+        (TABLES_START, TABLES_END, tables_block(summary)),
+        (DOC_START, DOC_END, above_block(summary)),
+    ):
+        before, _, after = reproduction_table.split(text, path, start, end)
+        text = before + "\n".join(block) + after
+    write_file(path, lambda temporary: temporary.write_text(text))
+    print(f"{path}: wrote the fog and rain tables and the scores above the estimate")
 
 
 def write(out: Path, summary: dict, command: str, names: dict) -> None:
