@@ -30,9 +30,11 @@ it again where it lacks a weather, and then stops if a score it had changed); th
 runs are under ``--out``/bound (the older name). Writes weather.md, weather.json and
 weather.png (accuracy against visibility and rain rate, mean and 95 % interval over seeds,
 beside the estimate); ``--no-train`` writes them again from the cells and runs there are,
-making no dataset (``--data`` is not read), and ``--doc FILE`` also puts the scores above the
-estimate into FILE, between its lines ``<!-- weather-above-the-estimate:start -->`` and
-``<!-- weather-above-the-estimate:end -->`` (docs/weather.md).
+making no dataset (``--data`` is not read), and ``--doc FILE`` also puts the fog and rain
+tables into FILE, between its lines ``<!-- weather-tables:start -->`` and ``<!--
+weather-tables:end -->``, and the scores above the estimate, between ``<!--
+weather-above-the-estimate:start -->`` and ``<!-- weather-above-the-estimate:end -->``
+(docs/weather.md).
 """
 
 import argparse
@@ -51,7 +53,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import reproduction_table
 from paper_table import JOBS, SEEDS, check_recipes
 from weather_estimate import above_the_estimate, bounds, estimate, estimate_runs
-from weather_report import DOC_END, DOC_START, summarise, write, write_doc
+from weather_report import (
+    DOC_END,
+    DOC_START,
+    TABLES_END,
+    TABLES_START,
+    summarise,
+    write,
+    write_doc,
+)
 
 from simlidar.errors import ResultsError
 from simlidar.script_args import command_line, integers, run
@@ -278,8 +288,9 @@ def main(argv=None) -> int:
         "--doc",
         type=reproduction_table.markdown_file,
         metavar="FILE",
-        help=f"also put the scores above the estimate into FILE, between its lines {DOC_START} "
-        f"and {DOC_END} (docs/weather.md)",
+        help=f"also put the fog and rain tables into FILE, between its lines {TABLES_START} and "
+        f"{TABLES_END}, and the scores above the estimate, between {DOC_START} and {DOC_END} "
+        "(docs/weather.md)",
     )
     parser.add_argument("--out", type=Path, default=ROOT / "benchmark/results/weather")
     args = parser.parse_args(argv)
@@ -288,7 +299,8 @@ def main(argv=None) -> int:
     if args.doc is not None:  # its markers, before anything is written
         if args.no_bound:
             parser.error("--doc with --no-bound: expected the estimate, which --doc quotes")
-        reproduction_table.split(args.doc.read_text(), args.doc, DOC_START, DOC_END)
+        for start, end in ((DOC_START, DOC_END), (TABLES_START, TABLES_END)):
+            reproduction_table.split(args.doc.read_text(), args.doc, start, end)
     sizes = {"train_size": args.train_size, "test_size": args.test_size}
     if args.no_train:
         from simlidar.generator.generate import generated_name

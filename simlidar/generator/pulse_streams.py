@@ -13,7 +13,12 @@ Randomness: a sample's stream (:func:`simlidar.generator.simulate.sample_stream`
 datasets' keys) gives 2 variates for the class factor not fixed by the label, then one block an
 attempt: the static scene's (:data:`~simlidar.generator.simulate.FIXED_COLUMNS` + the layout's
 + the object's, as a window's) and the scenario's (:data:`simlidar.scene.scenarios.COLUMNS`).
-A sample's content therefore depends on (seed, split, index, config, catalog) only.
+A stream is accepted on its geometry (the hits in range). Through a receiver (``config.profile``,
+stream dataset version 1.1.0) the accepted hits then go through the window datasets' receiver
+(:func:`simlidar.generator.returns.receive_hits`), its draws from the sample's receiver stream
+(:func:`~simlidar.generator.returns.receiver_stream`, the window datasets' key), so the scenes
+are those without a receiver. A sample's content therefore depends on (seed, split, index,
+config, catalog) only.
 """
 
 from dataclasses import dataclass
