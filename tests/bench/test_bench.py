@@ -341,7 +341,11 @@ def test_cli_bench_and_its_errors(tiny_suite, tmp_path, datasets, cli):
         errors = [line for line in result.output.splitlines() if line.startswith("Error")]
         assert len(errors) == 1 and text in errors[0]  # one line says it
 
-    fails(["--suite", "nope"], 2, "expected one of ['paper', 'physical', 'quick', 'stream'] or a")
+    fails(
+        ["--suite", "nope"],
+        2,
+        "expected one of ['paper', 'physical', 'quick', 'stream', 'stream-rain'] or a",
+    )
     fails(["--suite", str(tiny_suite), "--models", "cnn,nope"], 2, "model recipe 'nope'")
     fails(
         ["--suite", str(tiny_suite), "--dataset", str(tmp_path / "missing"), "--out", str(out)],
