@@ -143,8 +143,9 @@ def write_stream_split(path: Path, config: StreamConfig, catalog: Catalog, split
         forked after :data:`_SHARED` was set), their batches written in order; None: here
     """
     size = config.split_sizes[split]
-    schema = SOURCE.schema_of(config.profile is not None)
-    event_fields = EVENT_FIELDS | ({"event_intensity": "event_intensity"} if config.profile else {})
+    received = config.profile is not None
+    schema = SOURCE.schema_of(received)
+    event_fields = EVENT_FIELDS | ({"event_intensity": "event_intensity"} if received else {})
     dims = {"H": config.sensor.beams, "W": config.rotations * config.width,
             "R": config.rotations}  # fmt: skip
     shapes = {
