@@ -80,15 +80,23 @@ def _rounds(run, repeats: int) -> tuple[float, object]:
     return statistics.median(times), out
 
 
-def measure(streams: int, repeats: int, batch: int) -> dict:
-    catalog = load_catalog()
-    config = StreamConfig(train_size=streams, test_size=max(4, streams // 4))
+def _simulated(config: StreamConfig, catalog, repeats: int, batch: int) -> tuple[float, list]:
+    """The train split's ``config.train_size`` streams simulated ``batch`` at a time, in
+    :func:`_rounds`: the median CPU seconds and the batches."""
+    streams = config.train_size
 
     def streams_run():
         return [simulate_streams(config, catalog, "train", s, min(s + batch, streams))
                 for s in range(0, streams, batch)]  # fmt: skip
 
-    stream_s, batches = _rounds(streams_run, repeats)
+    return _rounds(streams_run, repeats)
+
+
+def measure(streams: int, repeats: int, batch: int) -> dict:
+    catalog = load_catalog()
+    config = StreamConfig(train_size=streams, test_size=max(4, streams // 4))
+
+    stream_s, batches = _simulated(config, catalog, repeats, batch)
     attempts = sum(int(b.attempts.sum()) for b in batches)
     pulses = attempts * config.sensor.beams * config.width * config.rotations
     events = sum(int(b.event_count.sum()) for b in batches)
@@ -139,12 +147,7 @@ def _received(config: StreamConfig, catalog, plain: list, repeats: int, batch: i
     """Streams through ``config``'s receiver: their speed, and what the receiver made of the
     hits of ``plain`` (the same streams without one)."""
     streams = config.train_size
-
-    def streams_run():
-        return [simulate_streams(config, catalog, "train", s, min(s + batch, streams))
-                for s in range(0, streams, batch)]  # fmt: skip
-
-    seconds, batches = _rounds(streams_run, repeats)
+    seconds, batches = _simulated(config, catalog, repeats, batch)
     events = sum(int(b.event_count.sum()) for b in batches)
     echoes = sum(int((b.event_surface == 0).sum()) for b in batches)
     hits = sum(int(b.object_events.sum()) for b in plain)
